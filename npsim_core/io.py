@@ -1,0 +1,317 @@
+"""File formats: atomic writes, images, depth and normal maps.
+
+Every reader validates and raises :class:`NpsimInputError` naming the file and
+the fix; every writer writes to a temporary file in the target folder and
+renames it into place, so a crash never leaves a half-written file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+import cv2
+import numpy as np
+
+from .errors import NpsimInputError
+
+PathLike = str | os.PathLike
+
+
+# --------------------------------------------------------------------------- atomic writing
+@contextmanager
+def atomic_path(path: PathLike, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; rename it onto ``path`` on success.
+
+    On any exception the temporary file is removed and ``path`` is untouched.
+    ``suffix`` defaults to ``path``'s suffix (encoders pick the format from it).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # The temp name keeps the real suffix so encoders (np.save, cv2) pick the right format.
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=suffix if suffix is not None else path.suffix,
+                               dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        with open(tmp_path, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp_path, path)
+    except BaseException:
+        tmp_path.unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_bytes(path: PathLike, data: bytes) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def atomic_write_text(path: PathLike, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path: PathLike, obj: Any) -> None:
+    """Atomically write ``obj`` as indented UTF-8 JSON."""
+    atomic_write_text(path, json.dumps(obj, indent=1, default=_json_default) + "\n")
+
+
+def read_json(path: PathLike) -> Any:
+    path = _existing(path)
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise NpsimInputError(f"{path}: not valid JSON ({exc}); fix or regenerate the file") from None
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def write_npy(path: PathLike, array: np.ndarray) -> None:
+    with atomic_path(path, suffix=".npy") as tmp:
+        np.save(tmp, np.ascontiguousarray(array), allow_pickle=False)
+
+
+def write_image(path: PathLike, image: np.ndarray) -> None:
+    """Atomically write an image; RGB(A) arrays are given in RGB order.
+
+    uint8 / uint16 grey or RGB; the format follows the suffix (``.png``, ``.jpg``…).
+    """
+    img = np.ascontiguousarray(image)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR if img.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
+    path = Path(path)
+    ok, buf = cv2.imencode(path.suffix or ".png", img)
+    if not ok:
+        raise NpsimInputError(f"{path}: OpenCV could not encode a {img.dtype} image of shape {image.shape}")
+    atomic_write_bytes(path, buf.tobytes())
+
+
+# --------------------------------------------------------------------------- reading
+def _existing(path: PathLike) -> Path:
+    path = Path(path)
+    if not path.exists():
+        raise NpsimInputError(f"{path}: file not found; check the path")
+    if path.is_dir():
+        raise NpsimInputError(f"{path}: is a folder, expected a file")
+    return path
+
+
+def read_image(path: PathLike, *, color: bool = True) -> np.ndarray:
+    """Read an image: ``color=True`` -> HxWx3 uint8 RGB; ``False`` -> the raw single channel.
+
+    Raw single-channel reads keep the bit depth (uint8 or uint16).
+    """
+    path = _existing(path)
+    flag = cv2.IMREAD_COLOR if color else cv2.IMREAD_UNCHANGED
+    img = cv2.imread(str(path), flag)
+    if img is None:
+        raise NpsimInputError(f"{path}: not a readable image (corrupt, or an unsupported format)")
+    if color:
+        if img.dtype != np.uint8:
+            img = (img / 257).astype(np.uint8)
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return img
+
+
+def read_label_image(path: PathLike, *, trainids: bool = False) -> np.ndarray:
+    """Read a labelIds PNG as HxW uint8 (trainIds mapped to labelIds when asked)."""
+    from .labels import cityscapes
+
+    path = _existing(path)
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise NpsimInputError(f"{path}: not a readable label image")
+    if img.ndim == 3:
+        if np.all(img[..., 0] == img[..., 1]) and np.all(img[..., 1] == img[..., 2]):
+            img = img[..., 0]
+        else:
+            raise NpsimInputError(
+                f"{path}: label image is colour; NPSim needs a single-channel labelIds PNG "
+                "(Cityscapes *_gtFine_labelIds.png), not the *_color.png visualisation")
+    if img.dtype != np.uint8:
+        if img.max() > 255:
+            raise NpsimInputError(f"{path}: label values up to {img.max()} exceed labelIds 0..33")
+        img = img.astype(np.uint8)
+    table = cityscapes()
+    if trainids:
+        img = table.trainid_to_labelid()[img]
+    table.validate(img, str(path))
+    return img
+
+
+def read_array(path: PathLike) -> np.ndarray:
+    """Read a ``.npy`` array without pickles."""
+    path = _existing(path)
+    try:
+        return np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise NpsimInputError(f"{path}: not a readable .npy array ({exc})") from None
+
+
+def read_pfm(path: PathLike) -> np.ndarray:
+    """Read a PFM (portable float map) as float32, top row first."""
+    path = _existing(path)
+    with open(path, "rb") as fh:
+        header = fh.readline().strip()
+        if header not in (b"PF", b"Pf"):
+            raise NpsimInputError(f"{path}: not a PFM file (header {header[:8]!r})")
+        channels = 3 if header == b"PF" else 1
+        try:
+            w, h = (int(x) for x in fh.readline().split())
+            scale = float(fh.readline().strip())
+        except ValueError:
+            raise NpsimInputError(f"{path}: malformed PFM header") from None
+        data = np.frombuffer(fh.read(), dtype="<f4" if scale < 0 else ">f4")
+    if data.size != w * h * channels:
+        raise NpsimInputError(f"{path}: PFM holds {data.size} values, header says {w}x{h}x{channels}")
+    arr = data.reshape(h, w, channels) if channels == 3 else data.reshape(h, w)
+    return np.flipud(arr).astype(np.float32)
+
+
+def write_pfm(path: PathLike, array: np.ndarray) -> None:
+    arr = np.asarray(array, dtype="<f4")
+    header = b"PF\n" if arr.ndim == 3 else b"Pf\n"
+    h, w = arr.shape[:2]
+    atomic_write_bytes(path, header + f"{w} {h}\n-1.0\n".encode() + np.flipud(arr).tobytes())
+
+
+def read_depth(path: PathLike, *, disparity_baseline: float | None = None,
+               disparity_focal: float | None = None) -> np.ndarray:
+    """Read a depth map in metres as HxW float32; invalid pixels become NaN.
+
+    Formats: ``.npy``; ``.pfm``; ``.exr`` (when OpenCV's EXR codec is enabled);
+    16-bit PNG holding metres×256 (0 = invalid); or, when ``disparity_baseline``
+    (m) and ``disparity_focal`` (px) are given, a Cityscapes disparity PNG
+    ``disp = (p - 1) / 256`` with ``depth = baseline * focal / disp``.
+    """
+    path = _existing(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        d = read_array(path)
+    elif suffix == ".pfm":
+        d = read_pfm(path)
+    elif suffix == ".exr":
+        os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
+        d = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        if d is None:
+            raise NpsimInputError(f"{path}: OpenCV could not read this EXR (its EXR codec may be disabled); "
+                                  "convert it to .npy or .pfm")
+        if d.ndim == 3:
+            d = d[..., 0]
+    elif suffix == ".png":
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if raw is None:
+            raise NpsimInputError(f"{path}: not a readable PNG")
+        if raw.dtype != np.uint16 or raw.ndim != 2:
+            raise NpsimInputError(f"{path}: depth PNG must be single-channel 16-bit (metres×256), got "
+                                  f"{raw.dtype} with shape {raw.shape}")
+        raw = raw.astype(np.float32)
+        if disparity_baseline is not None or disparity_focal is not None:
+            if not disparity_baseline or not disparity_focal:
+                raise NpsimInputError(f"{path}: a disparity PNG needs both baseline (m) and focal (px)")
+            disp = (raw - 1.0) / 256.0
+            with np.errstate(divide="ignore"):
+                d = np.where(raw > 0, disparity_baseline * disparity_focal / disp, np.nan)
+        else:
+            d = np.where(raw > 0, raw / 256.0, np.nan)
+    else:
+        raise NpsimInputError(f"{path}: unsupported depth format {suffix!r}; use .npy, .pfm, .exr or 16-bit .png")
+    d = np.asarray(d)
+    if d.ndim == 3 and d.shape[2] == 1:
+        d = d[..., 0]
+    if d.ndim != 2:
+        raise NpsimInputError(f"{path}: depth must be a 2-D HxW map, got shape {d.shape}")
+    if not np.issubdtype(d.dtype, np.floating) and not np.issubdtype(d.dtype, np.integer):
+        raise NpsimInputError(f"{path}: depth dtype {d.dtype} is not numeric")
+    d = d.astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        d[~(np.isfinite(d) & (d > 0))] = np.nan
+    return d
+
+
+def write_depth_png(path: PathLike, depth: np.ndarray) -> None:
+    """16-bit PNG, metres×256, 0 = invalid (max 255.99 m; farther is clipped)."""
+    d = np.asarray(depth, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    raw = np.where(valid, np.clip(np.round(d * 256.0), 1, 65535), 0).astype(np.uint16)
+    write_image(path, raw)
+
+
+def read_normals(path: PathLike) -> np.ndarray:
+    """Read normals as HxWx3 float32 unit vectors (camera frame, SPEC §0).
+
+    ``.npy`` holds the vectors directly; an 8/16-bit RGB PNG encodes
+    ``n = 2c/(2^b - 1) - 1`` per channel (x, y, z in R, G, B). Zero-length
+    vectors and non-finite values become NaN (invalid).
+    """
+    path = _existing(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        n = read_array(path).astype(np.float32)
+    elif suffix == ".png":
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if raw is None or raw.ndim != 3 or raw.shape[2] < 3:
+            raise NpsimInputError(f"{path}: normal PNG must be 3-channel RGB (8 or 16 bit)")
+        raw = cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2RGB)
+        bits = 16 if raw.dtype == np.uint16 else 8
+        n = 2.0 * raw.astype(np.float32) / (2 ** bits - 1) - 1.0
+    else:
+        raise NpsimInputError(f"{path}: unsupported normals format {suffix!r}; use .npy or an RGB .png")
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise NpsimInputError(f"{path}: normals must be HxWx3, got shape {n.shape}")
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / norm
+    n[~(np.isfinite(n).all(axis=-1) & (norm[..., 0] > 1e-6))] = np.nan
+    return n.astype(np.float32)
+
+
+def write_normals_png(path: PathLike, normals: np.ndarray, bits: int = 16) -> None:
+    """Encode unit normals as ``c = (n + 1)/2 * (2^b - 1)``; invalid -> 0."""
+    n = np.nan_to_num(np.asarray(normals, dtype=np.float64), nan=-1.0)
+    top = 2 ** bits - 1
+    c = np.clip(np.round((n + 1.0) * 0.5 * top), 0, top).astype(np.uint16 if bits == 16 else np.uint8)
+    write_image(path, c)
+
+
+def normals_to_rgb(normals: np.ndarray) -> np.ndarray:
+    """Visualise normals as uint8 RGB ((n+1)/2), invalid pixels black."""
+    n = np.asarray(normals, dtype=np.float32)
+    rgb = np.clip((n + 1.0) * 127.5, 0, 255)
+    rgb[~np.isfinite(n).all(axis=-1)] = 0
+    return rgb.astype(np.uint8)
+
+
+def depth_to_rgb(depth: np.ndarray, vmax: float | None = None) -> np.ndarray:
+    """Visualise depth as uint8 RGB (inverse depth, turbo colour map), invalid black."""
+    d = np.asarray(depth, dtype=np.float32)
+    valid = np.isfinite(d) & (d > 0)
+    inv = np.zeros_like(d)
+    inv[valid] = 1.0 / d[valid]
+    if valid.any():
+        lo = 1.0 / (vmax if vmax else float(np.percentile(d[valid], 99)))
+        hi = float(np.percentile(inv[valid], 99.5))
+        inv = np.clip((inv - lo) / max(hi - lo, 1e-9), 0, 1)
+    img = cv2.applyColorMap((inv * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
+    img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    img[~valid] = 0
+    return img
+
+
+def map_files(folder: PathLike, pattern: str) -> list[Path]:
+    """Sorted files in ``folder`` matching a glob ``pattern`` (recursive with '**')."""
+    return sorted(Path(folder).glob(pattern))
+
