@@ -1,0 +1,105 @@
+"""Mesh data types shared by the mesh kernel, the renderer, the exporters and the viewer.
+
+All coordinates are in the OpenCV camera frame (x right, y down, z forward),
+metres. Faces are wound so that the geometric normal
+``(v1 - v0) x (v2 - v0)`` points toward the camera (n·P < 0), i.e. the front
+face looks at the camera, matching the normal convention of SPEC §0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class MeshPart:
+    """One triangle sheet (the background, or one foreground object).
+
+    Attributes
+    ----------
+    name : str
+        ``"background"`` or e.g. ``"car_3"`` (class name + object index).
+    vertices : (V, 3) float32
+        Camera-frame positions in metres.
+    faces : (F, 3) int64
+        Vertex indices, front face toward the camera.
+    uv : (V, 2) float32
+        Texture coordinates ``((u + 0.5) / W, 1 - (v + 0.5) / H)`` of the source pixel.
+    pixel : (V, 2) float32
+        Source pixel (u, v) of each vertex (integers for grid vertices).
+    label : (V,) uint8
+        Cityscapes labelId of each vertex.
+    light_id : (V,) int32
+        Light instance id (classId*1000+index) under each vertex, 0 = none.
+    foreground : bool
+        True for foreground-object sheets.
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    pixel: np.ndarray
+    label: np.ndarray
+    light_id: np.ndarray
+    foreground: bool = False
+
+    @property
+    def n_vertices(self) -> int:
+        return int(len(self.vertices))
+
+    @property
+    def n_faces(self) -> int:
+        return int(len(self.faces))
+
+    def face_label(self) -> np.ndarray:
+        """(F,) uint8 labelId per face: the label most of its three vertices share (first vertex on ties)."""
+        if self.n_faces == 0:
+            return np.zeros(0, dtype=np.uint8)
+        l = self.label[self.faces]
+        pick = np.where(l[:, 1] == l[:, 2], l[:, 1], l[:, 0])
+        return pick.astype(np.uint8)
+
+    def face_light_id(self) -> np.ndarray:
+        """(F,) int32 light instance id per face: nonzero only when all three vertices share it."""
+        if self.n_faces == 0:
+            return np.zeros(0, dtype=np.int32)
+        l = self.light_id[self.faces]
+        same = (l[:, 0] == l[:, 1]) & (l[:, 1] == l[:, 2])
+        return np.where(same, l[:, 0], 0).astype(np.int32)
+
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit geometric normals (toward the camera for front faces)."""
+        v = self.vertices.astype(np.float64)
+        f = self.faces
+        n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (n / norm).astype(np.float32)
+
+
+@dataclass
+class SceneMesh:
+    """The whole scene: a background sheet plus foreground sheets, and the camera it came from."""
+
+    parts: list[MeshPart]
+    width: int
+    height: int
+    #: Free-form record of how it was made (stage parameters, timings, counts).
+    info: dict = field(default_factory=dict)
+
+    @property
+    def n_faces(self) -> int:
+        return sum(p.n_faces for p in self.parts)
+
+    @property
+    def n_vertices(self) -> int:
+        return sum(p.n_vertices for p in self.parts)
+
+    def part(self, name: str) -> MeshPart:
+        for p in self.parts:
+            if p.name == name:
+                return p
+        raise KeyError(name)
