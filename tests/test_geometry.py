@@ -1,0 +1,355 @@
+"""Geometry estimators: semantic pop-up prior, files, local depth network (SPEC §1)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from npsim_core.camera import Intrinsics, normals_from_depth
+from npsim_core.errors import NpsimInputError
+from npsim_core.geometry import GeometryEstimate, estimate_geometry
+from npsim_core.geometry.files import FilesParams
+from npsim_core.geometry.network import NetworkParams, align_scale_shift, load_depth_model
+from npsim_core.geometry.popup import PopupParams, ground_frame, ground_plane_depth
+from npsim_core.io import write_depth_png, write_normals_png, write_npy, write_pfm
+from npsim_core.metrics import depth_metrics, normal_metrics
+from npsim_core.scene import Scene
+
+ROAD, SIDEWALK, BUILDING, WALL, POLE, SIGN, CAR, SKY = 7, 8, 11, 12, 17, 20, 26, 23
+
+
+def toy_street(W: int = 128, H: int = 64, h: float = 1.4, pitch: float = 0.05, end_wall: float = 25.0,
+               side: float = -5.0, pole: tuple[float, float] | None = (2.0, 9.0)) -> Scene:
+    """A ray-cast street with exact depth and normals.
+
+    Road (ground plane ``h`` m below a camera pitched down by ``pitch``), a
+    fronto-parallel end wall (building) ``end_wall`` m ahead, a side facade
+    (wall) at x = ``side`` parallel to the driving direction, optionally a
+    square pole (0.3 m, 4 m tall) at ground position (x, forward) = ``pole``
+    carrying a sign plate at 3.0-3.8 m, sky above.
+    """
+    intr = Intrinsics.from_fov(W, H, 70.0)
+    g, f, e = ground_frame(pitch)
+    r = intr.pixel_rays(np.float64)
+    rg, rf, re_ = r @ g, r @ f, r @ e
+
+    def hit(num, den):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = num / den
+        return np.where((den != 0) & (z > 0), z, np.inf)
+
+    def up(z):  # height of the hit point above the ground
+        with np.errstate(invalid="ignore"):
+            return h - rg * z
+
+    def fwd(z):
+        with np.errstate(invalid="ignore"):
+            return rf * z
+
+    def right(z):
+        with np.errstate(invalid="ignore"):
+            return re_ * z
+
+    zg = hit(h, rg)
+    zw = hit(end_wall, rf)
+    zw = np.where(up(zw) <= 8.0, zw, np.inf)
+    zs = hit(side, re_)
+    zs = np.where((up(zs) <= 12.0) & (fwd(zs) <= end_wall), zs, np.inf)
+    cands = [zg, zw, zs]
+    labs = [ROAD, BUILDING, WALL]
+    nrms = [-g, -f, e]
+    if pole is not None:
+        px, pf = pole
+        zp = hit(pf - 0.15, rf)  # the pole's front face
+        ok = (np.abs(right(zp) - px) <= 0.15) & (up(zp) >= 0) & (up(zp) <= 4.0)
+        zsign = hit(pf - 0.2, rf)
+        oks = (np.abs(right(zsign) - px) <= 0.4) & (up(zsign) >= 3.0) & (up(zsign) <= 3.8)
+        cands += [np.where(ok, zp, np.inf), np.where(oks, zsign, np.inf)]
+        labs += [POLE, SIGN]
+        nrms += [-f, -f]
+    stack = np.stack(cands)
+    idx = np.argmin(stack, axis=0)
+    depth = np.min(stack, axis=0)
+    labels = np.array(labs, np.uint8)[idx]
+    normals = np.stack(nrms)[idx]
+    sky = ~np.isfinite(depth)
+    labels[sky] = SKY
+    depth[sky] = np.nan
+    normals[sky] = np.nan
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 255, (H, W, 3), dtype=np.uint8)
+    return Scene(name="toy", image=img, labels=labels, intrinsics=intr, depth_gt=depth.astype(np.float32),
+                 normals_gt=normals.astype(np.float32), camera_height=h, camera_pitch=pitch)
+
+
+# --------------------------------------------------------------------------- pop-up prior
+def test_ground_plane_depth_and_horizon():
+    intr = Intrinsics.cityscapes(2048, 1024)
+    z = ground_plane_depth(intr, 1.22, 0.038, max_depth=1e9)
+    horizon = intr.cy - intr.fy * np.tan(0.038)
+    assert 426 < horizon < 428  # SPEC §0
+    rows_inf = np.nonzero(z[:, 0] >= 1e9)[0]
+    assert rows_inf.max() == int(np.floor(horizon))  # at and above the horizon: no ground
+    # A point on the ground 10 m ahead (level distance) projects to the row whose depth is its z.
+    g, f, _ = ground_frame(0.038)
+    P = 10.0 * f + 1.22 * g
+    v = intr.cy + intr.fy * P[1] / P[2]
+    row = int(np.floor(v))
+    zg = ground_plane_depth(intr, 1.22, 0.038, v_offset=v - row)[row, 0]  # depth at the exact row v
+    assert zg == pytest.approx(P[2], rel=1e-9)
+
+
+def test_popup_recovers_toy_street_exactly_where_geometry_allows():
+    s = toy_street(pole=None)
+    est = estimate_geometry(s, "popup")
+    assert isinstance(est, GeometryEstimate) and est.method == "popup"
+    assert est.depth.dtype == np.float32 and est.normals.shape == (64, 128, 3)
+    sky = s.labels == SKY
+    assert np.isnan(est.depth[sky]).all() and np.isnan(est.normals[sky]).all()
+    assert np.isfinite(est.depth[~sky]).all()
+    road = s.labels == ROAD
+    # The road is the prior's own model: exact.
+    np.testing.assert_allclose(est.depth[road], s.depth_gt[road], rtol=1e-5)
+    # The side facade's contact line is fitted: its facing and depth are right.
+    side = s.labels == WALL
+    assert normal_metrics(est.normals, s.normals_gt, side).rmse_deg < 0.5
+    assert depth_metrics(est.depth, s.depth_gt, side).abs_rel < 0.01
+    # The end wall: facing exact, depth within the half-pixel contact quantisation (~5 m/row at 25 m here).
+    wall = s.labels == BUILDING
+    assert normal_metrics(est.normals, s.normals_gt, wall).rmse_deg < 0.5
+    assert depth_metrics(est.depth, s.depth_gt, wall).abs_rel < 0.10
+    # Normals point toward the camera everywhere.
+    P = s.intrinsics.pixel_rays() * est.depth[..., None]
+    assert (np.einsum("hwc,hwc->hw", P, est.normals)[~sky] < 0).all()
+    assert est.info["segments"] == 2 and est.info["on_ground"] == 2 and est.info["line_fits"] == 2
+
+
+def test_popup_beats_constant_depth_baseline_on_toy_street():
+    s = toy_street()
+    est = estimate_geometry(s, "popup", PopupParams())
+    dm = depth_metrics(est.depth, s.depth_gt)
+    nm = normal_metrics(est.normals, s.normals_gt)
+    const = np.full_like(s.depth_gt, np.nanmedian(s.depth_gt))
+    const[s.labels == SKY] = np.nan
+    dc = depth_metrics(const, s.depth_gt)
+    nc = normal_metrics(normals_from_depth(const, s.intrinsics), s.normals_gt)
+    assert dm.abs_rel == pytest.approx(0.025, abs=0.015)
+    assert dc.abs_rel == pytest.approx(0.66, abs=0.05)
+    assert nm.rmse_deg < 1.0 and nc.rmse_deg > 60.0
+    assert dm.delta1 > 0.97 and dc.delta1 < 0.3
+    # The sign has no ground contact: it stands on its pole, at the pole's depth.
+    sign = s.labels == SIGN
+    assert sign.sum() > 5 and est.info["on_segments"] >= 1
+    assert depth_metrics(est.depth, s.depth_gt, sign).abs_rel < 0.1
+
+
+def test_popup_uses_params_and_falls_back_without_ground():
+    s = toy_street(pole=None)
+    lower = estimate_geometry(s, "popup", PopupParams(camera_height=0.7))
+    base = estimate_geometry(s, "popup")
+    road = s.labels == ROAD
+    np.testing.assert_allclose(lower.depth[road], 0.5 * base.depth[road], rtol=1e-5)
+    # No ground at all: every labelled pixel still gets a finite depth, with a note.
+    walls = s.with_(labels=np.where(s.labels == SKY, SKY, BUILDING).astype(np.uint8))
+    est = estimate_geometry(walls, "popup")
+    ok = walls.labels != SKY
+    assert np.isfinite(est.depth[ok]).all()
+    with pytest.raises(NpsimInputError, match="camera_height"):
+        PopupParams(camera_height=-1.0)
+    with pytest.raises(NpsimInputError, match="unknown geometry method"):
+        estimate_geometry(s, "magic")
+    with pytest.raises(NpsimInputError, match="needs parameters"):
+        estimate_geometry(s, "files")
+
+
+def test_popup_on_synthetic_scene_beats_constant_baseline():
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(256, 128)
+    est = estimate_geometry(s, "popup")
+    valid = np.isfinite(s.depth_gt)
+    dm = depth_metrics(est.depth, s.depth_gt)
+    nm = normal_metrics(est.normals, s.normals_gt)
+    const = np.where(valid, np.nanmedian(s.depth_gt), np.nan).astype(np.float32)
+    dc = depth_metrics(const, s.depth_gt)
+    nc = normal_metrics(normals_from_depth(const, s.intrinsics), s.normals_gt)
+    assert dm.abs_rel < 0.6 * dc.abs_rel
+    assert nm.rmse_deg < 0.8 * nc.rmse_deg
+    assert dm.n > 0.9 * valid.sum()
+
+
+# --------------------------------------------------------------------------- files
+def test_files_estimator_reads_depth_and_derives_normals(tmp_path):
+    s = toy_street(pole=None)
+    gt = s.depth_gt
+    write_npy(tmp_path / "d.npy", gt)
+    est = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "d.npy"))
+    np.testing.assert_array_equal(np.isnan(est.depth), np.isnan(gt))
+    np.testing.assert_allclose(est.depth, gt, equal_nan=True)
+    road = (s.labels == ROAD)
+    road[:-2] &= road[2:]  # away from the occlusion edge
+    assert normal_metrics(est.normals, s.normals_gt, road).rmse_deg < 0.1
+    # PFM and 16-bit PNG give the same depth (PNG to 1/256 m); normal PNG read back.
+    write_pfm(tmp_path / "d.pfm", np.nan_to_num(gt, nan=0.0))
+    est2 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "d.pfm"))
+    np.testing.assert_allclose(est2.depth, gt, equal_nan=True)
+    write_depth_png(tmp_path / "d.png", gt)
+    write_normals_png(tmp_path / "n.png", s.normals_gt)
+    est3 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "d.png", normals_path=tmp_path / "n.png"))
+    assert np.nanmax(np.abs(est3.depth - gt)) <= 0.5 / 256 + 1e-6
+    assert normal_metrics(est3.normals, s.normals_gt).rmse_deg < 0.01
+    assert "normals_file" in est3.info
+    # A sky value in the file is masked by the labels.
+    filled = np.nan_to_num(gt, nan=1000.0)
+    write_npy(tmp_path / "filled.npy", filled)
+    est4 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "filled.npy"))
+    assert np.isnan(est4.depth[s.labels == SKY]).all()
+    est5 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "filled.npy", mask_invalid_labels=False))
+    assert (est5.depth[s.labels == SKY] == 1000.0).all()
+
+
+def test_files_estimator_rejects_bad_files(tmp_path):
+    s = toy_street(pole=None)
+    with pytest.raises(NpsimInputError, match="missing.npy"):
+        estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "missing.npy"))
+    write_npy(tmp_path / "small.npy", np.ones((10, 20), np.float32))
+    with pytest.raises(NpsimInputError, match=r"small\.npy.*20x10.*128x64"):
+        estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "small.npy"))
+    write_npy(tmp_path / "d.npy", s.depth_gt)
+    write_npy(tmp_path / "n.npy", np.ones((10, 20, 3), np.float32))
+    with pytest.raises(NpsimInputError, match=r"n\.npy"):
+        estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "d.npy", normals_path=tmp_path / "n.npy"))
+    with pytest.raises(NpsimInputError, match="disparity_baseline"):
+        FilesParams(depth_path="x.png", disparity_baseline=-1.0)
+
+
+# --------------------------------------------------------------------------- network
+def test_alignment_recovers_known_scale_and_shift_with_outliers():
+    rng = np.random.default_rng(1)
+    inv_true = rng.uniform(0.02, 0.5, size=(48, 64))  # 1/m
+    x = (inv_true - 0.03) / 0.7  # a relative network output: inverse depth up to scale and shift
+    target = inv_true.copy()
+    out = rng.random(target.shape) < 0.15  # 15% gross outliers (cars on the road)
+    target[out] *= rng.uniform(1.5, 4.0, size=out.sum())
+    target[:2] = np.nan
+    al = align_scale_shift(x, target)
+    assert al.scale == pytest.approx(0.7, rel=2e-3)
+    assert al.shift == pytest.approx(0.03, abs=5e-4)
+    assert al.n == 46 * 64
+    mask = np.zeros_like(out)
+    mask[10:20] = True
+    al2 = align_scale_shift(x, inv_true, mask)
+    assert al2.n == 10 * 64 and al2.scale == pytest.approx(0.7, rel=1e-9)
+    with pytest.raises(NpsimInputError, match="constant"):
+        align_scale_shift(np.ones((8, 8)), inv_true[:8, :8])
+    with pytest.raises(NpsimInputError, match="reference pixels"):
+        align_scale_shift(x, inv_true, np.zeros_like(out))
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
+    """A tiny randomly initialised Depth-Anything model saved as a local checkpoint."""
+    import torch
+    from transformers import DepthAnythingConfig, DepthAnythingForDepthEstimation, Dinov2Config, DPTImageProcessor
+
+    folder = tmp_path_factory.mktemp("tiny_depth_anything")
+    backbone = Dinov2Config(hidden_size=16, num_hidden_layers=4, num_attention_heads=2, intermediate_size=32,
+                            image_size=56, patch_size=14, out_features=["stage1", "stage2", "stage3", "stage4"],
+                            reshape_hidden_states=False)
+    cfg = DepthAnythingConfig(backbone_config=backbone, reassemble_hidden_size=16, neck_hidden_sizes=[8, 8, 8, 8],
+                              fusion_hidden_size=8, head_hidden_size=8, patch_size=14)
+    torch.manual_seed(0)
+    model = DepthAnythingForDepthEstimation(cfg)
+    with torch.no_grad():
+        # Lift the final ReLU's input so the random model's output is not all zeros.
+        model.head.conv3.bias.fill_(1.0)
+    model.save_pretrained(folder)
+    DPTImageProcessor(size={"height": 56, "width": 56}, keep_aspect_ratio=False, ensure_multiple_of=14).save_pretrained(
+        folder)
+    return folder
+
+
+def test_network_runs_end_to_end_with_tiny_local_checkpoint(tiny_checkpoint):
+    s = toy_street()
+    est = estimate_geometry(s, "network", NetworkParams(checkpoint=tiny_checkpoint))
+    assert est.method == "network"
+    assert est.depth.shape == (64, 128) and est.depth.dtype == np.float32
+    assert est.normals.shape == (64, 128, 3)
+    assert np.isnan(est.depth[s.labels == SKY]).all()
+    assert est.info["align_pixels"] > 1000 and est.info["config_type"] == "relative"
+    assert est.info["output"] == "inverse"
+    assert np.isfinite(est.info["scale"]) and np.isfinite(est.info["shift"])
+    valid = np.isfinite(est.depth)
+    assert (est.depth[valid] > 0).all() and (est.depth[valid] <= 300.0).all()
+    # Same input, same output (cached model, deterministic inference).
+    est2 = estimate_geometry(s, "network", NetworkParams(checkpoint=tiny_checkpoint))
+    np.testing.assert_array_equal(est.depth, est2.depth)
+
+
+def test_network_alignment_makes_a_perfect_relative_prediction_metric(tiny_checkpoint, monkeypatch):
+    """Replace the network's output by an affine transform of the true inverse depth: aligned == truth on the road."""
+    from npsim_core.geometry import network
+
+    s = toy_street(pole=None)
+    inv = 1.0 / s.depth_gt.astype(np.float64)
+    fake = np.where(np.isfinite(inv), 3.0 * inv + 0.2, 0.0)
+    monkeypatch.setattr(network, "predict_raw", lambda scene, ckpt: (fake, "relative"))
+    est = estimate_geometry(s, "network", NetworkParams(checkpoint=tiny_checkpoint))
+    assert est.info["scale"] == pytest.approx(1 / 3, rel=1e-6)
+    assert est.info["shift"] == pytest.approx(-0.2 / 3, rel=1e-6)
+    ok = s.labels != SKY
+    np.testing.assert_allclose(est.depth[ok], s.depth_gt[ok], rtol=1e-5)
+    # A metric checkpoint's depth is aligned on its inverse.
+    fake_depth = np.where(np.isfinite(s.depth_gt), 1.3 * s.depth_gt, 0.0)
+    monkeypatch.setattr(network, "predict_raw", lambda scene, ckpt: (fake_depth, "metric"))
+    est = estimate_geometry(s, "network", NetworkParams(checkpoint=tiny_checkpoint))
+    assert est.info["output"] == "depth"
+    np.testing.assert_allclose(est.depth[ok], s.depth_gt[ok], rtol=1e-5)
+
+
+def test_network_errors_are_clear(tmp_path, tiny_checkpoint, monkeypatch):
+    s = toy_street(pole=None)
+    with pytest.raises(NpsimInputError, match="checkpoint folder not found"):
+        estimate_geometry(s, "network", NetworkParams(checkpoint=tmp_path / "nope"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(NpsimInputError, match="no config.json"):
+        estimate_geometry(s, "network", NetworkParams(checkpoint=tmp_path / "empty"))
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "config.json").write_text(json.dumps({"model_type": "bert"}))
+    (bad / "preprocessor_config.json").write_text("{}")
+    with pytest.raises(NpsimInputError, match="could not load a depth-estimation model"):
+        estimate_geometry(s, "network", NetworkParams(checkpoint=bad))
+    with pytest.raises(NpsimInputError, match="output"):
+        NetworkParams(checkpoint=tmp_path, output="disparity")
+    # transformers missing: a clear message saying how to install it.
+    load_depth_model.cache_clear()
+    monkeypatch.setitem(sys.modules, "transformers", None)
+    with pytest.raises(NpsimInputError, match=r"pip install 'npsim\[net\]'"):
+        estimate_geometry(s, "network", NetworkParams(checkpoint=tiny_checkpoint))
+    load_depth_model.cache_clear()
+
+
+def test_estimate_cli_writes_scene_folder(tmp_path, capsys):
+    from npsim_core.cli import main
+    from npsim_core.scene import load_scene, save_scene
+
+    s = toy_street(pole=None)
+    save_scene(s, tmp_path / "scene")
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "popup", "-o", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "AbsRel" in out
+    back = load_scene(tmp_path / "out")
+    ref = estimate_geometry(s, "popup")
+    np.testing.assert_array_equal(back.depth, ref.depth)
+    np.testing.assert_array_equal(back.normals, ref.normals)
+    assert back.provenance["geometry"]["method"] == "popup"
+    write_npy(tmp_path / "d.npy", s.depth_gt)
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "files", "--depth", str(tmp_path / "d.npy")]) == 0
+    back = load_scene(tmp_path / "scene")
+    np.testing.assert_allclose(back.depth, s.depth_gt, equal_nan=True)
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "files"]) == 2
+    assert "--depth" in capsys.readouterr().err
