@@ -1,0 +1,132 @@
+"""Render preview panel: the progressive night image, a day/night split slider,
+light toggles per group / instance, and a resample-seed button."""
+
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (QHBoxLayout, QLabel, QPushButton, QSlider, QSpinBox, QTreeWidget, QTreeWidgetItem,
+                               QVBoxLayout, QWidget, QSplitter)
+
+from npsim_core.labels import light_class
+
+from .widgets import ImageView
+
+
+def split_view(day: np.ndarray, night: np.ndarray, fraction: float) -> np.ndarray:
+    """Left ``fraction`` of the frame from ``day``, the rest from ``night`` (same size), with a divider."""
+    h, w = night.shape[:2]
+    if day.shape[:2] != (h, w):
+        import cv2
+        day = cv2.resize(day, (w, h), interpolation=cv2.INTER_AREA)
+    out = night.copy()
+    x = int(round(np.clip(fraction, 0, 1) * w))
+    out[:, :x] = day[:, :x]
+    if 0 < x < w:
+        out[:, max(0, x - 1):x + 1] = (255, 210, 60)
+    return out
+
+
+class RenderPanel(QWidget):
+    """Shows the night preview; emits the user's light choices and seed changes."""
+
+    lightsToggled = Signal(dict)  # {instance_id: bool} overrides
+    seedChanged = Signal(int)
+    renderRequested = Signal()
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        bar = QHBoxLayout()
+        self.seed = QSpinBox()
+        self.seed.setRange(0, 2 ** 31 - 1)
+        self.seed.setPrefix("seed ")
+        self.resample = QPushButton("Resample")
+        self.resample.setToolTip("Draw a new night: another seed for the light activation")
+        self.render_btn = QPushButton("Render")
+        self.status = QLabel("no render yet")
+        self.split = QSlider(Qt.Orientation.Horizontal)
+        self.split.setRange(0, 100)
+        self.split.setValue(0)
+        self.split.setToolTip("Day / night split: drag to compare with the input photo")
+        bar.addWidget(self.seed)
+        bar.addWidget(self.resample)
+        bar.addWidget(self.render_btn)
+        bar.addWidget(QLabel("day|night"))
+        bar.addWidget(self.split, 1)
+        lay.addLayout(bar)
+        splitter = QSplitter(Qt.Orientation.Horizontal)
+        self.view = ImageView()
+        self.lights = QTreeWidget()
+        self.lights.setHeaderLabels(["light", "on"])
+        self.lights.setMinimumWidth(170)
+        splitter.addWidget(self.view)
+        splitter.addWidget(self.lights)
+        splitter.setStretchFactor(0, 4)
+        lay.addWidget(splitter, 1)
+        lay.addWidget(self.status)
+        self.day: np.ndarray | None = None
+        self.night: np.ndarray | None = None
+        self._filling = False
+        self.split.valueChanged.connect(self._refresh)
+        self.resample.clicked.connect(lambda: self.seed.setValue((self.seed.value() * 1103515245 + 12345) % 2 ** 31))
+        self.seed.valueChanged.connect(self.seedChanged.emit)
+        self.render_btn.clicked.connect(self.renderRequested.emit)
+        self.lights.itemChanged.connect(self._on_item)
+
+    def set_day(self, rgb: np.ndarray) -> None:
+        self.day = rgb
+        self._refresh()
+
+    def set_night(self, rgb: np.ndarray, status: str = "") -> None:
+        self.night = rgb
+        if status:
+            self.status.setText(status)
+        self._refresh()
+
+    def _refresh(self) -> None:
+        if self.night is None:
+            if self.day is not None:
+                self.view.set_image((self.day * 0.25).astype(np.uint8))
+            return
+        frac = self.split.value() / 100.0
+        img = split_view(self.day, self.night, frac) if (self.day is not None and frac > 0) else self.night
+        self.view.set_image(img)
+
+    def set_lights(self, groups: dict[int, list[int]], singles: list[int], state: dict[int, bool]) -> None:
+        """Fill the toggle tree: groups with their members, then ungrouped lights."""
+        self._filling = True
+        self.lights.clear()
+        for gid, members in sorted(groups.items()):
+            g = QTreeWidgetItem([f"{light_class(gid // 1000).name} #{gid % 1000}", ""])
+            g.setData(0, Qt.ItemDataRole.UserRole, gid)
+            g.setFlags(g.flags() | Qt.ItemFlag.ItemIsUserCheckable | Qt.ItemFlag.ItemIsAutoTristate)
+            for m in members:
+                it = QTreeWidgetItem([f"{light_class(m // 1000).name} #{m % 1000}", ""])
+                it.setData(0, Qt.ItemDataRole.UserRole, m)
+                it.setFlags(it.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+                it.setCheckState(1, Qt.CheckState.Checked if state.get(m) else Qt.CheckState.Unchecked)
+                g.addChild(it)
+            self.lights.addTopLevelItem(g)
+        for m in singles:
+            it = QTreeWidgetItem([f"{light_class(m // 1000).name} #{m % 1000}", ""])
+            it.setData(0, Qt.ItemDataRole.UserRole, m)
+            it.setFlags(it.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+            it.setCheckState(1, Qt.CheckState.Checked if state.get(m) else Qt.CheckState.Unchecked)
+            self.lights.addTopLevelItem(it)
+        self._filling = False
+
+    def light_state(self) -> dict[int, bool]:
+        out: dict[int, bool] = {}
+        for i in range(self.lights.topLevelItemCount()):
+            top = self.lights.topLevelItem(i)
+            items = [top.child(j) for j in range(top.childCount())] or [top]
+            for it in items:
+                out[int(it.data(0, Qt.ItemDataRole.UserRole))] = it.checkState(1) == Qt.CheckState.Checked
+        return out
+
+    def _on_item(self, item: QTreeWidgetItem, column: int) -> None:
+        if self._filling or column != 1:
+            return
+        self.lightsToggled.emit(self.light_state())

@@ -1,0 +1,163 @@
+"""3D mesh viewer: a pyvistaqt ``QtInteractor`` showing a :class:`SceneMesh`.
+
+Colour modes: the day image (per-vertex colour sampled at the source pixel),
+semantic labels, vertex normals, uncertainty, or per-vertex error. Toggles for
+the background / foreground sheets, removed spurious faces (red) and light
+emitters. "Input view" puts the camera at the origin looking down +z with the
+image's field of view (OpenCV frame: y down), so the mesh lines up with the photo.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyvista as pv
+from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QPushButton, QVBoxLayout, QWidget
+from pyvistaqt import QtInteractor
+
+from npsim_core.labels import cityscapes, light_classes
+from npsim_core.mesh.types import MeshPart, SceneMesh
+
+COLOR_MODES = ("image", "labels", "normals", "uncertainty", "error")
+
+
+def _polydata(parts: list[MeshPart]) -> pv.PolyData | None:
+    parts = [p for p in parts if p.n_faces]
+    if not parts:
+        return None
+    offsets = np.cumsum([0] + [p.n_vertices for p in parts[:-1]])
+    pts = np.concatenate([p.vertices for p in parts]).astype(np.float32)
+    tri = np.concatenate([p.faces + o for p, o in zip(parts, offsets)])
+    cells = np.hstack([np.full((len(tri), 1), 3, dtype=np.int64), tri.astype(np.int64)]).ravel()
+    pd = pv.PolyData(pts, cells)
+    pd.point_data["pixel"] = np.concatenate([p.pixel for p in parts]).astype(np.float32)
+    pd.point_data["label"] = np.concatenate([p.label for p in parts]).astype(np.uint8)
+    pd.point_data["light"] = np.concatenate([p.light_id for p in parts]).astype(np.int32)
+    return pd
+
+
+def _sample(img: np.ndarray, pixel: np.ndarray) -> np.ndarray:
+    h, w = img.shape[:2]
+    u = np.clip(np.rint(pixel[:, 0]).astype(np.intp), 0, w - 1)
+    v = np.clip(np.rint(pixel[:, 1]).astype(np.intp), 0, h - 1)
+    return img[v, u]
+
+
+class MeshViewer(QWidget):
+    """Toolbar + pyvista interactor. Call :meth:`set_mesh` whenever the mesh changes."""
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        bar = QHBoxLayout()
+        self.mode = QComboBox()
+        self.mode.addItems(COLOR_MODES)
+        self.show_bg = QCheckBox("background")
+        self.show_fg = QCheckBox("foreground")
+        self.show_removed = QCheckBox("removed faces")
+        self.show_lights = QCheckBox("emitters")
+        for cb in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
+            cb.setChecked(cb is not self.show_lights)
+            cb.toggled.connect(self._redraw)
+        self.mode.currentTextChanged.connect(self._redraw)
+        self.reset_btn = QPushButton("Input view")
+        self.reset_btn.setToolTip("Put the camera back at the photo's viewpoint")
+        self.reset_btn.clicked.connect(self.reset_camera)
+        bar.addWidget(self.mode)
+        for w in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
+            bar.addWidget(w)
+        bar.addStretch(1)
+        bar.addWidget(self.reset_btn)
+        lay.addLayout(bar)
+        self.plotter = QtInteractor(self, auto_update=False)
+        self.plotter.set_background("#1b1d22")
+        lay.addWidget(self.plotter.interactor, 1)
+        self.mesh: SceneMesh | None = None
+        self.removed: MeshPart | None = None
+        self.image: np.ndarray | None = None
+        self.vertex_fields: dict[str, np.ndarray] = {}
+        self._fov_deg = 40.0
+        self._camera_set = False
+
+    # ------------------------------------------------------------------ data
+    def set_mesh(self, mesh: SceneMesh, image: np.ndarray, *, fy: float | None = None,
+                 removed: MeshPart | None = None, fields: dict[str, np.ndarray] | None = None) -> None:
+        """Show ``mesh`` coloured from ``image`` (HxWx3 uint8); ``fields`` are HxW maps for
+        the 'uncertainty' / 'error' modes (sampled at each vertex's pixel)."""
+        self.mesh, self.image, self.removed = mesh, image, removed
+        self.vertex_fields = dict(fields or {})
+        if fy:
+            self._fov_deg = math.degrees(2 * math.atan(mesh.height / 2.0 / fy))
+        self._redraw()
+        if not self._camera_set:
+            self.reset_camera()
+            self._camera_set = True
+
+    def _colors(self, pd: pv.PolyData) -> np.ndarray:
+        mode = self.mode.currentText()
+        pix = np.asarray(pd.point_data["pixel"])
+        if mode == "labels":
+            return cityscapes().color_lut()[np.asarray(pd.point_data["label"])]
+        if mode == "normals":
+            pd2 = pd.compute_normals(cell_normals=False, point_normals=True, auto_orient_normals=False,
+                                     consistent_normals=False, split_vertices=False)
+            n = np.asarray(pd2.point_data["Normals"])
+            return np.clip((n + 1) * 127.5, 0, 255).astype(np.uint8)
+        if mode in ("uncertainty", "error") and mode in self.vertex_fields:
+            f = _sample(self.vertex_fields[mode].astype(np.float32), pix)
+            f = np.nan_to_num(f, nan=0.0)
+            t = np.clip(f / max(float(np.percentile(f, 99)), 1e-9), 0, 1)
+            return np.stack([255 * t, 60 + 0 * t, 255 * (1 - t)], axis=1).astype(np.uint8)
+        if self.image is not None:
+            return _sample(self.image, pix)
+        return np.full((pd.n_points, 3), 200, np.uint8)
+
+    def _redraw(self) -> None:
+        p = self.plotter
+        cam = p.camera_position if self._camera_set else None
+        p.clear()
+        if self.mesh is None:
+            p.render()
+            return
+        parts = [q for q in self.mesh.parts if (q.foreground and self.show_fg.isChecked())
+                 or (not q.foreground and self.show_bg.isChecked())]
+        pd = _polydata(parts)
+        if pd is not None:
+            pd.point_data["rgb"] = self._colors(pd)
+            p.add_mesh(pd, scalars="rgb", rgb=True, show_scalar_bar=False, lighting=self.mode.currentText() != "image")
+        if self.show_removed.isChecked() and self.removed is not None and self.removed.n_faces:
+            rd = _polydata([self.removed])
+            p.add_mesh(rd, color="red", opacity=0.8)
+        if self.show_lights.isChecked():
+            lp = _polydata([self._emitter_part(q) for q in parts])
+            if lp is not None:
+                lut = np.zeros((32, 3), np.uint8)
+                for c in light_classes():
+                    lut[c.id] = c.color
+                p.add_mesh(lp, scalars=lut[np.asarray(lp.point_data["light"]) // 1000], rgb=True)
+        if cam is not None:
+            p.camera_position = cam
+        p.render()
+
+    @staticmethod
+    def _emitter_part(part: MeshPart) -> MeshPart:
+        keep = part.face_light_id() > 0
+        return MeshPart(part.name, part.vertices, part.faces[keep], part.uv, part.pixel, part.label,
+                        part.light_id, part.foreground)
+
+    def reset_camera(self) -> None:
+        """Camera at the origin, looking along +z, image 'up' = -y (OpenCV frame)."""
+        p = self.plotter
+        p.camera_position = [(0.0, 0.0, 0.0), (0.0, 0.0, 10.0), (0.0, -1.0, 0.0)]
+        p.camera.view_angle = self._fov_deg
+        p.camera.clipping_range = (0.05, 2000.0)
+        p.render()
+
+    def screenshot(self) -> np.ndarray:
+        return self.plotter.screenshot(return_img=True)
+
+    def close_viewer(self) -> None:
+        """Close the interactor explicitly (pyvistaqt segfaults at teardown otherwise)."""
+        self.plotter.close()
