@@ -1,0 +1,187 @@
+"""Daytime RGB of the synthetic street with Mitsuba 3 (``scalar_rgb``).
+
+Geometry: every primitive becomes triangles in the *camera* frame (OpenCV axes)
+with y multiplied by ``fy / fx``, so that Mitsuba's square-pixel pinhole with focal ``fx`` reproduces the
+anisotropic ``K`` exactly (``v = fx * (y fy/fx) / z + cy``). The sensor sits at
+the origin looking along +z with up = -y; its principal point offset places
+the optical axis at OpenCV pixel ``(cx, cy)``, i.e. at film coordinate
+``(cx + 0.5, cy + 0.5)`` (Mitsuba pixel i covers [i, i+1)). Alignment with the
+numpy ray caster is checked in the tests (depth AOV at pixel centres).
+
+Lighting: a sun (directional emitter) and a sky-coloured constant environment;
+the integrator hides directly visible emitters and the film keeps alpha, so
+sky pixels are composited with a vertical gradient afterwards (boundary pixels
+blend by coverage).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from ..camera import Intrinsics
+from .primitives import MATERIALS, CameraPose, Primitives
+
+_LOCK = threading.Lock()
+
+#: (u, v) corner order of a rectangle / box face, wound consistently; BSDFs are two-sided anyway.
+_BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                       [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], dtype=np.uint32)
+
+
+def _mitsuba():
+    import mitsuba as mi
+
+    with _LOCK:
+        if mi.variant() is None:
+            mi.set_variant("scalar_rgb")
+    return mi
+
+
+def mitsuba_geometry(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
+    """Per-primitive vertices (N, 8, 3) in Mitsuba's frame and triangles (N, 12, 3) local indices.
+
+    Rectangles are degenerate boxes; their duplicate faces are harmless for rendering
+    but we emit only two triangles for them (see :func:`_mesh_arrays`).
+    """
+    lo, hi = prims.lo, prims.hi
+    sel = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], dtype=bool)  # x, y, z bits
+    corners = np.where(sel[None], hi[:, None, :], lo[:, None, :])                        # (N, 8, 3) world
+    cam = pose.world_to_camera(corners.reshape(-1, 3)).reshape(-1, 8, 3)
+    cam[..., 1] *= intr.fy / intr.fx
+    return cam, _BOX_FACES
+
+
+def _mesh_arrays(prims: Primitives, idx: np.ndarray, cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices, faces and per-face colours for primitives ``idx`` merged into one mesh."""
+    verts, faces, cols = [], [], []
+    base = 0
+    flat_faces = {0: np.array([[0, 1, 3], [0, 3, 2]]),  # x const: corners 0..3 vary (y, z)
+                  1: np.array([[0, 1, 5], [0, 5, 4]]),  # y const: corners 0,1,4,5 vary (x, z)
+                  2: np.array([[0, 2, 6], [0, 6, 4]])}  # z const: corners 0,2,4,6 vary (x, y)
+    for i in idx:
+        flat = prims.lo[i] == prims.hi[i]
+        f = flat_faces[int(np.argmax(flat))] if flat.any() else _BOX_FACES
+        verts.append(cam[i])
+        faces.append(f + base)
+        cols.append(np.repeat(prims.color[i][None], len(f), axis=0))
+        base += 8
+    return (np.concatenate(verts).astype(np.float32), np.concatenate(faces).astype(np.uint32),
+            np.concatenate(cols).astype(np.float32))
+
+
+def _bsdf(material: str, color=None) -> dict:
+    # Mitsuba's plastic BSDFs need Texture::mean(), which mesh attributes lack: glossy
+    # materials therefore get one mesh per distinct colour with a constant reflectance.
+    tex = {"type": "mesh_attribute", "name": "face_color"} if color is None else \
+        {"type": "rgb", "value": [float(c) for c in color]}
+    if material == "glass":
+        inner = {"type": "plastic", "diffuse_reflectance": tex, "int_ior": 1.5}
+    elif material in ("paint", "lamp"):
+        inner = {"type": "roughplastic", "diffuse_reflectance": tex, "alpha": 0.12, "int_ior": 1.5}
+    else:
+        inner = {"type": "diffuse", "reflectance": tex}
+    return {"type": "twosided", "bsdf": inner}
+
+
+def sun_direction_camera(pose: CameraPose, azimuth_deg: float = -35.0, elevation_deg: float = 38.0) -> np.ndarray:
+    """Direction the sunlight *travels* in the camera frame (world: from above, left-front)."""
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    to_sun_w = np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
+    return -(pose.R_cw @ to_sun_w)
+
+
+def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: int = 16, seed: int = 0,
+               sun_irradiance: float = 3.2, sky_radiance=(0.30, 0.40, 0.55), max_depth: int = 3) -> np.ndarray:
+    """Linear RGB (H, W, 3) float32 of the lit street, sky composited as a gradient.
+
+    Units are arbitrary but fixed: a white diffuse surface facing the sun gets
+    about ``sun_irradiance/pi`` from the sun alone; the caller exposes to sRGB.
+    """
+    mi = _mitsuba()
+    W, H = intr.width, intr.height
+    cam, _ = mitsuba_geometry(prims, intr, pose)
+    scene_dict: dict = {"type": "scene",
+                        "integrator": {"type": "path", "max_depth": max_depth, "hide_emitters": True},
+                        "sensor": _sensor_dict(mi, intr, spp, seed),
+                        "sun": {"type": "directional", "direction": sun_direction_camera(pose).tolist(),
+                                "irradiance": {"type": "rgb", "value": [sun_irradiance] * 3}},
+                        "sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(sky_radiance)}}}
+    for m, name in enumerate(MATERIALS):
+        idx = np.flatnonzero(prims.material == m)
+        if idx.size == 0:
+            continue
+        if name in ("diffuse", "metal", "foliage"):
+            v, f, c = _mesh_arrays(prims, idx, cam)
+            scene_dict[f"mesh_{name}"] = _make_mesh(mi, f"mesh_{name}", v, f, c, _bsdf(name))
+            continue
+        colors, which = np.unique(prims.color[idx], axis=0, return_inverse=True)
+        for k, col in enumerate(colors):
+            sub = idx[which.ravel() == k]
+            v, f, c = _mesh_arrays(prims, sub, cam)
+            scene_dict[f"mesh_{name}_{k}"] = _make_mesh(mi, f"mesh_{name}_{k}", v, f, c, _bsdf(name, col))
+    scene = mi.load_dict(scene_dict)
+    img = np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float32)  # (H, W, 4) RGBA, premultiplied
+    rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)
+    return rgb + (1.0 - alpha) * sky_gradient(intr, pose)
+
+
+def sky_gradient(intr: Intrinsics, pose: CameraPose) -> np.ndarray:
+    """(H, W, 3) linear sky colour by ray elevation: pale at the horizon, deeper blue above."""
+    rays = intr.pixel_rays(np.float64) @ pose.R_cw
+    elev = rays[..., 1] / np.linalg.norm(rays, axis=-1)
+    t = np.clip(elev / 0.35, 0.0, 1.0)[..., None]
+    horizon = np.array([0.62, 0.70, 0.80])
+    zenith = np.array([0.22, 0.36, 0.68])
+    return ((1 - t) * horizon + t * zenith).astype(np.float32)
+
+
+def _sensor_dict(mi, intr: Intrinsics, spp: int, seed: int, *, sampler: dict | None = None) -> dict:
+    W, H = intr.width, intr.height
+    fov = math.degrees(2.0 * math.atan(W / (2.0 * intr.fx)))
+    # Mitsuba's offsets are fractions of the film size and positive toward -u / -v; sign and
+    # half-pixel shift verified with a position AOV at pixel centres (see render_depth_aov).
+    ppx = -((intr.cx + 0.5) - W / 2.0) / W
+    ppy = -((intr.cy + 0.5) - H / 2.0) / H
+    return {"type": "perspective", "fov": fov, "fov_axis": "x",
+            "principal_point_offset_x": ppx, "principal_point_offset_y": ppy,
+            "near_clip": 0.05, "far_clip": 10000.0,
+            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, -1, 0]),
+            "film": {"type": "hdrfilm", "width": W, "height": H, "rfilter": {"type": "box"},
+                     "pixel_format": "rgba", "sample_border": False},
+            # Low-discrepancy samples: ~20% less noise than independent ones at equal cost (measured).
+            "sampler": sampler or {"type": "ldsampler", "sample_count": spp, "seed": seed}}
+
+
+def _make_mesh(mi, name: str, v: np.ndarray, f: np.ndarray, face_colors: np.ndarray, bsdf: dict):
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf)
+    mesh = mi.Mesh(name, vertex_count=len(v), face_count=len(f), has_vertex_normals=False,
+                   has_vertex_texcoords=False, props=props)
+    p = mi.traverse(mesh)
+    FT, UT = type(p["vertex_positions"]), type(p["faces"])
+    p["vertex_positions"] = FT(v.ravel())
+    p["faces"] = UT(f.ravel())
+    p.update()
+    mesh.add_attribute("face_color", 3, FT(face_colors.ravel()))
+    return mesh
+
+
+def render_depth_aov(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> np.ndarray:
+    """Camera-frame z of Mitsuba's first hit at exact pixel centres (0 = miss) -- for alignment tests.
+
+    Uses the position AOV (Mitsuba's ``depth`` AOV is measured from the near
+    clip plane) with a 1-spp stratified sampler without jitter, so each sample
+    sits exactly on the pixel centre. z is unaffected by the y scaling.
+    """
+    mi = _mitsuba()
+    cam, _ = mitsuba_geometry(prims, intr, pose)
+    v, f, c = _mesh_arrays(prims, np.arange(len(prims)), cam)
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "aov", "aovs": "p:position"},
+        "sensor": _sensor_dict(mi, intr, 1, 0, sampler={"type": "stratified", "sample_count": 1, "jitter": False}),
+        "mesh": _make_mesh(mi, "m", v, f, c, {"type": "diffuse"})})
+    img = np.array(mi.render(scene, spp=1), dtype=np.float32)  # channels: position x, y, z
+    return img[..., 2]

@@ -1,0 +1,295 @@
+"""The seeded street layout: primitives plus the light instances and groups they carry.
+
+World frame (see :mod:`.primitives`): x right, y up, z along the street, metres.
+Cross-section (x): left facades at about -11, left sidewalk [-11, -6], road
+[-6, 4.5] with parking strips on both sides, right sidewalk [4.5, 9.5], right
+facades at about 9.5. A far building closes the street at z = ``far_z`` so
+every ray below the roof lines hits something: sky is only above.
+
+Light instances get ids ``classId*1000 + index`` at layout time (stable across
+resolutions); the caller drops the ones that own no pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .primitives import PrimitiveList, Primitives
+
+# Cityscapes labelIds used here.
+ROAD, SIDEWALK, BUILDING, POLE, TRAFFIC_LIGHT, TRAFFIC_SIGN, VEGETATION, SKY, CAR = 7, 8, 11, 17, 19, 20, 21, 23, 26
+# Light-source classes (resources/light_classes.json).
+WINDOW_BUILDING, WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, STREET_LIGHT_HT, ADVERTISEMENT, INFERRED = 1, 2, 3, 4, 8, 10, 12
+WINDOWS_GROUP, CAR_GROUP, TRAFFIC_LIGHT_GROUP = 13, 14, 20
+
+ROAD_X = (-6.0, 4.5)
+LEFT_WALK_X = (-11.0, -6.0)
+RIGHT_WALK_X = (4.5, 9.5)
+KERB = 0.15
+STREET_Z0 = -6.0
+PROUD = 0.01  # lights sit 1 cm in front of their host surface
+
+FACADE_COLORS = [(0.55, 0.45, 0.35), (0.62, 0.58, 0.50), (0.45, 0.30, 0.22), (0.70, 0.66, 0.58),
+                 (0.50, 0.52, 0.55), (0.60, 0.50, 0.38), (0.38, 0.36, 0.34), (0.72, 0.62, 0.45)]
+CAR_COLORS = [(0.60, 0.61, 0.62), (0.03, 0.03, 0.035), (0.80, 0.80, 0.78), (0.45, 0.04, 0.03),
+              (0.05, 0.12, 0.35), (0.25, 0.26, 0.27), (0.30, 0.33, 0.20), (0.75, 0.55, 0.10)]
+#: Few distinct glossy colours: the renderer makes one mesh per glossy colour.
+GLASS_BUILDING = [(0.05, 0.07, 0.09), (0.04, 0.05, 0.05), (0.07, 0.08, 0.07)]
+GLASS_CAR = (0.02, 0.025, 0.03)
+
+
+@dataclass
+class StreetLayout:
+    """Primitives and light bookkeeping of one street."""
+
+    prims: Primitives
+    groups: dict[int, list[int]]          # group id -> member light ids (before visibility filtering)
+    far_z: float
+    info: dict = field(default_factory=dict)
+
+
+class _Ids:
+    """Allocates ``classId*1000 + index`` ids per class."""
+
+    def __init__(self) -> None:
+        self.next: dict[int, int] = {}
+
+    def new(self, class_id: int) -> int:
+        k = self.next.get(class_id, 1)
+        if k >= 1000:
+            raise RuntimeError(f"light class {class_id}: more than 999 instances in the synthetic street")
+        self.next[class_id] = k + 1
+        return class_id * 1000 + k
+
+
+def _jitter(rng: np.random.Generator, color, amount: float = 0.06) -> np.ndarray:
+    c = np.asarray(color) * (1.0 + rng.uniform(-amount, amount, 3))
+    return np.clip(c, 0.0, 1.0)
+
+
+def build_street(seed: int = 0) -> StreetLayout:
+    """Lay out the street for ``seed`` (pure function of the seed)."""
+    rng = np.random.default_rng(seed)
+    P = PrimitiveList.new()
+    ids = _Ids()
+    groups: dict[int, list[int]] = {}
+    far_z = float(rng.uniform(95.0, 120.0))
+
+    # --- ground: road, markings, sidewalks (the sidewalk's inner face is the kerb)
+    P.box((ROAD_X[0], -0.3, STREET_Z0), (ROAD_X[1], 0.0, far_z), ROAD, _jitter(rng, (0.13, 0.13, 0.14), 0.03))
+    # Sidewalks run on under the (set-back) buildings so no gap opens at a facade's foot.
+    P.box((LEFT_WALK_X[0] - 15.0, -0.3, STREET_Z0), (LEFT_WALK_X[1], KERB, far_z), SIDEWALK, (0.42, 0.40, 0.38))
+    P.box((RIGHT_WALK_X[0], -0.3, STREET_Z0), (RIGHT_WALK_X[1] + 15.0, KERB, far_z), SIDEWALK, (0.42, 0.40, 0.38))
+    mark_x = -1.2
+    z = float(rng.uniform(2.0, 6.0))
+    while z < far_z - 3.0:
+        P.rect(1, 0.002, (mark_x - 0.06, z), (mark_x + 0.06, z + 3.0), ROAD, (0.75, 0.75, 0.72))
+        z += 9.0
+
+    # --- facades on both sides, then the far building closing the street
+    for side in (-1, 1):
+        facade_x0 = LEFT_WALK_X[0] if side < 0 else RIGHT_WALK_X[1]
+        z = STREET_Z0
+        first = True
+        while z < far_z:
+            w = float(rng.uniform(12.0, 26.0))
+            z1 = min(z + w, far_z)
+            if far_z - z1 < 6.0:
+                z1 = far_z
+            h = float(rng.uniform(8.0, 20.0))
+            setback = 0.0 if first else float(rng.uniform(0.0, 0.8))
+            first = False
+            fx = facade_x0 + side * setback            # facade plane, faces the street
+            back = fx + side * 12.0
+            col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
+            P.box((min(fx, back), 0.0, z), (max(fx, back), h, z1), BUILDING, col)
+            _facade_windows(P, rng, ids, groups, axis=0, plane=fx - side * PROUD, along=(z, z1), height=h,
+                            ground_shop=bool(rng.random() < 0.6))
+            z = z1
+    # Low enough that sky shows above it (the image top is only ~11 deg above the horizon).
+    far_h = float(rng.uniform(9.0, 15.0))
+    P.box((-45.0, 0.0, far_z), (45.0, far_h, far_z + 15.0), BUILDING,
+          _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
+    _facade_windows(P, rng, ids, groups, axis=2, plane=far_z - PROUD, along=(-25.0, 25.0), height=far_h,
+                    ground_shop=True)
+
+    # --- advertisement panel on the first building on the right's ground floor
+    az = float(rng.uniform(14.0, 24.0))
+    ad = ids.new(ADVERTISEMENT)
+    P.rect(0, RIGHT_WALK_X[1] - PROUD, (2.9, az), (3.8, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
+           light=ad)
+
+    # --- parked cars in the parking strips
+    n_cars = 0
+    for side, x_in, x_out, p_forward in ((-1, -3.8, -5.85, 0.4), (1, 2.35, 4.35, 0.85)):
+        z = float(rng.uniform(4.0, 9.0))
+        while z < far_z - 12.0:
+            length = float(rng.uniform(3.9, 4.8))
+            if rng.random() < 0.8:
+                _car(P, rng, ids, groups, x_lo=min(x_in, x_out) + 0.05, x_hi=max(x_in, x_out) - 0.05,
+                     z0=z, length=length, forward=bool(rng.random() < p_forward))
+                n_cars += 1
+            z += length + float(rng.uniform(0.8, 3.5))
+
+    # --- street lights (poles with arms over the road), trees between them
+    pole_zs = []
+    for side, px in ((-1, LEFT_WALK_X[1] - 0.4), (1, RIGHT_WALK_X[0] + 0.4)):
+        spacing = float(rng.uniform(22.0, 30.0))
+        z = float(rng.uniform(8.0, 16.0))
+        while z < far_z - 8.0:
+            _street_light(P, ids, px, z, toward=-side)
+            pole_zs.append((side, z))
+            tz = z + spacing * 0.5
+            if tz < far_z - 6.0:
+                _tree(P, rng, px + side * 1.2, tz)
+            z += spacing
+
+    # --- a traffic light and a traffic sign on the right sidewalk, clear of the lamp poles
+    tl_z = _free_z(rng, pole_zs, 1, (26.0, 40.0))
+    tl_group = ids.new(TRAFFIC_LIGHT_GROUP)
+    groups[tl_group] = _traffic_light(P, ids, RIGHT_WALK_X[0] + 0.45, tl_z)
+    sign_z = _free_z(rng, pole_zs + [(1, tl_z)], 1, (12.0, 22.0))
+    _traffic_sign(P, rng, RIGHT_WALK_X[0] + 0.35, sign_z)
+    # Hedges (vegetation) along the left facade's first metres.
+    hz = float(rng.uniform(5.0, 12.0))
+    P.box((LEFT_WALK_X[0] + 0.05, KERB, hz), (LEFT_WALK_X[0] + 1.0, KERB + 0.9, hz + float(rng.uniform(4, 8))),
+          VEGETATION, _jitter(rng, (0.08, 0.20, 0.05)), "foliage")
+
+    return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z,
+                        info={"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo)})
+
+
+def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float, float]) -> float:
+    for _ in range(50):
+        z = float(rng.uniform(*rng_z))
+        if all(abs(z - tz) > 4.0 for s, tz in taken if s == side):
+            return z
+    return float(rng_z[1])
+
+
+def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, axis: int,
+                    plane: float, along: tuple[float, float], height: float, ground_shop: bool) -> None:
+    """Rows of window panes on a facade (``axis`` 0: facade x = const, runs along z; 2: z = const, runs along x).
+
+    Each floor's panes form one windows_group.
+    """
+    a0, a1 = along
+    span = a1 - a0
+    win_w = float(rng.uniform(1.0, 1.5))
+    win_h = float(rng.uniform(1.3, 1.8))
+    pitch = float(rng.uniform(2.4, 3.2))
+    glass = GLASS_BUILDING[int(rng.integers(len(GLASS_BUILDING)))]
+    n = int((span - 1.5) // pitch)
+    if n < 1:
+        return
+    start = a0 + (span - n * pitch) / 2.0 + (pitch - win_w) / 2.0
+    floors = []
+    if ground_shop:
+        floors.append((0.8, 2.9, 1.6))  # shop windows: sill, top, width
+    y = 4.0
+    while y + 1.0 + win_h < height - 0.8:
+        floors.append((y + 0.9, y + 0.9 + win_h, win_w))
+        y += 3.2
+    for sill, top, width in floors:
+        gid = ids.new(WINDOWS_GROUP)
+        members = []
+        for k in range(n):
+            c0 = start + k * pitch
+            lid = ids.new(WINDOW_BUILDING)
+            color = glass
+            if axis == 0:
+                P.rect(0, plane, (sill, c0), (top, c0 + width), BUILDING, color, "glass", lid)
+            else:
+                P.rect(2, plane, (c0, sill), (c0 + width, top), BUILDING, color, "glass", lid)
+            members.append(lid)
+        groups[gid] = members
+
+
+def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, x_lo: float, x_hi: float,
+         z0: float, length: float, forward: bool) -> None:
+    """A parked car: body + cabin boxes, wheels, window panes, front/rear lamps; one car_group."""
+    width = float(rng.uniform(1.7, 1.9))
+    xc = (x_lo + x_hi) / 2.0
+    xa, xb = xc - width / 2, xc + width / 2
+    z1 = z0 + length
+    body_lo = 0.3
+    body_top = body_lo + float(rng.uniform(0.5, 0.65))
+    cab_top = body_top + float(rng.uniform(0.45, 0.58))
+    paint = _jitter(rng, CAR_COLORS[int(rng.integers(len(CAR_COLORS)))], 0.04)
+    P.box((xa, body_lo, z0), (xb, body_top, z1), CAR, paint, "paint")
+    # Cabin sits toward the rear (bonnet is longer than the boot).
+    if forward:   # front at z1
+        cz0, cz1 = z0 + 0.2 * length, z1 - 0.32 * length
+    else:         # front at z0
+        cz0, cz1 = z0 + 0.32 * length, z1 - 0.2 * length
+    ca, cb = xa + 0.1, xb - 0.1
+    P.box((ca, body_top, cz0), (cb, cab_top, cz1), CAR, paint, "paint")
+    for wz in (z0 + 0.75, z1 - 0.75):
+        for wx0, wx1 in ((xa - 0.02, xa + 0.22), (xb - 0.22, xb + 0.02)):
+            P.box((wx0, 0.0, wz - 0.32), (wx1, 0.62, wz + 0.32), CAR, (0.02, 0.02, 0.02), "diffuse")
+    members = []
+    gy0, gy1 = body_top + 0.07, cab_top - 0.07
+    for x in (ca - PROUD, cb + PROUD):                                   # side windows
+        lid = ids.new(WINDOW_PARKED)
+        P.rect(0, x, (gy0, cz0 + 0.12), (gy1, cz1 - 0.12), CAR, GLASS_CAR, "glass", lid)
+        members.append(lid)
+    for z in (cz0 - PROUD, cz1 + PROUD):                                 # wind-screen and rear window
+        lid = ids.new(WINDOW_PARKED)
+        P.rect(2, z, (ca + 0.08, gy0), (cb - 0.08, gy1), CAR, GLASS_CAR, "glass", lid)
+        members.append(lid)
+    front_z, rear_z = (z1 + PROUD, z0 - PROUD) if forward else (z0 - PROUD, z1 + PROUD)
+    ly0, ly1 = body_top - 0.22, body_top - 0.07
+    for cls, z, col in ((PARKED_FRONT, front_z, (0.75, 0.75, 0.72)), (PARKED_REAR, rear_z, (0.45, 0.03, 0.02))):
+        for lx0, lx1 in ((xa + 0.08, xa + 0.38), (xb - 0.38, xb - 0.08)):
+            lid = ids.new(cls)
+            P.rect(2, z, (lx0, ly0), (lx1, ly1), CAR, col, "lamp", lid)
+            members.append(lid)
+    groups[ids.new(CAR_GROUP)] = members
+
+
+def _street_light(P: PrimitiveList, ids: _Ids, px: float, pz: float, toward: int) -> None:
+    """Pole, arm reaching over the road (direction ``toward`` in x), lamp head.
+
+    The light instance is the head's diffuser: its underside and its end facing the
+    camera (-z), two panes 1 cm proud of the head sharing one instance id.
+    """
+    top = 8.0
+    grey = (0.32, 0.33, 0.34)
+    P.box((px - 0.09, KERB, pz - 0.09), (px + 0.09, top, pz + 0.09), POLE, grey, "metal")
+    ax = px + toward * 1.8
+    P.box((min(px, ax), top - 0.14, pz - 0.05), (max(px, ax), top - 0.02, pz + 0.05), POLE, grey, "metal")
+    h0, h1 = top - 0.40, top - 0.12
+    P.box((ax - 0.4, h0, pz - 0.2), (ax + 0.4, h1, pz + 0.2), POLE, grey, "metal")
+    lid = ids.new(STREET_LIGHT_HT)
+    lens = (0.62, 0.62, 0.58)
+    P.rect(1, h0 - PROUD, (ax - 0.34, pz - 0.15), (ax + 0.34, pz + 0.15), POLE, lens, "lamp", lid)
+    P.rect(2, pz - 0.2 - PROUD, (ax - 0.34, h0 + 0.03), (ax + 0.34, h1 - 0.03), POLE, lens, "lamp", lid)
+
+
+def _tree(P: PrimitiveList, rng: np.random.Generator, x: float, z: float) -> None:
+    P.box((x - 0.13, KERB, z - 0.13), (x + 0.13, 2.6, z + 0.13), VEGETATION, (0.12, 0.08, 0.05), "foliage")
+    green = _jitter(rng, (0.07, 0.16, 0.04), 0.25)
+    r = float(rng.uniform(1.2, 1.7))
+    P.box((x - r, 2.4, z - r), (x + r, 4.8, z + r), VEGETATION, green, "foliage")
+    r2 = r * 0.65
+    P.box((x - r2, 4.8, z - r2), (x + r2, 5.9, z + r2), VEGETATION, green * 0.9, "foliage")
+
+
+def _traffic_light(P: PrimitiveList, ids: _Ids, x: float, z: float) -> list[int]:
+    """Pole + housing facing the camera (-z) with red/amber/green lamps (class 'inferred')."""
+    P.box((x - 0.07, KERB, z - 0.07), (x + 0.07, 2.5, z + 0.07), POLE, (0.25, 0.26, 0.27), "metal")
+    P.box((x - 0.2, 2.5, z - 0.14), (x + 0.2, 3.5, z + 0.14), TRAFFIC_LIGHT, (0.05, 0.05, 0.05), "metal")
+    members = []
+    for yc, col in ((3.33, (0.35, 0.04, 0.03)), (3.0, (0.35, 0.22, 0.02)), (2.67, (0.03, 0.25, 0.08))):
+        lid = ids.new(INFERRED)
+        P.rect(2, z - 0.14 - PROUD, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid)
+        members.append(lid)
+    return members
+
+
+def _traffic_sign(P: PrimitiveList, rng: np.random.Generator, x: float, z: float) -> None:
+    P.box((x - 0.04, KERB, z - 0.04), (x + 0.04, 2.3, z + 0.04), POLE, (0.4, 0.4, 0.4), "metal")
+    col = [(0.02, 0.10, 0.45), (0.55, 0.03, 0.03), (0.65, 0.50, 0.02)][int(rng.integers(3))]
+    P.box((x - 0.32, 2.3, z - 0.06), (x + 0.32, 2.94, z - 0.04), TRAFFIC_SIGN, col, "metal")

@@ -1,0 +1,252 @@
+"""The synthetic street scene: determinism, ground-truth consistency, lights, prediction, CLI, cache."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from npsim_core.annotation import class_of
+from npsim_core.camera import backproject, normals_from_depth
+from npsim_core.cli import main as cli_main
+from npsim_core.labels import cityscapes
+from npsim_core.metrics import angular_error_deg, depth_metrics, normal_metrics
+from npsim_core.scene import load_scene
+from npsim_core.synthetic import (PredictionErrors, make_street_scene, street_ground_truth, street_scene,
+                                  simulate_prediction)
+
+W, H = 128, 64
+SPP = 2  # RGB quality is irrelevant to these tests; keep them fast
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return make_street_scene(W, H, seed=0, spp=SPP)
+
+
+def _arrays(s):
+    return {"image": s.image, "labels": s.labels, "depth_gt": s.depth_gt, "normals_gt": s.normals_gt,
+            "depth": s.depth, "normals": s.normals, "lights": s.lights.instance_map, "albedo": s.albedo,
+            "roughness": s.roughness}
+
+
+def test_same_seed_gives_identical_arrays(scene):
+    again = make_street_scene(W, H, seed=0, spp=SPP)
+    for k, a in _arrays(scene).items():
+        b = _arrays(again)[k]
+        assert a.dtype == b.dtype and a.shape == b.shape, k
+        assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), k
+    assert {g.id: g.members for g in scene.lights.groups.values()} == \
+           {g.id: g.members for g in again.lights.groups.values()}
+
+
+def test_different_seeds_differ(scene):
+    other = make_street_scene(W, H, seed=1, spp=SPP)
+    assert not np.array_equal(scene.labels, other.labels)
+    assert not np.array_equal(scene.depth_gt, other.depth_gt, equal_nan=True)
+    assert not np.array_equal(scene.image, other.image)
+
+
+def test_camera_and_shapes(scene):
+    assert scene.intrinsics.width == W and scene.intrinsics.height == H
+    assert scene.camera_height == pytest.approx(1.22) and scene.camera_pitch == pytest.approx(0.038)
+    assert scene.image.dtype == np.uint8 and scene.image.shape == (H, W, 3)
+    assert scene.albedo.shape == (H, W, 3) and 0 <= scene.albedo.min() and scene.albedo.max() <= 1
+    assert scene.roughness.shape == (H, W) and np.all((scene.roughness > 0) & (scene.roughness <= 1))
+    # The road is flat ground: its GT depth matches the camera-height/pitch ground plane exactly.
+    road = scene.labels == 7
+    P = backproject(scene.depth_gt, scene.intrinsics)[road]
+    s, c = np.sin(0.038), np.cos(0.038)
+    height_above_ground = 1.22 - c * P[:, 1] - s * P[:, 2]  # world y: camera y axis is (0, -cos p, -sin p)
+    assert np.abs(height_above_ground).max() < 5e-3  # markings sit 2 mm proud
+
+
+def test_labels_cover_every_pixel_with_known_ids(scene):
+    known = set(int(i) for i in cityscapes().ids)
+    present = set(int(i) for i in np.unique(scene.labels))
+    assert present <= known
+    assert 0 not in present  # nothing left 'unlabeled'
+    assert {7, 8, 11, 17, 21, 23, 26} <= present
+
+
+def test_all_classes_present_at_moderate_size():
+    _, _, _, gt = street_ground_truth(512, 256, seed=0)
+    layout, *_ = street_ground_truth(8, 4, seed=0)
+    labels = np.where(gt.prim >= 0, layout.prims.label[np.maximum(gt.prim, 0)], 23)
+    assert {7, 8, 11, 17, 19, 20, 21, 23, 26} <= set(int(i) for i in np.unique(labels))
+
+
+def test_sky_is_the_only_nan(scene):
+    sky = scene.labels == 23
+    assert sky.any() and not sky.all()
+    assert np.array_equal(np.isnan(scene.depth_gt), sky)
+    assert np.array_equal(np.isnan(scene.normals_gt).any(axis=-1), sky)
+    assert np.array_equal(np.isnan(scene.depth), sky)
+    assert np.array_equal(np.isnan(scene.normals).any(axis=-1), sky)
+    assert np.nanmin(scene.depth_gt) > 0
+    # Sky is only above: every sky pixel lies above the horizon row.
+    horizon = scene.intrinsics.cy - scene.intrinsics.fy * np.tan(0.038)
+    rows = np.nonzero(sky)[0]
+    assert rows.max() < horizon
+
+
+def test_gt_normals_are_unit_and_face_the_camera(scene):
+    valid = ~(scene.labels == 23)
+    n = scene.normals_gt[valid]
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-5)
+    P = backproject(scene.depth_gt, scene.intrinsics)[valid]
+    assert np.all(np.sum(n * P, axis=-1) < 0)
+
+
+def test_normals_from_gt_depth_agree_with_gt_normals_on_planar_regions(scene):
+    n_est = normals_from_depth(scene.depth_gt, scene.intrinsics)
+    # Planar interior: same label and same GT normal in the whole 3x3 neighbourhood.
+    lab = scene.labels
+    same = np.ones_like(lab, dtype=bool)
+    nk = np.round(np.nan_to_num(scene.normals_gt) * 1000).astype(np.int32)
+    key = (lab.astype(np.int64) * 7919 + nk[..., 0] * 31 + nk[..., 1] * 17 + nk[..., 2])
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            same &= np.roll(np.roll(key, dy, 0), dx, 1) == key
+    same[[0, -1], :] = False
+    same[:, [0, -1]] = False
+    same &= lab != 23
+    err = angular_error_deg(n_est, scene.normals_gt)[same]
+    assert same.sum() > 0.3 * lab.size
+    assert np.median(err) < 2.0
+    assert np.mean(err < 5.0) > 0.8
+
+
+def test_every_light_instance_lies_on_its_host_surface(scene):
+    ann = scene.lights
+    ann.validate()
+    ids = ann.instance_ids()
+    assert len(ids) >= 10
+    classes = {class_of(i) for i in ids}
+    assert {1, 2, 8} <= classes and (3 in classes or 4 in classes)
+    # Host surfaces: the same scene cast without the light panes.
+    _, intr, _, host = street_ground_truth(W, H, seed=0, include_lights=False)
+    on = ann.instance_map > 0
+    P_light = backproject(scene.depth_gt, intr)[on]
+    P_host = backproject(host.depth, intr)[on]
+    n_host = host.normals[on]
+    assert np.isfinite(P_host).all(), "a light hangs in the sky"
+    dist = np.abs(np.sum((P_light - P_host) * n_host, axis=-1))
+    assert dist.max() < 0.03  # lights are 1 cm proud of their host
+    assert angular_error_deg(scene.normals_gt[on], n_host).max() < 0.5
+    # Lights do not change the semantic label of their host.
+    host_prim = host.prim[on]
+    assert (host_prim >= 0).all()
+    stats = ann.stats()
+    for i in ids:
+        assert stats[i]["area"] >= 1
+
+
+def test_groups_reference_existing_lights(scene):
+    ann = scene.lights
+    ids = set(ann.instance_ids())
+    gclasses = {g.class_id for g in ann.groups.values()}
+    assert {13, 14} <= gclasses
+    for g in ann.groups.values():
+        assert g.members and set(g.members) <= ids
+        if g.class_id == 13:
+            assert all(class_of(m) == 1 for m in g.members)
+        if g.class_id == 14:
+            assert all(class_of(m) in (2, 3, 4) for m in g.members)
+    # Windows of one floor share a group: every building window is in exactly one windows_group.
+    wins = [i for i in ids if class_of(i) == 1]
+    for w in wins:
+        assert sum(w in g.members for g in ann.groups.values()) == 1
+
+
+def test_traffic_light_group_at_moderate_size():
+    s_layout, intr, _, gt = street_ground_truth(512, 256, seed=0)
+    lights = np.where(gt.prim >= 0, s_layout.prims.light[np.maximum(gt.prim, 0)], 0)
+    tl = [g for g, m in s_layout.groups.items() if class_of(g) == 20]
+    assert len(tl) == 1
+    visible = set(np.unique(lights).tolist())
+    assert all(m in visible and class_of(m) == 12 for m in s_layout.groups[tl[0]])
+
+
+def test_prediction_is_worse_than_gt_but_sane(scene):
+    dm = depth_metrics(scene.depth, scene.depth_gt)
+    assert 0.02 < dm.abs_rel < 0.3
+    assert dm.delta1 > 0.8
+    nm = normal_metrics(scene.normals, scene.normals_gt)
+    assert 0.5 < nm.median_deg < 15.0
+    assert np.allclose(np.linalg.norm(scene.normals[scene.labels != 23], axis=-1), 1.0, atol=1e-4)
+
+
+def test_prediction_parameters_act():
+    _, _, _, gt = street_ground_truth(W, H, seed=0)
+    exact = PredictionErrors(scale=1.0, blur_frac=0.0, blur_min_px=0.3, warp_sigma=0.0, noise_sigma=0.0,
+                             normal_noise=0.0)
+    d0, n0 = simulate_prediction(gt.depth, gt.normals, exact, seed=0)
+    assert depth_metrics(d0, gt.depth).abs_rel < 0.01
+    d1, _ = simulate_prediction(gt.depth, gt.normals, PredictionErrors(scale=1.2, blur_frac=0.0, blur_min_px=0.3,
+                                                                        warp_sigma=0.0, noise_sigma=0.0), seed=0)
+    assert np.nanmedian(d1 / gt.depth) == pytest.approx(1.2, rel=0.01)
+
+
+def test_mitsuba_render_is_pixel_aligned_with_the_ray_caster():
+    from npsim_core.synthetic.render import render_depth_aov
+
+    layout, intr, pose, gt = street_ground_truth(97, 45, seed=3)  # odd size on purpose
+    z = render_depth_aov(layout.prims, intr, pose)
+    covered = np.isfinite(gt.depth)
+    assert np.array_equal(covered, z > 0)
+    rel = np.abs(z[covered] - gt.depth[covered]) / gt.depth[covered]
+    assert np.percentile(rel, 99) < 1e-4
+
+
+def test_odd_tiny_size():
+    s = make_street_scene(33, 17, seed=2, spp=1)
+    assert s.image.shape == (17, 33, 3)
+    assert np.isnan(s.depth_gt).any() and np.isfinite(s.depth_gt).any()
+
+
+def test_cli_round_trip(tmp_path, capsys):
+    out = tmp_path / "scene"
+    assert cli_main(["sample", "--size", "96x48", "-o", str(out), "--seed", "1", "--spp", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "generating 96x48" in err
+    for f in ("street_s1_rgb.png", "street_s1_labelIds.png", "depth_gt.npy", "normals_gt.npy", "depth_pred.npy",
+              "normals_pred.npy", "intrinsics.json", "scene.json", "street_s1_lights_instanceIds.png",
+              "street_s1_lights.json", "overview.png"):
+        assert (out / f).exists(), f
+    loaded = load_scene(out)
+    ref = make_street_scene(96, 48, seed=1, spp=2)
+    for k in ("image", "labels", "depth_gt", "depth", "roughness"):
+        assert np.array_equal(getattr(loaded, k), getattr(ref, k), equal_nan=True), k
+    for k in ("normals_gt", "normals"):  # the normals reader renormalises (last-bit differences)
+        np.testing.assert_allclose(getattr(loaded, k), getattr(ref, k), atol=1e-6)
+    assert np.array_equal(loaded.lights.instance_map, ref.lights.instance_map)
+    assert loaded.lights.groups == ref.lights.groups
+    assert loaded.intrinsics == ref.intrinsics
+
+
+@pytest.mark.parametrize("size", ["0x5", "abc", "12", "-4x3", "20000x10", "5x1"])
+def test_cli_rejects_bad_size(tmp_path, capsys, size):
+    assert cli_main(["sample", f"--size={size}", "-o", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "--size" in err
+    assert "WIDTHxHEIGHT" in err or "between 2 and 16384" in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_street_scene_cache(tmp_path, monkeypatch):
+    import npsim_core.synthetic as syn
+
+    monkeypatch.setenv("NPSIM_CACHE", str(tmp_path))
+    monkeypatch.setattr(syn, "auto_spp", lambda w, h: 1)
+    first = street_scene(40, 20, seed=0)
+    folder = tmp_path / f"street_40x20_s0_v{syn.SCENE_VERSION}"
+    assert (folder / "scene.json").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp folder left behind
+
+    def boom(*a, **k):
+        raise AssertionError("cache miss")
+
+    monkeypatch.setattr(syn, "make_street_scene", boom)
+    second = street_scene(40, 20, seed=0)
+    assert np.array_equal(first.depth_gt, second.depth_gt, equal_nan=True)
+    assert np.array_equal(first.image, second.image)
