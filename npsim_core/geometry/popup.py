@@ -49,6 +49,12 @@ from . import GeometryEstimate, invalid_label_mask
 
 #: labelIds never given depth: ego vehicle, rectification border, out of roi, sky.
 DEFAULT_INVALID_IDS = (1, 2, 3, 23)
+#: Extended planar structures (building, wall, fence, guard rail, bridge, tunnel): when they stand
+#: on other segments (a facade behind parked cars) the supports' line still gives their facing.
+DEFAULT_FACADE_IDS = (11, 12, 13, 14, 15, 16)
+#: Narrow things whose contact line says nothing about their facing (pole, polegroup, traffic
+#: light, traffic sign, person, rider, motorcycle, bicycle): always fronto-parallel.
+DEFAULT_FRONTO_IDS = (17, 18, 19, 20, 24, 25, 32, 33)
 
 
 @dataclass(frozen=True)
@@ -72,6 +78,11 @@ class PopupParams:
         than 2.5x the median residual) are dropped before refitting.
     invalid_ids : tuple of int
         labelIds that get no depth (NaN).
+    facade_ids : tuple of int
+        labelIds whose segments, when resting on other segments rather than on
+        the ground, still take their facing from a line fitted to the support;
+        every other class resting on a segment (a tree crown over a car, a sign
+        on its pole) becomes fronto-parallel at the nearest support.
     max_rounds : int
         Placement rounds for segments standing on other segments.
     fallback_depth : float
@@ -85,7 +96,11 @@ class PopupParams:
     min_contact_extent: float = 0.5
     trim_residual: float = 0.5
     invalid_ids: tuple[int, ...] = DEFAULT_INVALID_IDS
-    max_rounds: int = 16
+    facade_ids: tuple[int, ...] = DEFAULT_FACADE_IDS
+    fronto_ids: tuple[int, ...] = DEFAULT_FRONTO_IDS
+    thin_ids: tuple[int, ...] = (21,)
+    ground_fraction: float = 0.5
+    max_rounds: int = 32
     fallback_depth: float = 20.0
 
     def __post_init__(self) -> None:
@@ -200,39 +215,77 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     normals[ground] = -g
 
     seg, nseg = segment_map(labels, vertical)
+    seg_label = np.zeros(nseg + 1, dtype=np.int64)
+    seg_label[seg[vertical]] = labels[vertical]
+    lut = np.zeros(256, dtype=bool)
+    lut[list(p.facade_ids)] = True
+    seg_facade = lut[seg_label]
+    lut[:] = False
+    lut[list(p.fronto_ids)] = True
+    seg_fronto = lut[seg_label]
+    seg_fronto[0] = False
+    lut[list(p.thin_ids)] = True
+    seg_thin = lut[seg_label]
+    seg_thin[0] = False
     planes = np.zeros((nseg + 1, 4), dtype=np.float64)
     placed = np.zeros(nseg + 1, dtype=bool)
     fitted = np.zeros(nseg + 1, dtype=bool)
-    how = np.zeros(nseg + 1, dtype=np.int8)  # 1 ground contact, 2 stands on a segment
+    how = np.zeros(nseg + 1, dtype=np.int8)  # 1 stands on the ground, 2 rests (partly) on segments
 
-    # --- segments standing on the ground (or cut by the image's bottom edge)
+    # Bottom boundary of every segment, and what it rests on.
+    seg_below = np.zeros_like(seg)
+    seg_below[:-1] = seg[1:]
+    bottom = vertical & (seg_below != seg)
     below_ground = np.zeros((H, W), dtype=bool)
     below_ground[:-1] = ground[1:]
     below_ground[-1] = True  # the ground continues below the frame
-    contact = vertical & below_ground
-    vs, us = np.nonzero(contact)
-    zc = ground_plane_depth(intr, h, pitch, v_offset=0.5, max_depth=p.max_depth)[vs, us]
+    g_sup = bottom & below_ground
+    o_sup = bottom & (seg_below > 0)
+    n_ground = np.bincount(seg[g_sup], minlength=nseg + 1)
+    n_total = n_ground + np.bincount(seg[o_sup], minlength=nseg + 1)
+    # Support points (camera frame, m): ground contacts on the plane at the boundary half a pixel
+    # below the segment; resting points filled in once the segment below is placed.
+    support = np.full((H, W, 3), np.nan)
+    zc = ground_plane_depth(intr, h, pitch, v_offset=0.5, max_depth=p.max_depth)
     zc = np.clip(zc, p.min_depth, p.max_depth)
-    xr = (us - intr.cx) / intr.fx
-    yr = (vs + 0.5 - intr.cy) / intr.fy
-    pts = np.stack([xr * zc, yr * zc, zc], axis=1)
-    _fit_groups(seg[vs, us], pts, planes, placed, fitted, how, 1, e, f, p)
+    vs, us = np.nonzero(g_sup)
+    support[vs, us] = np.stack([(us - intr.cx) / intr.fx, (vs + 0.5 - intr.cy) / intr.fy,
+                                np.ones(vs.size)], axis=1) * zc[vs, us][:, None]
 
-    # --- segments standing on placed segments, in rounds
+    # --- segments standing on the ground: mostly (any facing), or along a contact line long enough
+    #     to give the facing by itself (a facade behind parked cars with a gap between them)
+    mostly = (n_ground > 0) & (n_ground >= p.ground_fraction * n_total)
+    vs, us = np.nonzero(g_sup)
+    _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 1, e, f, p,
+                mode=np.where(seg_fronto, 0, 1), only_line_fits=~mostly)
+
+    # --- segments resting (also) on other segments, in rounds as their supports get placed
     rounds = 0
+    mode_rest = np.where(seg_facade, 1, 2)  # facades: line fit; others: fronto at the nearest support
     for rounds in range(1, p.max_rounds + 1):
         cur = vertical & placed[seg]
         if cur.any():
             depth[cur] = _plane_depth(rays, planes, seg, cur, p)
-        support_px = ground | cur
-        below = np.zeros((H, W), dtype=bool)
-        below[:-1] = support_px[1:]
-        cand = vertical & ~placed[seg] & below
-        if not cand.any():
+        known = g_sup | (o_sup & placed[seg_below])
+        n_known = np.bincount(seg[known], minlength=nseg + 1)
+        waiting = ~placed & (n_known > 0)
+        waiting[0] = False
+        ready = waiting & (n_known >= 0.5 * n_total)
+        if not ready.any():
+            ready = waiting  # stalled (supports in a cycle): place with what is known
+        if not ready.any():
             break
-        vs, us = np.nonzero(cand)
-        pts = rays[vs + 1, us] * depth[vs + 1, us][:, None]
-        _fit_groups(seg[vs, us], pts, planes, placed, fitted, how, 2, e, f, p, nearest_only=True)
+        rest_px = o_sup & placed[seg_below] & ready[seg]
+        vs, us = np.nonzero(rest_px)
+        support[vs, us] = rays[vs + 1, us] * depth[vs + 1, us][:, None]
+        use = known & ready[seg]
+        # A facade's line is fitted to what it stands behind (ground, cars), not to poles or
+        # trees in front of it -- unless those are all it has.
+        thin = use & o_sup & seg_thin[seg_below] & seg_facade[seg]
+        n_solid = np.bincount(seg[use & ~thin], minlength=nseg + 1)
+        use &= ~(thin & (n_solid[seg] > 0))
+        vs, us = np.nonzero(use)
+        _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 2, e, f, p, mode=mode_rest)
     cur = vertical & placed[seg]
     depth[cur] = _plane_depth(rays, planes, seg, cur, p)
     normals[cur] = planes[seg[cur], :3]
@@ -265,13 +318,16 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
 
 def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed: np.ndarray, fitted: np.ndarray,
                 how: np.ndarray, how_code: int, e: np.ndarray, f: np.ndarray, p: PopupParams,
-                nearest_only: bool = False) -> None:
+                mode: np.ndarray, only_line_fits: np.ndarray | None = None) -> None:
     """Fit one vertical plane per segment to its support points ``pts`` (N, 3) in place.
 
-    ``nearest_only`` keeps only support points within 25% of the segment's nearest
-    one: a segment resting on several surfaces (a sign over its pole and the
-    facade behind) is attached to the nearest, since whatever is farther is
-    seen past the segment's free bottom edge.
+    ``mode[s]``: 1 = vertical plane through the line fitted to the support
+    (falls back to fronto-parallel when the line is too short); 0 =
+    fronto-parallel at the support's median forward distance; 2 = fronto-parallel
+    at the support points within 25% of the nearest one: a segment resting on
+    several surfaces (a sign over its pole and the facade behind) is attached to
+    the nearest, since whatever is farther is seen past its free bottom edge.
+    Segments with ``only_line_fits[s]`` are left unplaced unless a line fit succeeds.
     """
     if seg_ids.size == 0:
         return
@@ -287,10 +343,16 @@ def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed
         if placed[s]:
             continue
         sa, sb = a[i0:i1], b[i0:i1]
-        if nearest_only:
-            z = pts[i0:i1, 2]
-            near = z <= 1.25 * z.min()
-            sa, sb = sa[near], sb[near]
-        n, c, ok_fit = _fit_vertical_plane(sa, sb, e, f, p)
+        if mode[s] == 1:
+            n, c, ok_fit = _fit_vertical_plane(sa, sb, e, f, p)
+            if only_line_fits is not None and only_line_fits[s] and not ok_fit:
+                continue
+        elif only_line_fits is not None and only_line_fits[s]:
+            continue
+        else:
+            if mode[s] == 2:
+                z = pts[i0:i1, 2]
+                sb = sb[z <= 1.25 * z.min()]
+            n, c, ok_fit = -f, -float(np.median(sb)), False
         planes[s, :3], planes[s, 3] = n, c
         placed[s], fitted[s], how[s] = True, ok_fit, how_code
