@@ -206,7 +206,10 @@ def load_scene(folder: str | Path, *, with_ground_truth: bool = True) -> Scene:
     image = read_image(folder / files["image"])
     labels = read_label_image(folder / files["labels"])
     if (folder / "intrinsics.json").exists():
-        intr = Intrinsics.from_dict(read_json(folder / "intrinsics.json"))
+        try:
+            intr = Intrinsics.from_dict(read_json(folder / "intrinsics.json"))
+        except NpsimInputError as exc:  # name the file: the bare message says only what is wrong
+            raise NpsimInputError(f"{folder / 'intrinsics.json'}: {exc}") from None
     else:
         raise NpsimInputError(f"{folder}: intrinsics.json is missing; write fx, fy, cx, cy, width, height "
                               "(pixels) or use 'npsim run --fov DEG'")
