@@ -122,12 +122,18 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
     (F, 3) int64 faces. Full quads come first in row-major order, then the
     single triangles of three-corner quads.
     """
-    a, b = index[:-1, :-1].ravel(), index[:-1, 1:].ravel()
-    c, d = index[1:, :-1].ravel(), index[1:, 1:].ravel()
-    ha, hb, hc, hd = a >= 0, b >= 0, c >= 0, d >= 0
+    has = index >= 0
+    rows = np.flatnonzero(has.any(1))
+    cols = np.flatnonzero(has.any(0))
+    if len(rows) < 2 or len(cols) < 2:
+        return np.zeros((0, 3), dtype=np.int64)
+    # Work on the bounding box of the vertices (sparse layers, e.g. foreground objects, are small).
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    index, points, has = index[r0:r1, c0:c1], points[r0:r1, c0:c1], has[r0:r1, c0:c1]
+    ha, hb, hc, hd = has[:-1, :-1], has[:-1, 1:], has[1:, :-1], has[1:, 1:]
     if group is not None:
-        ga, gb = group[:-1, :-1].ravel(), group[:-1, 1:].ravel()
-        gc, gd = group[1:, :-1].ravel(), group[1:, 1:].ravel()
+        group = group[r0:r1, c0:c1]
+        ga, gb, gc, gd = group[:-1, :-1], group[:-1, 1:], group[1:, :-1], group[1:, 1:]
         ab, ac, bc, bd, cd = ga == gb, ga == gc, gb == gc, gb == gd, gc == gd
         t1 = ha & hb & hc & ac & bc          # (a, c, b)
         t2 = hb & hc & hd & bc & cd          # (b, c, d)
@@ -135,31 +141,38 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
         t4 = ha & hb & hd & ab & bd          # (a, d, b)
         full = t1 & t2
     else:
-        t1, t2, t3, t4 = ha & hb & hc, hb & hc & hd, ha & hc & hd, ha & hb & hd
-        full = ha & hb & hc & hd
-    fq = np.flatnonzero(full)
-    # Shorter 3D diagonal: |P_b - P_c| vs |P_a - P_d|.
-    P = points.reshape(-1, 3) if points.ndim == 3 else points
-    w1 = index.shape[1] - 1
-    qi, qj = np.divmod(fq, w1)
-    W = index.shape[1]
-    ia, ib = qi * W + qj, qi * W + qj + 1
-    ic, id_ = ia + W, ib + W
-    dbc = np.einsum("ij,ij->i", P[ib] - P[ic], P[ib] - P[ic])
-    dad = np.einsum("ij,ij->i", P[ia] - P[id_], P[ia] - P[id_])
+        abc = ha & hb & hc
+        t1, t2, t3, t4 = abc, hb & hc & hd, ha & hc & hd, ha & hb & hd
+        full = abc & hd
+    # Shorter 3D diagonal: |P_b - P_c| vs |P_a - P_d|, on the grid (no gathers).
+    P = points.astype(np.float32, copy=False)
+    e = P[:-1, 1:] - P[1:, :-1]
+    dbc = np.einsum("ijk,ijk->ij", e, e)
+    e = P[:-1, :-1] - P[1:, 1:]
+    dad = np.einsum("ijk,ijk->ij", e, e)
+    del e
     use_bc = dbc <= dad
-    fa, fb, fc, fd = a[fq], b[fq], c[fq], d[fq]
-    # Two triangles per full quad, chosen per quad.
-    tri1 = np.where(use_bc[:, None], np.stack([fa, fc, fb], 1), np.stack([fa, fc, fd], 1))
-    tri2 = np.where(use_bc[:, None], np.stack([fb, fc, fd], 1), np.stack([fa, fd, fb], 1))
-    full_faces = np.empty((2 * len(fq), 3), dtype=np.int64)
-    full_faces[0::2] = tri1
-    full_faces[1::2] = tri2
+    a, b = index[:-1, :-1], index[:-1, 1:]
+    c, d = index[1:, :-1], index[1:, 1:]
+    out = []
+    m = full & use_bc
+    fa, fb, fc, fd = a[m], b[m], c[m], d[m]
+    q = np.empty((len(fa), 2, 3), dtype=np.int64)
+    q[:, 0, 0], q[:, 0, 1], q[:, 0, 2] = fa, fc, fb
+    q[:, 1, 0], q[:, 1, 1], q[:, 1, 2] = fb, fc, fd
+    out.append(q.reshape(-1, 3))
+    m = full & ~use_bc
+    fa, fb, fc, fd = a[m], b[m], c[m], d[m]
+    q = np.empty((len(fa), 2, 3), dtype=np.int64)
+    q[:, 0, 0], q[:, 0, 1], q[:, 0, 2] = fa, fc, fd
+    q[:, 1, 0], q[:, 1, 1], q[:, 1, 2] = fa, fd, fb
+    out.append(q.reshape(-1, 3))
     part = ~full
-    s1, s2, s3, s4 = (np.flatnonzero(part & t) for t in (t1, t2, t3, t4))
-    singles = [np.stack([a[s1], c[s1], b[s1]], 1), np.stack([b[s2], c[s2], d[s2]], 1),
-               np.stack([a[s3], c[s3], d[s3]], 1), np.stack([a[s4], d[s4], b[s4]], 1)]
-    return np.concatenate([full_faces] + [s.astype(np.int64) for s in singles], axis=0)
+    for t, (x, y, z) in ((t1, (a, c, b)), (t2, (b, c, d)), (t3, (a, c, d)), (t4, (a, d, b))):
+        m = part & t
+        if m.any():
+            out.append(np.stack([x[m], y[m], z[m]], 1).astype(np.int64))
+    return np.concatenate(out, axis=0)
 
 
 def grid_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, light_ids: np.ndarray | None = None,

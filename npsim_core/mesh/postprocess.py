@@ -1,0 +1,505 @@
+"""Mesh post-processing kernel (SPEC §4, thesis §3.5 and Algorithm 1).
+
+Everything happens on the pixel grid, so each step is a handful of whole-image
+array operations; the sheets are triangulated at the end with the same
+:func:`~npsim_core.mesh.grid.quad_faces` as the raw Worldsheet grid.
+
+1. **Uncertain-face deletion.** A face with any vertex in the uncertain map U is
+   spurious. On the grid this is the same as dropping the U vertices from the
+   raw sheet (a face survives iff its three pixels are outside U).
+2. **Background completion** (Algorithm 1). The region to complete is
+   R = U ∪ (foreground segments adjacent to U) ∪ (non-sky pixels with invalid
+   depth). In the default ``complete_behind="all"`` mode *every* foreground
+   segment is in R, so every object becomes its own sheet as SPEC §4's result
+   asks ("background sheet + foreground sheets"); ``"adjacent"`` is the thesis's
+   literal rule, where objects untouched by U stay welded into the background
+   sheet. For each row, each run of R pixels is filled from the pixels just left
+   and right of it: if both are background vertices, *depth* (or inverse depth,
+   ``interpolation="inverse_depth"``, exact on planes) is interpolated linearly
+   in u and back-projected, so vertices stay on their pixel rays (this is the
+   thesis's ``(G_l (j_r-j+1) + G_r (j-j_l+1)) / (j_r-j_l+2)``, applied to depth).
+   A run whose other end is the image border or sky extends its one background
+   neighbour; a run with sky/border on both ends is left empty (the background
+   behind an object seen against the sky is sky). Runs are taken per row over the
+   whole image, which equals the thesis's per-region loop because runs never
+   cross known background. An optional vertical pass then interpolates runs that
+   the row pass could not reach but that have background above and below
+   (e.g. a NaN island spanning a whole row segment between sky).
+   Completed background vertices take label and texture coordinates (uv) from
+   the nearer row neighbour, light id 0 (what is hidden cannot be annotated),
+   and are pushed behind the object in front of them by at least
+   ``behind_margin`` (relative) so the hidden sheet can never poke through.
+3. **Foreground completion.** Objects are connected components per foreground
+   class (8-connected) or, where an instance map is given, its instances. In
+   U ∩ object (and at the object's invalid-depth pixels) depth is filled by a
+   breadth-first frontier: each frontier pixel gets the mean depth of its known
+   8-neighbours of the same object, then becomes known. Implemented on the list
+   of target pixels with precomputed neighbour indices (cost per round ∝ targets).
+   An object without any surviving vertex keeps its own (valid) input depth.
+   Each object is triangulated only with itself, so no face bridges two objects
+   or an object and the background.
+
+The output :class:`SceneMesh` has part ``"background"`` and one part per
+foreground object named ``<class>_<k>`` (k counts objects of that class in
+raster order of their first pixel).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics, valid_depth_mask
+from ..errors import NpsimInputError
+from ..labels import cityscapes
+from .grid import check_mesh_inputs, pixel_uv, quad_faces, usable_mask
+from .types import MeshPart, SceneMesh
+
+__all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map"]
+
+_N8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+@dataclass(frozen=True)
+class PostprocessParams:
+    """Parameters of the post-processing kernel.
+
+    Attributes
+    ----------
+    complete_behind : "all" | "adjacent"
+        Which foreground segments the background is completed behind (see module doc).
+    interpolation : "depth" | "inverse_depth"
+        Quantity interpolated along a row run (SPEC: depth).
+    vertical_pass : bool
+        Also fill runs with background above and below that the row pass left empty.
+    behind_margin : float
+        Completed background is kept at least ``(1 + behind_margin) * d_object``
+        deep where an object vertex is in front of it.
+    exclude : tuple of labelIds or None
+        Never meshed (None = sky).
+    far_limit : float or None
+        No vertex deeper than this (metres), also for completed vertices.
+    """
+
+    complete_behind: str = "all"
+    visible_background: str = "interpolate"
+    interpolation: str = "depth"
+    vertical_pass: bool = True
+    behind_margin: float = 0.01
+    exclude: tuple[int, ...] | None = None
+    far_limit: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.complete_behind not in ("all", "adjacent"):
+            raise NpsimInputError(f"complete_behind must be 'all' or 'adjacent', got {self.complete_behind!r}")
+        if self.visible_background not in ("interpolate", "keep"):
+            raise NpsimInputError(f"visible_background must be 'interpolate' or 'keep', got {self.visible_background!r}")
+        if self.interpolation not in ("depth", "inverse_depth"):
+            raise NpsimInputError(f"interpolation must be 'depth' or 'inverse_depth', got {self.interpolation!r}")
+        if not self.behind_margin >= 0:
+            raise NpsimInputError(f"behind_margin must be >= 0, got {self.behind_margin}")
+
+
+@dataclass
+class PostprocessResult:
+    """Output of :func:`postprocess_mesh`.
+
+    Attributes
+    ----------
+    mesh : SceneMesh
+        ``"background"`` + one part per foreground object (part ``k`` = object ``k``).
+    layers : SheetLayers
+        The same sheets as per-pixel layers (input of :mod:`.reduce`).
+    counts : dict
+        uncertain pixels, deleted vertices, completed background / foreground vertices, objects, faces.
+    timings : dict
+        Seconds per step.
+    """
+
+    mesh: SceneMesh
+    layers: "SheetLayers"
+    counts: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+
+
+def object_map(labels: np.ndarray, mask: np.ndarray, fg_lut: np.ndarray,
+               instance_ids: np.ndarray | None = None) -> tuple[np.ndarray, list[int]]:
+    """Foreground objects: 8-connected components per class (or instances), numbered 1.. in raster order.
+
+    Returns the HxW int32 object map (0 = none) and the class labelId of each object (index k-1).
+    """
+    H, W = labels.shape
+    fgm = mask & fg_lut[labels]
+    key = np.zeros((H, W), dtype=np.int64)
+    classes = np.unique(labels[fgm])
+    nxt = 1
+    for c in classes:
+        m = fgm & (labels == c)
+        if instance_ids is not None:
+            inst = instance_ids.astype(np.int64)
+            has = m & (inst > 0)
+            if has.any():
+                ids, inv = np.unique(inst[has], return_inverse=True)
+                key[has] = nxt + inv
+                nxt += len(ids)
+            m = m & ~has
+        if m.any():
+            n, cc = cv2.connectedComponents(m.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
+            key[m] = cc[m] + (nxt - 1)
+            nxt += n - 1
+    # Renumber in raster order of each object's first pixel, so names are stable.
+    flat = key.ravel()
+    nz = np.flatnonzero(flat)
+    if len(nz) == 0:
+        return np.zeros((H, W), dtype=np.int32), []
+    ids, first = np.unique(flat[nz], return_index=True)
+    order = np.argsort(nz[first], kind="stable")
+    remap = np.zeros(int(ids.max()) + 1, dtype=np.int32)
+    remap[ids[order]] = np.arange(1, len(ids) + 1, dtype=np.int32)
+    obj = remap[key]
+    obj_class = [int(labels.ravel()[nz[first[o]]]) for o in order]
+    return obj.astype(np.int32), obj_class
+
+
+def _row_runs(target: np.ndarray, known: np.ndarray):
+    """Left/right bounding indices of each target pixel's row run and whether they are known.
+
+    A run is a maximal horizontal stretch of ``target``; its neighbours are the
+    pixels just outside it (-1 / W at the image border).
+    """
+    H, W = target.shape
+    idx = np.broadcast_to(np.arange(W, dtype=np.int64), (H, W))
+    left = np.maximum.accumulate(np.where(~target, idx, -1), axis=1)
+    right = np.minimum.accumulate(np.where(~target, idx, W)[:, ::-1], axis=1)[:, ::-1]
+    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
+    lk = (left >= 0) & known[rows, np.clip(left, 0, W - 1)]
+    rk = (right < W) & known[rows, np.clip(right, 0, W - 1)]
+    return left, right, lk, rk
+
+
+def _fill_runs(target, known, depth, inverse: bool, allow_extend: bool):
+    """Fill ``target`` pixels row-wise from known neighbours (see module doc).
+
+    Returns (filled mask, depth, source flat-index of the nearer neighbour) on full HxW arrays.
+    """
+    H, W = target.shape
+    left, right, lk, rk = _row_runs(target, known)
+    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
+    u = np.broadcast_to(np.arange(W)[None, :], (H, W))
+    both = target & lk & rk
+    only_l = target & lk & ~rk
+    only_r = target & rk & ~lk
+    out = np.full((H, W), np.nan, dtype=np.float64)
+    src = np.full((H, W), -1, dtype=np.int64)
+    # Both neighbours known: linear interpolation in u.
+    r_, c_ = np.nonzero(both)
+    L, R = left[r_, c_], right[r_, c_]
+    dL, dR = depth[r_, L].astype(np.float64), depth[r_, R].astype(np.float64)
+    t = (c_ - L) / (R - L)
+    if inverse:
+        out[r_, c_] = 1.0 / ((1 - t) / dL + t / dR)
+    else:
+        out[r_, c_] = (1 - t) * dL + t * dR
+    src[r_, c_] = r_ * W + np.where(c_ - L <= R - c_, L, R)
+    filled = both
+    if allow_extend:
+        for m, nb in ((only_l, left), (only_r, right)):
+            r_, c_ = np.nonzero(m)
+            n = nb[r_, c_]
+            out[r_, c_] = depth[r_, n]
+            src[r_, c_] = r_ * W + n
+        filled = both | only_l | only_r
+    del rows, u
+    return filled, out, src
+
+
+def _bfs_fill(depth: np.ndarray, known: np.ndarray, target: np.ndarray, obj: np.ndarray):
+    """Breadth-first fill of ``target`` from ``known`` pixels of the same object (8-neighbours).
+
+    Each round fills every target pixel that has a known same-object neighbour
+    with the mean of those neighbours, then marks it known. Returns
+    (depth with filled values, filled mask).
+    """
+    H, W = depth.shape
+    out = depth.astype(np.float64).copy()
+    out[~known] = np.nan
+    tidx = np.flatnonzero(target)
+    filled = np.zeros((H, W), dtype=bool)
+    if len(tidx) == 0:
+        return out, filled
+    tr, tc = np.divmod(tidx, W)
+    nbr = np.full((len(tidx), 8), -1, dtype=np.int64)
+    oflat = obj.ravel()
+    for k, (dr, dc) in enumerate(_N8):
+        rr, cc = tr + dr, tc + dc
+        ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
+        n = np.where(ok, rr * W + cc, 0)
+        ok &= oflat[n] == oflat[tidx]
+        nbr[:, k] = np.where(ok, n, -1)
+    kn = known.ravel().copy()
+    flat = out.ravel()
+    # Only the still-pending targets are visited each round (cost per round ∝ frontier + pending).
+    pend = np.arange(len(tidx))
+    done = np.zeros(len(tidx), dtype=bool)
+    while len(pend):
+        nb = nbr[pend]
+        kmask = (nb >= 0) & kn[np.maximum(nb, 0)]
+        cnt = kmask.sum(1)
+        front = cnt > 0
+        if not front.any():
+            break
+        fp = pend[front]
+        vals = np.where(kmask[front], flat[np.maximum(nb[front], 0)], 0.0).sum(1) / cnt[front]
+        fi = tidx[fp]
+        flat[fi] = vals
+        kn[fi] = True
+        done[fp] = True
+        pend = pend[~front]
+    filled.ravel()[tidx[done]] = True
+    return out, filled
+
+
+def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, uncertain: np.ndarray,
+                     light_ids: np.ndarray | None = None, instance_ids: np.ndarray | None = None,
+                     params: PostprocessParams = PostprocessParams()) -> PostprocessResult:
+    """Build the post-processed scene mesh (SPEC §4) directly from the depth map and U.
+
+    Parameters
+    ----------
+    depth : (H, W) float
+        z-depth in metres (typically the refined depth), NaN invalid.
+    intrinsics : Intrinsics
+    labels : (H, W) int
+        Cityscapes labelIds.
+    uncertain : (H, W) bool
+        Uncertain map U (SPEC §2.2).
+    light_ids : (H, W) int, optional
+        Light instance map (0 = none).
+    instance_ids : (H, W) int, optional
+        Object instance ids (> 0) for foreground classes; 0 = use connected components.
+    params : PostprocessParams
+
+    Returns
+    -------
+    PostprocessResult
+    """
+    t0 = time.perf_counter()
+    tm: dict[str, float] = {}
+    depth, labels, light_ids = check_mesh_inputs(depth, intrinsics, labels, light_ids)
+    U = np.asarray(uncertain)
+    if U.shape != depth.shape:
+        raise NpsimInputError(f"uncertain map must have the depth's shape {depth.shape}, got {U.shape}")
+    U = U.astype(bool, copy=False)
+    if instance_ids is not None:
+        instance_ids = np.asarray(instance_ids)
+        if instance_ids.shape != depth.shape or not np.issubdtype(instance_ids.dtype, np.integer):
+            raise NpsimInputError(f"instance_ids must be an HxW integer map of shape {depth.shape}")
+    H, W = depth.shape
+    table = cityscapes()
+    fg_lut = np.zeros(256, dtype=bool)
+    fg_lut[list(table.foreground_ids)] = True
+    exclude = params.exclude if params.exclude is not None else (table.sky_id,)
+
+    valid = valid_depth_mask(depth)
+    usable = usable_mask(depth, labels, exclude, params.far_limit)     # may carry a vertex as is
+    ex_lut = np.zeros(256, dtype=bool)
+    ex_lut[list(exclude)] = True
+    # Pixels that should end up with a vertex somewhere: not excluded, not known to be too far.
+    meshable = ~ex_lut[labels] & ~(valid & ~usable)
+    obj, obj_class = object_map(labels, meshable, fg_lut, instance_ids)
+    fg = obj > 0
+    tm["objects"] = time.perf_counter() - t0
+
+    # 1. Uncertain-face deletion == drop U vertices.
+    survive = usable & ~U
+    # 2. Background completion.
+    t = time.perf_counter()
+    if params.complete_behind == "all":
+        in_r = fg.copy()
+    else:
+        near_u = cv2.dilate(U.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        touched = np.unique(obj[near_u & fg])
+        in_r = np.isin(obj, touched[touched > 0])
+    # "keep": visible background pixels in U keep their own depth (only hidden background is completed).
+    bg_known = (usable if params.visible_background == "keep" else survive) & ~in_r
+    target = meshable & ~bg_known
+    bg_depth = np.where(bg_known, depth, np.nan).astype(np.float64)
+    bg_src = np.where(bg_known, np.arange(H * W).reshape(H, W), -1)
+    filled, d_fill, s_fill = _fill_runs(target, bg_known, depth, params.interpolation == "inverse_depth", True)
+    bg_depth[filled] = d_fill[filled]
+    bg_src[filled] = s_fill[filled]
+    n_row = int(filled.sum())
+    n_col = 0
+    if params.vertical_pass:
+        known2 = bg_known | filled
+        rest = target & ~filled
+        if rest.any():
+            f2, d2, s2 = _fill_runs(rest.T.copy(), known2.T.copy(), bg_depth.T.copy(),
+                                    params.interpolation == "inverse_depth", False)
+            f2, d2 = f2.T, d2.T
+            # Source pixel index for texture/label: transposed flat index -> HxW flat index.
+            s2 = s2.T
+            s2 = np.where(s2 >= 0, (s2 % H) * W + s2 // H, -1)
+            # The column neighbour may itself be completed: follow it to a real pixel.
+            s2 = np.where(s2 >= 0, bg_src.ravel()[np.clip(s2, 0, None)], -1)
+            bg_depth[f2] = d2[f2]
+            bg_src[f2] = s2[f2]
+            filled |= f2
+            n_col = int(f2.sum())
+    tm["background"] = time.perf_counter() - t
+
+    # 3. Foreground completion.
+    t = time.perf_counter()
+    fg_known = fg & survive
+    fg_target = fg & ~fg_known
+    fg_depth, fg_filled = _bfs_fill(depth, fg_known, fg_target, obj)
+    # Objects with no surviving vertex at all keep their own valid input depth.
+    orphan = fg_target & ~fg_filled & usable
+    fg_depth[orphan] = depth[orphan]
+    fg_filled |= orphan
+    fgv = fg_known | fg_filled
+    fg_depth[~fgv] = np.nan
+    tm["foreground"] = time.perf_counter() - t
+
+    # Keep hidden background behind the objects in front of it; drop what the far limit cuts.
+    bgv = np.isfinite(bg_depth) & (bg_depth > 0)
+    both = filled & bgv & fgv
+    bg_depth[both] = np.maximum(bg_depth[both], fg_depth[both] * (1.0 + params.behind_margin))
+    if params.far_limit is not None:
+        bgv &= bg_depth <= params.far_limit
+        fgv &= fg_depth <= params.far_limit
+    bg_depth[~bgv] = np.nan
+    fg_depth[~fgv] = np.nan
+
+    bg_light = np.where(filled, 0, light_ids).astype(np.int32)
+    bg_src = np.where(bgv, bg_src, -1)
+    layers = SheetLayers(background_depth=bg_depth.astype(np.float32), background_source=bg_src,
+                         background_light=bg_light, foreground_depth=fg_depth.astype(np.float32), objects=obj,
+                         object_classes=obj_class, labels=labels, light_ids=light_ids)
+
+    # Triangulate.
+    t = time.perf_counter()
+    parts = layers.parts(intrinsics, *layers.full_faces(intrinsics))
+    tm["triangulate"] = time.perf_counter() - t
+    tm["total"] = time.perf_counter() - t0
+    counts = {"uncertain_pixels": int(U.sum()), "deleted_vertices": int((usable & U).sum()),
+              "background_completed_rows": n_row, "background_completed_cols": n_col,
+              "foreground_completed": int(fg_filled.sum()), "objects": len(obj_class),
+              "faces": sum(p.n_faces for p in parts), "vertices": sum(p.n_vertices for p in parts)}
+    mesh = SceneMesh(parts=parts, width=W, height=H,
+                     info={"stage": "postprocess", "params": asdict(params), "counts": counts, "timings": tm})
+    return PostprocessResult(mesh=mesh, layers=layers, counts=counts, timings=tm)
+
+
+@dataclass
+class SheetLayers:
+    """The post-processed sheets as per-pixel layers (what the triangulators and the reducer consume).
+
+    Attributes
+    ----------
+    background_depth : (H, W) float32
+        Depth of the background vertex at each pixel, NaN where none.
+    background_source : (H, W) int64
+        Flat pixel index whose label and uv the background vertex takes (itself, or the
+        nearer row neighbour for completed vertices); -1 where none.
+    background_light : (H, W) int32
+        Light id of the background vertex (0 for completed, hidden vertices).
+    foreground_depth : (H, W) float32
+        Depth of the foreground vertex at each pixel, NaN where none.
+    objects : (H, W) int32
+        Object id per pixel (0 = none); object k is ``mesh.parts[k]``.
+    object_classes : list[int]
+        labelId of object k at index k-1.
+    labels, light_ids : (H, W)
+        The input label and light maps.
+    """
+
+    background_depth: np.ndarray
+    background_source: np.ndarray
+    background_light: np.ndarray
+    foreground_depth: np.ndarray
+    objects: np.ndarray
+    object_classes: list
+    labels: np.ndarray
+    light_ids: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.background_depth.shape
+
+    def background_key(self) -> np.ndarray:
+        """Per-pixel merge key of the background sheet: (label, light id) of each vertex, -1 where none."""
+        H, W = self.shape
+        src = self.background_source.ravel()
+        lab = self.labels.ravel()[np.clip(src, 0, None)].astype(np.int64)
+        key = (lab << 32) | (self.background_light.ravel().astype(np.int64) & 0xFFFFFFFF)
+        return np.where(src >= 0, key, -1).reshape(H, W)
+
+    def foreground_key(self) -> np.ndarray:
+        """Per-pixel merge key of the foreground sheets: (object, label, light id), -1 where none."""
+        ok = np.isfinite(self.foreground_depth)
+        key = ((self.objects.astype(np.int64) << 40) | (self.labels.astype(np.int64) << 32)
+               | (self.light_ids.astype(np.int64) & 0xFFFFFFFF))
+        return np.where(ok, key, -1)
+
+    def full_faces(self, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+        """Full-resolution triangulation: (background faces, foreground faces) as flat pixel indices."""
+        H, W = self.shape
+        rays = intr.pixel_rays(np.float32)
+        flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
+        out = []
+        for d, group in ((self.background_depth, None), (self.foreground_depth, self.objects)):
+            ok = np.isfinite(d)
+            pts = rays * np.where(ok, d, 0.0)[..., None]
+            out.append(quad_faces(np.where(ok, flat, -1), pts, group))
+        return out[0], out[1]
+
+    def parts(self, intr: Intrinsics, bg_faces: np.ndarray, fg_faces: np.ndarray) -> list[MeshPart]:
+        """Mesh parts from faces given as flat pixel indices into the background / foreground layers.
+
+        Only referenced pixels become vertices; part k (k >= 1) is object k, possibly empty.
+        """
+        H, W = self.shape
+        table = cityscapes()
+        rays = intr.pixel_rays(np.float32).reshape(-1, 3)
+        bd, fd = self.background_depth.ravel(), self.foreground_depth.ravel()
+        labels = self.labels.ravel()
+        lookup = np.full(H * W, -1, dtype=np.int64)
+
+        def build(name, faces, depth, fg, label_src, light):
+            if faces.size * 8 < H * W:       # small part: sorting its indices is cheaper than a full mask
+                nodes = np.unique(faces)
+            else:
+                used = np.zeros(H * W, dtype=bool)
+                used[faces.ravel()] = True
+                nodes = np.flatnonzero(used)
+            lookup[nodes] = np.arange(len(nodes))
+            local = lookup[faces]
+            sv, su = np.divmod(label_src[nodes], W)
+            vv, uu = np.divmod(nodes, W)
+            return MeshPart(name=name, vertices=(rays[nodes] * depth[nodes, None]).astype(np.float32),
+                            faces=local.reshape(-1, 3), uv=pixel_uv(su, sv, W, H),
+                            pixel=np.stack([uu, vv], 1).astype(np.float32),
+                            label=labels[label_src[nodes]].astype(np.uint8),
+                            light_id=light[nodes].astype(np.int32), foreground=fg)
+
+        parts = [build("background", bg_faces, bd, False, self.background_source.ravel(),
+                       self.background_light.ravel())]
+        n_obj = len(self.object_classes)
+        if n_obj:
+            fo = self.objects.ravel()[fg_faces[:, 0]]
+            order = np.argsort(fo, kind="stable")
+            fg_faces, fo = fg_faces[order], fo[order]
+            starts = np.searchsorted(fo, np.arange(1, n_obj + 2))
+            ident = np.arange(H * W, dtype=np.int64)
+            counter: dict[int, int] = {}
+            for k in range(n_obj):
+                c = self.object_classes[k]
+                counter[c] = counter.get(c, 0) + 1
+                cname = table.by_id(c).name.replace(" ", "_")
+                parts.append(build(f"{cname}_{counter[c]}", fg_faces[starts[k]:starts[k + 1]], fd, True, ident,
+                                   self.light_ids.ravel()))
+        return parts
