@@ -176,9 +176,17 @@ def test_popup_on_synthetic_scene_beats_constant_baseline():
     const = np.where(valid, np.nanmedian(s.depth_gt), np.nan).astype(np.float32)
     dc = depth_metrics(const, s.depth_gt)
     nc = normal_metrics(normals_from_depth(const, s.intrinsics), s.normals_gt)
-    assert dm.abs_rel < 0.6 * dc.abs_rel
-    assert nm.rmse_deg < 0.8 * nc.rmse_deg
-    assert dm.n > 0.9 * valid.sum()
+    # Measured at 256x128, seed 0 (docs/geometry.md): pop-up AbsRel 0.171, normal RMSE 30.6 deg;
+    # constant baseline 0.782 and 77.9 deg. Margins leave room for small changes of the scene.
+    assert dm.abs_rel == pytest.approx(0.17, abs=0.05)
+    assert dc.abs_rel == pytest.approx(0.78, abs=0.06)
+    assert nm.rmse_deg == pytest.approx(30.6, abs=7.0)
+    assert nc.rmse_deg == pytest.approx(77.9, abs=5.0)
+    assert dm.abs_rel < 0.35 * dc.abs_rel and nm.rmse_deg < 0.55 * nc.rmse_deg
+    assert dm.delta1 > 0.6 > dc.delta1
+    assert dm.n == valid.sum()  # every non-sky pixel gets a depth
+    road = s.labels == ROAD  # the ground plane is the prior's own model: near exact on the road
+    assert depth_metrics(est.depth, s.depth_gt, road).abs_rel < 0.01
 
 
 # --------------------------------------------------------------------------- files

@@ -261,11 +261,14 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
 
     # --- segments resting (also) on other segments, in rounds as their supports get placed
     rounds = 0
+    drawn = np.zeros(nseg + 1, dtype=bool)  # segments whose pixels already have their plane depth
     mode_rest = np.where(seg_facade, 1, 2)  # facades: line fit; others: fronto at the nearest support
     for rounds in range(1, p.max_rounds + 1):
-        cur = vertical & placed[seg]
+        cur = vertical & (placed & ~drawn)[seg]  # only segments placed since the last round
         if cur.any():
             depth[cur] = _plane_depth(rays, planes, seg, cur, p)
+            normals[cur] = planes[seg[cur], :3]
+        drawn |= placed
         known = g_sup | (o_sup & placed[seg_below])
         n_known = np.bincount(seg[known], minlength=nseg + 1)
         waiting = ~placed & (n_known > 0)
@@ -286,7 +289,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
         use &= ~(thin & (n_solid[seg] > 0))
         vs, us = np.nonzero(use)
         _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 2, e, f, p, mode=mode_rest)
-    cur = vertical & placed[seg]
+    cur = vertical & (placed & ~drawn)[seg]
     depth[cur] = _plane_depth(rays, planes, seg, cur, p)
     normals[cur] = planes[seg[cur], :3]
 
