@@ -181,6 +181,27 @@ def predict_raw(scene: Scene, checkpoint: str | os.PathLike) -> tuple[np.ndarray
     return out[0, 0].cpu().numpy().astype(np.float64), kind
 
 
+def align_to_prior(scene: Scene, inverse: np.ndarray, params: NetworkParams) -> tuple[np.ndarray, Alignment]:
+    """Metric z-depth (HxW float32, NaN invalid) from a relative inverse-depth map ``inverse``.
+
+    Fits ``1/z_popup ~ s * inverse + t`` on ground pixels whose pop-up depth is at
+    most ``params.align_max_depth`` (robust, :func:`align_scale_shift`), then
+    ``depth = 1 / (s * inverse + t)``; non-positive or beyond-``max_depth``
+    values and invalid labels (sky) become NaN.
+    """
+    prior = estimate_popup(scene, params.popup)
+    ground = cityscapes().lut("ground").astype(bool)[scene.labels]
+    ref = ground & np.isfinite(prior.depth) & (prior.depth <= params.align_max_depth)
+    with np.errstate(divide="ignore"):
+        target = 1.0 / prior.depth.astype(np.float64)
+    al = align_scale_shift(inverse, target, ref, huber_delta=params.huber_delta, iterations=params.iterations)
+    inv = al.scale * np.asarray(inverse, dtype=np.float64) + al.shift
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = np.where(inv > 1.0 / params.max_depth, 1.0 / inv, np.nan)
+    depth[invalid_label_mask(scene.labels, params.invalid_ids)] = np.nan
+    return depth.astype(np.float32), al
+
+
 def estimate_network(scene: Scene, params: NetworkParams) -> GeometryEstimate:
     """Network depth aligned to metric scale on ground pixels; normals from the aligned depth."""
     t0 = time.perf_counter()
@@ -192,17 +213,7 @@ def estimate_network(scene: Scene, params: NetworkParams) -> GeometryEstimate:
             x = np.where(raw > 0, 1.0 / raw, np.nan)
     else:
         x = raw
-    prior = estimate_popup(scene, params.popup)
-    ground = cityscapes().lut("ground").astype(bool)[scene.labels]
-    ref = ground & np.isfinite(prior.depth) & (prior.depth <= params.align_max_depth)
-    with np.errstate(divide="ignore"):
-        target = 1.0 / prior.depth.astype(np.float64)
-    al = align_scale_shift(x, target, ref, huber_delta=params.huber_delta, iterations=params.iterations)
-    inv = al.scale * x + al.shift
-    with np.errstate(divide="ignore", invalid="ignore"):
-        depth = np.where(inv > 1.0 / params.max_depth, 1.0 / inv, np.nan)
-    depth[invalid_label_mask(scene.labels, params.invalid_ids)] = np.nan
-    depth = depth.astype(np.float32)
+    depth, al = align_to_prior(scene, x, params)
     normals = normals_from_depth(depth, scene.intrinsics)
     info = {"checkpoint": str(params.checkpoint), "output": output, "config_type": kind,
             "scale": al.scale, "shift": al.shift, "align_pixels": al.n, "align_residual_inv_m": al.residual,
