@@ -41,6 +41,10 @@ class SuperpixelParams:
         Refinement iterations.
     fine_factor : float
         Region size of the finer, detail scale relative to ``region_size``.
+    smooth : int
+        Median-filter aperture applied before segmenting (odd; 0 or 1 = off). Sensor,
+        JPEG and render noise otherwise makes superpixel borders wander off small
+        objects such as windows; a 3x3 median keeps edges.
     """
 
     method: str = "slic"
@@ -48,15 +52,30 @@ class SuperpixelParams:
     compactness: float = 10.0
     iterations: int = 10
     fine_factor: float = 0.5
+    smooth: int = 3
 
     def fine(self) -> "SuperpixelParams":
         return SuperpixelParams(self.method, max(3, int(round(self.region_size * self.fine_factor))),
-                                self.compactness, self.iterations, self.fine_factor)
+                                self.compactness, self.iterations, self.fine_factor, self.smooth)
+
+    @classmethod
+    def for_image(cls, width: int, **kw) -> "SuperpixelParams":
+        """Defaults scaled to the image: region size W/128 clipped to 8..24 px (16 at 2048 wide)."""
+        kw.setdefault("region_size", default_region_size(width))
+        return cls(**kw)
+
+
+def default_region_size(width: int) -> int:
+    """Superpixel size (px) suited to an image ``width`` px wide: W/128 within 8..24."""
+    return int(np.clip(round(width / 128), 8, 24))
 
 
 def compute_superpixels(image: np.ndarray, method: str = "slic", region_size: int = 16, compactness: float = 10.0,
-                        iterations: int = 10) -> np.ndarray:
-    """Segment ``image`` (HxWx3 uint8 RGB, or HxW grey) into superpixels -> HxW int32 labels 0..n-1."""
+                        iterations: int = 10, smooth: int = 3) -> np.ndarray:
+    """Segment ``image`` (HxWx3 uint8 RGB, or HxW grey) into superpixels -> HxW int32 labels 0..n-1.
+
+    ``smooth`` is the median aperture applied first (0/1 = none), see :class:`SuperpixelParams`.
+    """
     img = np.asarray(image)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
@@ -71,7 +90,10 @@ def compute_superpixels(image: np.ndarray, method: str = "slic", region_size: in
     if region_size < 2:
         raise NpsimInputError(f"region_size must be >= 2 px, got {region_size}")
     H, W = img.shape[:2]
-    lab = cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2Lab)
+    img = np.ascontiguousarray(img)
+    if smooth and int(smooth) > 1:
+        img = cv2.medianBlur(img, int(smooth) | 1)
+    lab = cv2.cvtColor(img, cv2.COLOR_RGB2Lab)
     xi = cv2.ximgproc
     if method in ("slic", "slico", "mslic"):
         algo = {"slic": xi.SLIC, "slico": xi.SLICO, "mslic": xi.MSLIC}[method]
@@ -123,7 +145,8 @@ def cached_superpixels(image: np.ndarray, params: SuperpixelParams = SuperpixelP
     hit = _CACHE.get(key)
     if hit is not None:
         return hit
-    labels = compute_superpixels(image, params.method, params.region_size, params.compactness, params.iterations)
+    labels = compute_superpixels(image, params.method, params.region_size, params.compactness, params.iterations,
+                                 params.smooth)
     labels.setflags(write=False)
     _CACHE.put(key, labels)
     return labels
@@ -169,13 +192,33 @@ def superpixel_means(image: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return np.stack([np.bincount(flat, lab[:, c], minlength=n) / cnt for c in range(3)], axis=1).astype(np.float32)
 
 
-def similar_superpixels(means: np.ndarray, candidates, seed: int, tolerance: float = 20.0) -> np.ndarray:
-    """The ``candidates`` whose mean Lab colour lies within ``tolerance`` (8-bit Lab units) of ``seed``'s."""
-    cand = np.asarray(list(candidates), dtype=np.int64)
-    if cand.size == 0:
-        return cand
-    d = np.linalg.norm(means[cand] - means[int(seed)], axis=1)
-    return cand[d <= tolerance]
+def similar_superpixels(means: np.ndarray, candidates, seed: int, tolerance: float | None = None) -> np.ndarray:
+    """The ``candidates`` that look like superpixel ``seed``.
+
+    With a ``tolerance`` (8-bit CIELab units): those whose mean colour lies within
+    it of the seed's. Without (``None`` or <= 0, "auto"): the candidates are split
+    into two colour clusters (2-means, started from the seed and the candidate
+    farthest from it) and the seed's cluster is kept -- a drag along a row of
+    windows touches windows and wall, and the split separates them whatever their
+    absolute colours.
+    """
+    cand = np.asarray(sorted(set(int(c) for c in candidates) | {int(seed)}), dtype=np.int64)
+    X = means[cand].astype(np.float64)
+    c0 = means[int(seed)].astype(np.float64)
+    if tolerance is not None and tolerance > 0:
+        return cand[np.linalg.norm(X - c0, axis=1) <= tolerance]
+    c1 = X[np.argmax(np.linalg.norm(X - c0, axis=1))]
+    near0 = np.ones(len(cand), bool)
+    for _ in range(20):
+        d0 = np.linalg.norm(X - c0, axis=1)
+        d1 = np.linalg.norm(X - c1, axis=1)
+        new = d0 <= d1
+        if new.all() or not new.any() or (new == near0).all():
+            near0 = new
+            break
+        near0 = new
+        c0, c1 = X[near0].mean(axis=0), X[~near0].mean(axis=0)
+    return cand[near0]
 
 
 def line_pixels(x0: float, y0: float, x1: float, y1: float) -> tuple[np.ndarray, np.ndarray]:

@@ -312,3 +312,20 @@ def test_superpixel_index_and_disk():
     np.testing.assert_array_equal(superpixel_index(lab, [1, 5]), [1, 5])
     idx = disk_index((5, 5), np.array([2]), np.array([2]), 1)
     np.testing.assert_array_equal(np.sort(idx), [7, 11, 12, 13, 17])
+
+
+def test_similar_superpixels_fixed_and_auto():
+    from npsim_core.superpixels import similar_superpixels
+
+    means = np.array([[30, 128, 128], [100, 128, 128], [35, 130, 126], [110, 128, 128], [28, 127, 128]], np.float32)
+    np.testing.assert_array_equal(similar_superpixels(means, [1, 2, 3, 4], 0, 10.0), [0, 2, 4])
+    # auto: two colour clusters among what was dragged over, the seed's kept
+    np.testing.assert_array_equal(similar_superpixels(means, [0, 1, 2, 3, 4], 0), [0, 2, 4])
+    np.testing.assert_array_equal(similar_superpixels(means, [0, 1, 2, 3, 4], 3), [1, 3])
+
+
+def test_default_region_size_scales_with_width():
+    from npsim_core.superpixels import default_region_size
+
+    assert [default_region_size(w) for w in (256, 1024, 2048, 4096)] == [8, 8, 16, 24]
+    assert SuperpixelParams.for_image(2048).region_size == 16

@@ -1,0 +1,34 @@
+"""``npsim annotate PATH``: open the light-source annotation editor.
+
+PATH is a scene folder, a folder of scene folders, a folder of images (with
+optional ``*_labelIds.png`` pairs) or one image. Annotation files are written
+next to each image (see ``npsim_core.annotation``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("annotate", help="label inactive light sources in an editor (GUI)")
+    p.add_argument("path", help="scene folder, folder of scene folders / images, or one image")
+    p.add_argument("--autosave-ms", type=int, default=2000,
+                   help="write the recovery file this long after the last edit (default 2000)")
+    p.add_argument("--list", action="store_true", help="only list the images found and their done flags")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..annotation import discover_items
+
+    items = discover_items(args.path)  # raises NpsimInputError before any window opens
+    if args.list:
+        for it in items:
+            flag = "done" if it.is_done() else ("started" if it.has_annotation() else "-")
+            print(f"{it.name}\t{flag}\t{it.image_path}")
+        return 0
+    # The GUI is loaded only when the command runs, so npsim_core itself never imports Qt.
+    editor = importlib.import_module("npsim_gui.editor")
+    return int(editor.main(args.path, autosave_ms=args.autosave_ms))

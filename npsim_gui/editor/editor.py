@@ -1,0 +1,435 @@
+"""``AnnotationEditor``: the canvas plus tool, layer, palette and instance panels.
+
+A reusable widget (the main app embeds it); :class:`~npsim_gui.editor.window.EditorWindow`
+adds menus, files, autosave and image stepping around it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout,
+                               QGroupBox, QHBoxLayout, QLabel, QPushButton, QScrollArea, QSlider, QSpinBox,
+                               QToolButton, QVBoxLayout, QWidget)
+
+from npsim_core.annotation import class_of, is_group_class, is_light_class
+from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
+from npsim_core.errors import NpsimInputError
+from npsim_core.labels import light_class
+from npsim_core.superpixels import METHODS
+
+from .canvas import EditorCanvas
+from .overlays import boundary_rgba, class_color, labels_rgba, lights_region
+from .palette import ClassPalette, InstanceList
+from .session import EditorSession
+from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, ShortcutDialog
+from .tools import Tool, ToolController, ToolOptions
+
+TOOL_KEYS = {Tool.SUPERPIXEL: "S", Tool.BRUSH: "B", Tool.ERASER: "E", Tool.FILL: "F", Tool.SELECT: "V",
+             Tool.GROUP: "G"}
+TOOL_TITLES = {Tool.SUPERPIXEL: "Superpixel", Tool.BRUSH: "Brush", Tool.ERASER: "Eraser", Tool.FILL: "Fill",
+               Tool.SELECT: "Select", Tool.GROUP: "Group"}
+
+
+class AnnotationEditor(QWidget):
+    """Canvas + side panel editing one image's light annotation (see ``session``)."""
+
+    #: Forwarded from the session: True when there are unsaved edits.
+    dirtyChanged = Signal(bool)
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.session = EditorSession(self)
+        self.options = ToolOptions()
+        self.controller = ToolController(self.session, self.options)
+        self.canvas = EditorCanvas(self)
+        self.canvas.handler = self.controller
+        self._lights_rgba = np.zeros((1, 1, 4), np.uint8)
+        self._refresh_timer = QTimer(self)
+        self._refresh_timer.setSingleShot(True)
+        self._refresh_timer.setInterval(60)
+        self._refresh_timer.timeout.connect(self._refresh_lists)
+        self._build_ui()
+        self._build_actions()
+        s = self.session
+        s.loaded.connect(self._on_loaded)
+        s.changed.connect(self._on_changed)
+        s.selectionChanged.connect(self._on_selection)
+        s.currentChanged.connect(self._on_current)
+        s.superpixelsReady.connect(self._on_superpixels)
+        s.dirtyChanged.connect(self.dirtyChanged)
+        s.message.connect(self.show_message)
+        self.set_tool(Tool.SUPERPIXEL)
+
+    # ----------------------------------------------------------------- UI
+    def _build_ui(self) -> None:
+        panel = QWidget()
+        pl = QVBoxLayout(panel)
+        pl.setContentsMargins(4, 4, 4, 4)
+        pl.setSpacing(6)
+
+        tools = QGroupBox("Tools")
+        tl = QGridLayout(tools)
+        tl.setSpacing(2)
+        self.tool_group = QButtonGroup(self)
+        self.tool_buttons: dict[Tool, QToolButton] = {}
+        for k, t in enumerate(Tool):
+            b = QToolButton()
+            b.setText(f"{TOOL_TITLES[t]} ({TOOL_KEYS[t]})")
+            b.setCheckable(True)
+            b.setSizePolicy(b.sizePolicy().Policy.Expanding, b.sizePolicy().Policy.Fixed)
+            b.clicked.connect(lambda _=False, t=t: self.set_tool(t))
+            self.tool_group.addButton(b)
+            self.tool_buttons[t] = b
+            tl.addWidget(b, k // 3, k % 3)
+        opts = QFormLayout()
+        opts.setContentsMargins(0, 4, 0, 0)
+        self.brush_spin = QSpinBox()
+        self.brush_spin.setRange(0, 100)
+        self.brush_spin.setValue(int(self.options.brush_radius))
+        self.brush_spin.setSuffix(" px radius")
+        self.brush_spin.valueChanged.connect(self._on_brush)
+        opts.addRow("Brush", self.brush_spin)
+        self.split_box = QCheckBox("One new light per region (R)")
+        self.split_box.toggled.connect(lambda v: setattr(self.options, "split_regions", v))
+        self.similar_box = QCheckBox("Similar colour only (T)")
+        self.similar_box.toggled.connect(lambda v: setattr(self.options, "similar_only", v))
+        self.tol_spin = QDoubleSpinBox()
+        self.tol_spin.setRange(0, 200)
+        self.tol_spin.setSpecialValueText("auto")
+        self.tol_spin.setToolTip("colour tolerance (CIELab); auto = split what the drag covered into two colours")
+        self.tol_spin.setValue(self.options.tolerance)
+        self.tol_spin.valueChanged.connect(lambda v: setattr(self.options, "tolerance", float(v)))
+        self.overwrite_box = QCheckBox("Paint over other lights")
+        self.overwrite_box.toggled.connect(lambda v: setattr(self.options, "overwrite", v))
+        opts.addRow(self.split_box)
+        sim = QHBoxLayout()
+        sim.addWidget(self.similar_box)
+        sim.addWidget(self.tol_spin)
+        opts.addRow(sim)
+        opts.addRow(self.overwrite_box)
+        tl.addLayout(opts, 2, 0, 1, 3)
+        pl.addWidget(tools)
+
+        # Top bar over the canvas: layer toggles with opacity, superpixel settings.
+        bar = QWidget()
+        bl = QHBoxLayout(bar)
+        bl.setContentsMargins(4, 2, 4, 2)
+        bl.setSpacing(6)
+        self.layer_boxes: dict[str, QCheckBox] = {}
+        self.layer_sliders: dict[str, QSlider] = {}
+        for name, title, key in (("labels", "Labels", "L"), ("superpixels", "Superpixels", "P"),
+                                 ("lights", "Lights", "M")):
+            cb = QCheckBox(f"{title} ({key})")
+            cb.setChecked(name != "labels")
+            cb.toggled.connect(lambda v, n=name: self.canvas.set_layer_visible(n, v))
+            self.canvas.set_layer_visible(name, cb.isChecked())
+            sl_ = QSlider(Qt.Orientation.Horizontal)
+            sl_.setRange(0, 100)
+            sl_.setValue(int(round(self.canvas.layers[name].opacity() * 100)))
+            sl_.setToolTip(f"{title} opacity")
+            sl_.setFixedWidth(70)
+            sl_.valueChanged.connect(lambda v, n=name: self.canvas.set_layer_opacity(n, v / 100))
+            bl.addWidget(cb)
+            bl.addWidget(sl_)
+            self.layer_boxes[name] = cb
+            self.layer_sliders[name] = sl_
+        bl.addStretch(1)
+        self.zoom_label = QLabel("")
+        bl.addWidget(self.zoom_label)
+        self.canvas.zoomChanged.connect(lambda z: self.zoom_label.setText(f"zoom {z:.2f}"))
+        self.sp_method = QComboBox()
+        self.sp_method.addItems(list(METHODS))
+        self.sp_method.setToolTip("superpixel method")
+        self.sp_size = QSpinBox()
+        self.sp_size.setRange(3, 200)
+        self.sp_size.setPrefix("size ")
+        self.sp_size.setToolTip("superpixel size (px); the fine scale (Alt) is half of it")
+        self.sp_compact = QDoubleSpinBox()
+        self.sp_compact.setRange(0.5, 100)
+        self.sp_compact.setDecimals(1)
+        self.sp_compact.setPrefix("c ")
+        self.sp_compact.setToolTip("compactness (SLIC/MSLIC ruler; LSC ratio x100; SEEDS ignores it)")
+        p = self.session.sp_params
+        self.sp_method.setCurrentText(p.method)
+        self.sp_size.setValue(p.region_size)
+        self.sp_compact.setValue(p.compactness)
+        apply_sp = QPushButton("Segment")
+        apply_sp.clicked.connect(self._apply_superpixel_settings)
+        self.sp_status = QLabel("…")
+        sp_row = QHBoxLayout()
+        sp_row.setSpacing(3)
+        for w in (self.sp_method, self.sp_size, self.sp_compact, apply_sp):
+            sp_row.addWidget(w)
+        opts.addRow("Superpixels", sp_row)
+        opts.addRow("", self.sp_status)
+
+        pal = QGroupBox("Classes")
+        pal_l = QVBoxLayout(pal)
+        self.palette = ClassPalette()
+        self.palette.lightClassChosen.connect(self.session.set_current_class)
+        self.palette.groupClassChosen.connect(self.session.set_current_class)
+        pal_l.addWidget(self.palette)
+        pl.addWidget(pal)
+
+        inst = QGroupBox("Instances")
+        il = QVBoxLayout(inst)
+        self.instance_list = InstanceList()
+        self.instance_list.setMinimumHeight(160)
+        self.instance_list.selectionEdited.connect(self._on_list_selection)
+        il.addWidget(self.instance_list)
+        row = QHBoxLayout()
+        for text, slot in (("New", self.new_light), ("Class", self.change_selected_class),
+                           ("Group", self.group_selected), ("Ungroup", self.ungroup_selected),
+                           ("Delete", self.delete_selected)):
+            b = QPushButton(text)
+            b.clicked.connect(slot)
+            row.addWidget(b)
+        il.addLayout(row)
+        pl.addWidget(inst, 1)
+        self.status = QLabel("")
+        self.status.setWordWrap(True)
+        pl.addWidget(self.status)
+
+        scroll = QScrollArea()
+        scroll.setWidget(panel)
+        scroll.setWidgetResizable(True)
+        # As wide as the panel needs, plus room for the vertical scroll bar.
+        scroll.setFixedWidth(panel.minimumSizeHint().width() + scroll.verticalScrollBar().sizeHint().width() + 6)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.side_panel = scroll
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.setContentsMargins(0, 0, 0, 0)
+        lv.setSpacing(0)
+        lv.addWidget(bar)
+        lv.addWidget(self.canvas, 1)
+        lay = QHBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.setSpacing(2)
+        lay.addWidget(left, 1)
+        lay.addWidget(scroll, 0)
+        self.canvas.hovered.connect(self._on_hover)
+
+    def _action(self, text: str, keys, slot) -> QAction:
+        a = QAction(text, self)
+        a.setShortcuts([QKeySequence(k) for k in ([keys] if isinstance(keys, str) else keys)])
+        a.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
+        a.triggered.connect(slot)
+        self.addAction(a)
+        return a
+
+    def _build_actions(self) -> None:
+        self.actions_by_name: dict[str, QAction] = {}
+        A = self.actions_by_name
+        A["undo"] = self._action("Undo", "Ctrl+Z", self.session.undo)
+        A["redo"] = self._action("Redo", ["Ctrl+Shift+Z", "Ctrl+Y"], self.session.redo)
+        for t, k in TOOL_KEYS.items():
+            A[f"tool_{t.value}"] = self._action(TOOL_TITLES[t], k, lambda _=False, t=t: self.set_tool(t))
+        for cid, k in {**LIGHT_CLASS_KEYS, **GROUP_CLASS_KEYS}.items():
+            A[f"class_{cid}"] = self._action(light_class(cid).name, k,
+                                             lambda _=False, c=cid: self.session.set_current_class(c))
+        A["new"] = self._action("New light", "N", self.new_light)
+        A["class"] = self._action("Change class of selection", "C", self.change_selected_class)
+        A["group"] = self._action("Group selection", "Ctrl+G", self.group_selected)
+        A["ungroup"] = self._action("Ungroup", "Ctrl+Shift+G", self.ungroup_selected)
+        A["delete"] = self._action("Delete selection", ["Delete", "Backspace"], self.delete_selected)
+        A["escape"] = self._action("Clear selection", "Esc", lambda: self.session.set_selection(set(), current=None)
+                                   or self.session.set_current(None))
+        A["split"] = self._action("One light per region", "R", self.split_box.toggle)
+        A["similar"] = self._action("Similar colour only", "T", self.similar_box.toggle)
+        A["smaller"] = self._action("Brush smaller", "[", lambda: self.brush_spin.setValue(self.brush_spin.value() - 1))
+        A["larger"] = self._action("Brush larger", "]", lambda: self.brush_spin.setValue(self.brush_spin.value() + 1))
+        for name, key in (("labels", "L"), ("superpixels", "P"), ("lights", "M")):
+            A[f"layer_{name}"] = self._action(f"Toggle {name}", key, self.layer_boxes[name].toggle)
+        A["help"] = self._action("Shortcuts", "F1", self.show_shortcuts)
+
+    # ----------------------------------------------------------------- public API
+    def load(self, image, labels=None, ann=None, folder=None, stem="annotation", *, dirty=False) -> None:
+        """Edit ``image`` (HxWx3 uint8) with optional labelIds and annotation."""
+        self.session.load(image, labels, ann, folder, stem, dirty=dirty)
+
+    def set_base_image(self, rgb: np.ndarray | None) -> None:
+        """Show another view (e.g. a depth visualisation) under the overlays; None = the image."""
+        self.canvas.set_base_image(self.session.image if rgb is None else rgb)
+
+    def set_tool(self, tool: Tool) -> None:
+        self.controller.tool = Tool(tool)
+        self.tool_buttons[Tool(tool)].setChecked(True)
+        self.canvas.set_brush_radius(self.options.brush_radius if tool in (Tool.BRUSH, Tool.ERASER) else 0)
+
+    def show_message(self, text: str) -> None:
+        self.status.setText(text)
+
+    def show_shortcuts(self) -> ShortcutDialog:
+        dlg = ShortcutDialog(self)
+        dlg.show()
+        self._shortcut_dialog = dlg
+        return dlg
+
+    # ----------------------------------------------------------------- commands on the selection
+    def _safe(self, fn) -> None:
+        try:
+            fn()
+        except NpsimInputError as exc:
+            self.show_message(str(exc))
+
+    def new_light(self) -> None:
+        def go():
+            cmd, iid = new_instance(self.session.ann, self.session.current_class)
+            self.session.apply(cmd)
+            self.session.set_selection({iid}, current=iid)
+        self._safe(go)
+
+    def selected_lights(self) -> list[int]:
+        return sorted(i for i in self.session.selection if is_light_class(class_of(i)))
+
+    def group_selected(self) -> None:
+        def go():
+            lights = self.selected_lights()
+            if not lights:
+                self.show_message("select lights to group (Ctrl+click or the list)")
+                return
+            cmd, gid = group_lights(self.session.ann, lights, self.session.group_class)
+            self.session.apply(cmd)
+            self.session.set_selection({gid})
+            self.show_message(f"grouped {len(lights)} lights as {light_class(class_of(gid)).name} {gid}")
+        self._safe(go)
+
+    def ungroup_selected(self) -> None:
+        s = self.session
+        gids = {i for i in s.selection if i in s.ann.groups}
+        gids |= {g for i in s.selection if (g := s.ann.group_of(i)) is not None}
+        if gids:
+            s.begin_stroke("ungroup")
+            for g in sorted(gids):
+                s.apply(ungroup(s.ann, g))
+            s.end_stroke()
+
+    def delete_selected(self) -> None:
+        s = self.session
+        ids = sorted(s.selection) or ([s.current_id] if s.current_id else [])
+        if not ids:
+            return
+        s.begin_stroke("delete")
+        for i in ids:  # groups first would be removed anyway when their lights go
+            if i in s.ann.groups or i in s.ann.instance_ids():
+                s.apply(delete_instance(s.ann, i))
+        s.end_stroke()
+        s.set_selection(set(), current=None)
+
+    def change_selected_class(self) -> None:
+        def go():
+            s = self.session
+            ids = sorted(s.selection) or ([s.current_id] if s.current_id else [])
+            new_sel = set()
+            s.begin_stroke("change class")
+            try:
+                for i in ids:
+                    target = s.group_class if is_group_class(class_of(i)) else s.current_class
+                    cmd, nid = change_class(s.ann, i, target)
+                    s.apply(cmd)
+                    new_sel.add(nid)
+            finally:
+                s.end_stroke()
+            s.set_selection(new_sel, current=max(new_sel) if new_sel and len(new_sel) == 1 else None)
+        self._safe(go)
+
+    # ----------------------------------------------------------------- session -> view
+    def _on_loaded(self) -> None:
+        s = self.session
+        self.canvas.set_base_image(s.image)
+        H, W = s.ann.shape
+        if s.labels is not None:
+            self.canvas.set_layer("labels", labels_rgba(s.labels))
+        else:
+            self.canvas.set_layer("labels", np.zeros((H, W, 4), np.uint8))
+        self.layer_boxes["labels"].setEnabled(s.labels is not None)
+        self.canvas.set_layer("superpixels", np.zeros((H, W, 4), np.uint8))
+        self._lights_rgba = np.zeros((H, W, 4), np.uint8)
+        lights_region(s.ann.instance_map, self._lights_rgba, None, s.selection)
+        self.canvas.set_layer("lights", self._lights_rgba)
+        self.sp_status.setText("computing…")
+        self._sync_superpixel_widgets()
+        self.canvas.fit()
+        self._refresh_lists()
+        self._on_current()
+
+    def _sync_superpixel_widgets(self) -> None:
+        p = self.session.sp_params
+        for w in (self.sp_method, self.sp_size, self.sp_compact):
+            w.blockSignals(True)
+        self.sp_method.setCurrentText(p.method)
+        self.sp_size.setValue(p.region_size)
+        self.sp_compact.setValue(p.compactness)
+        for w in (self.sp_method, self.sp_size, self.sp_compact):
+            w.blockSignals(False)
+
+    def _on_superpixels(self) -> None:
+        self.canvas.set_layer("superpixels", boundary_rgba(self.session.sp_coarse))
+        self.sp_status.setText(f"{int(self.session.sp_coarse.max()) + 1} sp")
+
+    def _apply_superpixel_settings(self) -> None:
+        self.sp_status.setText("computing…")
+        self.session.request_superpixels(replace(self.session.sp_params, method=self.sp_method.currentText(),
+                                                 region_size=self.sp_size.value(),
+                                                 compactness=self.sp_compact.value()))
+
+    def _on_changed(self, ch: Change) -> None:
+        if ch.rect is not None:
+            lights_region(self.session.ann.instance_map, self._lights_rgba, ch.rect, self.session.selection)
+            self.canvas.layers["lights"].update_rect(ch.rect)
+        self._refresh_timer.start()
+
+    def _on_selection(self) -> None:
+        lights_region(self.session.ann.instance_map, self._lights_rgba, None, self.session.selection)
+        self.canvas.layers["lights"].update()
+        self.instance_list.set_selection(self.session.selection)
+        self._refresh_timer.start()
+
+    def _on_current(self) -> None:
+        s = self.session
+        self.palette.set_current(s.current_class, s.group_class)
+        cur = f"current light {s.current_id}" if s.current_id else "next stroke starts a new light"
+        self.show_message(f"class {light_class(s.current_class).name}, group class "
+                          f"{light_class(s.group_class).name}; {cur}")
+
+    def _refresh_lists(self) -> None:
+        s = self.session
+        self.instance_list.rebuild(s.ann, s.selection, s.current_id)
+        st = s.ann.stats()
+        boxes = []
+        for gid in sorted(s.ann.groups):
+            b = s.ann.group_bbox(gid, st)
+            if b is not None:
+                sel = gid in s.selection
+                color = (255, 255, 255) if sel else class_color(class_of(gid))
+                boxes.append((gid, b, color, f"{light_class(class_of(gid)).name} {gid}"))
+        self.canvas.set_group_boxes(boxes)
+
+    def refresh_now(self) -> None:
+        """Flush the debounced list / group-box refresh (tests and screenshots)."""
+        self._refresh_timer.stop()
+        self._refresh_lists()
+
+    def _on_list_selection(self, ids: set[int]) -> None:
+        self.session.set_selection(ids)
+        lights = [i for i in ids if is_light_class(class_of(i))]
+        if len(lights) == 1:
+            self.session.set_current(lights[0])
+
+    def _on_hover(self, x: int, y: int) -> None:
+        if x < 0:
+            return
+        iid = self.session.instance_at(x, y)
+        what = f"{light_class(class_of(iid)).name} {iid}" if iid else "no light"
+        self.window().statusBar().showMessage(f"({x}, {y}) {what}  zoom {self.canvas.zoom():.2f}") \
+            if hasattr(self.window(), "statusBar") else None
+
+    def _on_brush(self, v: int) -> None:
+        self.options.brush_radius = float(v)
+        if self.controller.tool in (Tool.BRUSH, Tool.ERASER):
+            self.canvas.set_brush_radius(v)

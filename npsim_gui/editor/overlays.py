@@ -1,0 +1,92 @@
+"""numpy -> RGBA overlay arrays for the annotation canvas (vectorised colour LUTs).
+
+All builders return (H, W, 4) uint8 RGBA arrays or fill a region of one in
+place, so the canvas can wrap them in a QImage without copying and repaint only
+the rectangle an edit touched.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from npsim_core.labels import cityscapes, light_classes
+from npsim_core.superpixels import boundary_mask
+
+#: Largest id an instance PNG can hold (uint16); LUTs cover 0..MAX_ID.
+MAX_ID = 21999
+
+
+@lru_cache(maxsize=1)
+def light_color_lut() -> np.ndarray:
+    """(MAX_ID+1, 3) uint8: each light id gets its class colour, shaded by index so
+    neighbouring instances of one class are told apart."""
+    lut = np.zeros((MAX_ID + 1, 3), np.float32)
+    idx = np.arange(MAX_ID + 1)
+    # Alternate shading by index: 1.0, 0.72, 0.86, 0.58 ... (periodic so ids stay distinct nearby).
+    shade = np.array([1.0, 0.70, 0.85, 0.58, 0.93, 0.78])[idx % 1000 % 6]
+    for c in light_classes():
+        sl = slice(c.id * 1000, min(c.id * 1000 + 1000, MAX_ID + 1))
+        lut[sl] = np.asarray(c.color, np.float32)[None, :] * shade[sl, None]
+    return np.clip(lut, 0, 255).astype(np.uint8)
+
+
+def class_color(class_id: int) -> tuple[int, int, int]:
+    for c in light_classes():
+        if c.id == class_id:
+            return c.color
+    return (255, 255, 255)
+
+
+def rgba_from_rgb(rgb: np.ndarray) -> np.ndarray:
+    out = np.empty(rgb.shape[:2] + (4,), np.uint8)
+    out[..., :3] = rgb
+    out[..., 3] = 255
+    return out
+
+
+def labels_rgba(labels: np.ndarray) -> np.ndarray:
+    """Cityscapes colours, opaque (the layer's opacity is set on the item)."""
+    return rgba_from_rgb(cityscapes().color_lut()[labels])
+
+
+def boundary_rgba(labels: np.ndarray, color=(0, 230, 255)) -> np.ndarray:
+    b = boundary_mask(labels)
+    out = np.zeros(labels.shape + (4,), np.uint8)
+    out[b, :3] = color
+    out[b, 3] = 255
+    return out
+
+
+def lights_region(instance_map: np.ndarray, out: np.ndarray, rect: tuple[int, int, int, int] | None,
+                  selected: frozenset[int] | set[int] = frozenset(), fill_alpha: int = 150) -> None:
+    """Fill ``out[rect]`` (RGBA) from ``instance_map``: translucent fill, opaque outlines,
+    selected lights brighter with white outlines. ``rect`` = (x0, y0, x1, y1) half-open."""
+    H, W = instance_map.shape
+    x0, y0, x1, y1 = rect if rect is not None else (0, 0, W, H)
+    x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)
+    if x0 >= x1 or y0 >= y1:
+        return
+    # One pixel of context on each side so outlines at the rect border are right.
+    ex0, ey0, ex1, ey1 = max(0, x0 - 1), max(0, y0 - 1), min(W, x1 + 1), min(H, y1 + 1)
+    m = instance_map[ey0:ey1, ex0:ex1]
+    edge = np.zeros(m.shape, bool)
+    edge[:, 1:] |= m[:, 1:] != m[:, :-1]
+    edge[:, :-1] |= m[:, :-1] != m[:, 1:]
+    edge[1:, :] |= m[1:, :] != m[:-1, :]
+    edge[:-1, :] |= m[:-1, :] != m[1:, :]
+    sub = (slice(y0 - ey0, y1 - ey0), slice(x0 - ex0, x1 - ex0))
+    m, edge = m[sub], edge[sub] & (m[sub] != 0)
+    lut = light_color_lut()
+    ids = np.clip(m, 0, MAX_ID)
+    rgb = lut[ids]
+    alpha = np.where(m != 0, fill_alpha, 0).astype(np.uint8)
+    if selected:
+        sel = np.isin(m, np.fromiter(selected, np.int64))
+        alpha[sel] = min(255, fill_alpha + 70)
+        rgb[edge & sel] = 255
+    alpha[edge] = 255
+    region = out[y0:y1, x0:x1]
+    region[..., :3] = rgb
+    region[..., 3] = alpha

@@ -1,0 +1,241 @@
+"""Canvas tools: superpixel painting, brush/eraser, fill-to-superpixel, select, group.
+
+The :class:`ToolController` receives mouse events in image coordinates from
+the canvas and turns them into :mod:`npsim_core.annotation_ops` commands on the
+session. One press-drag-release is one undo step.
+
+Modifiers (every tool)
+----------------------
+* right click: make the light under the cursor the current one (select it);
+* Ctrl+click: add/remove the light under the cursor to/from the selection;
+* Shift: remove instead of add (superpixel tool), erase (brush);
+* Alt: use the finer superpixel scale (superpixel and fill tools).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from PySide6.QtCore import Qt
+
+from npsim_core.annotation import class_of, is_light_class
+from npsim_core.annotation_ops import erase, new_instance, paint, snap_to_superpixels, split_paint
+from npsim_core.superpixels import disk_index, line_pixels, similar_superpixels, superpixel_index
+
+
+class Tool(str, Enum):
+    SUPERPIXEL = "superpixel"
+    BRUSH = "brush"
+    ERASER = "eraser"
+    FILL = "fill"
+    SELECT = "select"
+    GROUP = "group"
+
+
+@dataclass
+class ToolOptions:
+    """Tool settings shown in the side panel.
+
+    brush_radius : px; overwrite : painting may take pixels from other lights;
+    split_regions : a superpixel drag makes one new light per connected region
+    (e.g. one per window); similar_only : a superpixel drag keeps only the
+    superpixels that look like the one where the drag started -- within
+    ``tolerance`` (CIELab, 8-bit units), or with 0 = auto the seed's half of a
+    two-colour split of everything dragged over (skips the wall between windows).
+    Both apply when the mouse is released.
+    """
+
+    brush_radius: float = 3.0
+    overwrite: bool = False
+    split_regions: bool = False
+    similar_only: bool = False
+    tolerance: float = 0.0  # 0 = auto (two-cluster split of the dragged superpixels)
+
+
+def _mods(event) -> Qt.KeyboardModifier:
+    return event.modifiers() if event is not None else Qt.KeyboardModifier.NoModifier
+
+
+class ToolController:
+    """Dispatches canvas mouse events to the active tool."""
+
+    def __init__(self, session, options: ToolOptions | None = None) -> None:
+        self.session = session
+        self.options = options or ToolOptions()
+        self.tool = Tool.SUPERPIXEL
+        self._active = None  # the press handler in use until release
+        self._last: tuple[float, float] | None = None
+        self._labels = None
+        self._touched: set[int] = set()
+        self._seed: int | None = None
+        self._remove = False
+        self._target: int | None = None
+
+    # ----------------------------------------------------------------- dispatch
+    def press(self, x: float, y: float, event=None) -> None:
+        mods = _mods(event)
+        button = event.button() if event is not None else Qt.MouseButton.LeftButton
+        xi, yi = int(np.floor(x)), int(np.floor(y))
+        s = self.session
+        if button == Qt.MouseButton.RightButton:
+            iid = s.instance_at(xi, yi)
+            s.set_selection({iid} if iid else set(), current=iid or None)
+            if not iid:
+                s.set_current(None)
+            return
+        if mods & Qt.KeyboardModifier.ControlModifier or self.tool in (Tool.SELECT, Tool.GROUP):
+            self._select_click(xi, yi, toggle=bool(mods & Qt.KeyboardModifier.ControlModifier)
+                               or self.tool == Tool.GROUP)
+            return
+        self._last = (x, y)
+        if self.tool == Tool.SUPERPIXEL:
+            self._active = "superpixel"
+            self._sp_press(xi, yi, mods)
+        elif self.tool in (Tool.BRUSH, Tool.ERASER):
+            self._active = "brush"
+            self._brush_press(xi, yi, mods)
+        elif self.tool == Tool.FILL:
+            self._fill_click(xi, yi, mods)
+
+    def move(self, x: float, y: float, event=None) -> None:
+        if self._active is None or self._last is None:
+            return
+        # Segments join the pixels the mouse was over (floor of the scene position).
+        xs, ys = line_pixels(np.floor(self._last[0]), np.floor(self._last[1]), np.floor(x), np.floor(y))
+        self._last = (x, y)
+        if self._active == "superpixel":
+            self._sp_points(xs, ys)
+        elif self._active == "brush":
+            self._brush_points(xs, ys)
+
+    def release(self, x: float, y: float, event=None) -> None:
+        if self._active is None:
+            return
+        self.move(x, y, event)
+        active, self._active = self._active, None
+        if active == "superpixel":
+            self._sp_release()
+        self.session.end_stroke()
+        self._last = None
+
+    # ----------------------------------------------------------------- helpers
+    def _ensure_current(self) -> int:
+        """The light strokes paint into; a new one of the current class when there is none."""
+        s = self.session
+        cur = s.current_id
+        if cur is None or class_of(cur) != s.current_class or not is_light_class(class_of(cur)):
+            cmd, cur = new_instance(s.ann, s.current_class)
+            s.apply(cmd)
+            s.set_current(cur)
+            s.set_selection({cur})
+        return cur
+
+    def _select_click(self, x: int, y: int, toggle: bool) -> None:
+        s = self.session
+        iid = s.instance_at(x, y)
+        if toggle:
+            if not iid:
+                return
+            sel = set(s.selection)
+            sel.symmetric_difference_update({iid})
+            s.set_selection(sel, current=iid if iid in sel else None)
+        else:
+            s.set_selection({iid} if iid else set())
+            s.set_current(iid or None)
+
+    # ----------------------------------------------------------------- superpixel tool
+    def _sp_press(self, x: int, y: int, mods) -> None:
+        s = self.session
+        labels = s.sp_fine if mods & Qt.KeyboardModifier.AltModifier else s.sp_coarse
+        if labels is None:
+            s.message.emit("superpixels are still being computed; use the brush meanwhile")
+            self._active = None
+            return
+        H, W = labels.shape
+        if not (0 <= x < W and 0 <= y < H):
+            self._active = None
+            return
+        self._labels = labels
+        self._touched = set()
+        self._seed = int(labels[y, x])
+        self._remove = bool(mods & Qt.KeyboardModifier.ShiftModifier)
+        s.begin_stroke("remove superpixels" if self._remove else "add superpixels")
+        if self._remove:
+            self._target = s.current_id
+        elif not self.options.split_regions:
+            self._target = self._ensure_current()
+        else:
+            self._target = None
+        self._sp_points(np.array([x]), np.array([y]))
+
+    def _sp_deferred(self) -> bool:
+        """Splitting into regions and colour filtering need the whole drag: apply on release."""
+        return not self._remove and (self.options.split_regions or self.options.similar_only)
+
+    def _sp_points(self, xs: np.ndarray, ys: np.ndarray) -> None:
+        labels = self._labels
+        H, W = labels.shape
+        ok = (xs >= 0) & (xs < W) & (ys >= 0) & (ys < H)
+        ids = set(np.unique(labels[ys[ok], xs[ok]]).tolist()) - self._touched
+        if not ids:
+            return
+        self._touched |= ids
+        if self._sp_deferred():
+            return
+        idx = superpixel_index(labels, sorted(ids))
+        s = self.session
+        if self._remove:
+            s.apply(erase(s.ann, idx, self._target))
+        else:
+            s.apply(paint(s.ann, idx, self._target, overwrite=self.options.overwrite))
+
+    def _sp_release(self) -> None:
+        if not self._sp_deferred() or not self._touched:
+            return
+        s = self.session
+        ids = sorted(self._touched)
+        if self.options.similar_only:
+            means = s.sp_means if self._labels is s.sp_coarse else s.sp_fine_means()
+            tol = self.options.tolerance if self.options.tolerance > 0 else None
+            ids = similar_superpixels(means, ids, self._seed, tol).tolist()
+        idx = superpixel_index(self._labels, ids)
+        if self.options.split_regions:
+            cmd, new_ids = split_paint(s.ann, idx, s.current_class, overwrite=self.options.overwrite)
+            s.apply(cmd)
+            if new_ids:
+                s.set_selection(set(new_ids), current=new_ids[-1])
+                s.message.emit(f"{len(new_ids)} new {s.current_class_name()} lights; Ctrl+G groups them")
+        else:
+            s.apply(paint(s.ann, idx, self._target, overwrite=self.options.overwrite))
+
+    # ----------------------------------------------------------------- brush / eraser
+    def _brush_press(self, x: int, y: int, mods) -> None:
+        s = self.session
+        self._remove = self.tool == Tool.ERASER or bool(mods & Qt.KeyboardModifier.ShiftModifier)
+        s.begin_stroke("erase" if self._remove else "brush")
+        if not self._remove:
+            self._target = self._ensure_current()
+        self._brush_points(np.array([x]), np.array([y]))
+
+    def _brush_points(self, xs: np.ndarray, ys: np.ndarray) -> None:
+        s = self.session
+        idx = disk_index(s.ann.shape, xs, ys, self.options.brush_radius)
+        if idx.size == 0:
+            return
+        if self._remove:
+            s.apply(erase(s.ann, idx))
+        else:
+            s.apply(paint(s.ann, idx, self._target, overwrite=self.options.overwrite))
+
+    # ----------------------------------------------------------------- fill to superpixel
+    def _fill_click(self, x: int, y: int, mods) -> None:
+        s = self.session
+        labels = s.sp_fine if mods & Qt.KeyboardModifier.AltModifier else s.sp_coarse
+        iid = s.instance_at(x, y) or s.current_id
+        if labels is None or not iid:
+            s.message.emit("fill: click a light (superpixels must be ready)")
+            return
+        s.apply(snap_to_superpixels(s.ann, iid, labels, overwrite=self.options.overwrite))
+        s.set_selection({iid}, current=iid)

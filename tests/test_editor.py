@@ -1,0 +1,423 @@
+"""The annotation editor driven like a person would: mouse on the canvas, keys, dialogs answered.
+
+Runs under Xvfb: ``xvfb-run -a .venv/bin/pytest tests/test_editor.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QWheelEvent
+from PySide6.QtWidgets import QApplication
+
+from npsim_core import annotation as A
+from npsim_core.annotation import GroupInstance, LightAnnotation, discover_items, load_annotation
+from npsim_core.io import write_image
+from npsim_core.superpixels import disk_index, line_pixels, superpixel_index
+from npsim_gui.editor import EditorWindow, Tool
+
+LEFT, RIGHT = Qt.MouseButton.LeftButton, Qt.MouseButton.RightButton
+NOMOD, SHIFT, CTRL = Qt.KeyboardModifier.NoModifier, Qt.KeyboardModifier.ShiftModifier, \
+    Qt.KeyboardModifier.ControlModifier
+
+H, W = 128, 256
+WINDOW_XS = [20 + 36 * k for k in range(6)]  # left edges, windows 10 px wide, rows 30..41 and 60..71
+
+
+def facade():
+    """A building facade with two rows of six dark windows; the top row annotated and grouped."""
+    img = np.zeros((H, W, 3), np.uint8)
+    img[:] = (120, 170, 230)
+    img[20:90] = (170, 150, 130)
+    img[90:] = (80, 80, 85)
+    lab = np.full((H, W), 23, np.uint8)
+    lab[20:90] = 11
+    lab[90:] = 7
+    ann = LightAnnotation.empty(H, W)
+    for k, x in enumerate(WINDOW_XS):
+        img[30:42, x:x + 10] = (40, 60, 90)
+        img[60:72, x:x + 10] = (40, 60, 90)
+        ann.instance_map[30:42, x:x + 10] = 1001 + k
+    ann.groups[13001] = GroupInstance(13001, tuple(range(1001, 1007)))
+    return img, lab, ann
+
+
+def make_folder(tmp_path, names=("facade",), with_annotation=True):
+    img, lab, ann = facade()
+    for n in names:
+        write_image(tmp_path / f"{n}.png", img)
+        write_image(tmp_path / f"{n}_labelIds.png", lab)
+        if with_annotation:
+            A.save_annotation(ann, tmp_path, n, image=img)
+    return tmp_path
+
+
+def open_window(qtbot, folder, answers=None, autosave_ms=50) -> EditorWindow:
+    win = EditorWindow(autosave_ms=autosave_ms)
+    win.answers = dict(answers or {})
+    qtbot.addWidget(win)
+    win.set_items(discover_items(folder))
+    win.show()
+    qtbot.waitExposed(win)
+    win.activateWindow()
+    win.editor.canvas.setFocus()
+    qtbot.waitUntil(lambda: win.editor.session.superpixels_ready, timeout=10000)
+    qtbot.waitUntil(lambda: QApplication.focusWidget() is win.editor.canvas, timeout=5000)
+    return win
+
+
+def close_window(win, answer="Discard"):
+    win.answers = {"discard": answer}
+    win.close()
+
+
+# --------------------------------------------------------------------------- mouse helpers
+def vp(canvas, x, y) -> QPoint:
+    """Viewport point of the centre of image pixel (x, y)."""
+    return canvas.view_point(x + 0.5, y + 0.5)
+
+
+def pixel_of(canvas, p: QPoint) -> tuple[int, int]:
+    s = canvas.mapToScene(p)
+    return int(np.floor(s.x())), int(np.floor(s.y()))
+
+
+def click(qtbot, canvas, x, y, button=LEFT, mods=NOMOD):
+    qtbot.mouseClick(canvas.viewport(), button, mods, vp(canvas, x, y))
+
+
+def drag(qtbot, canvas, pts, mods=NOMOD):
+    """Press at pts[0], move through the others, release at the last; returns the pixels the
+    mouse events landed on (what the tools see)."""
+    vps = [vp(canvas, x, y) for x, y in pts]
+    qtbot.mousePress(canvas.viewport(), LEFT, mods, vps[0])
+    for p in vps[1:]:
+        qtbot.mouseMove(canvas.viewport(), p)
+    qtbot.mouseRelease(canvas.viewport(), LEFT, mods, vps[-1])
+    return [pixel_of(canvas, p) for p in vps]
+
+
+def path_pixels(pix):
+    xs, ys = [np.array([pix[0][0]])], [np.array([pix[0][1]])]
+    for (x0, y0), (x1, y1) in zip(pix[:-1], pix[1:]):
+        a, b = line_pixels(x0, y0, x1, y1)
+        xs.append(a)
+        ys.append(b)
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def key(qtbot, win, k, mods=NOMOD):
+    qtbot.keyClick(win.editor.canvas, k, mods)
+
+
+def sp_mask(session, pix):
+    """Pixels of the coarse superpixels under the given pixels."""
+    xs, ys = path_pixels(pix)
+    ids = np.unique(session.sp_coarse[ys, xs])
+    m = np.zeros(session.ann.shape, bool)
+    m.reshape(-1)[superpixel_index(session.sp_coarse, ids)] = True
+    return m
+
+
+# --------------------------------------------------------------------------- tests
+def test_opens_folder_with_annotation_and_layers(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    s = win.editor.session
+    np.testing.assert_array_equal(s.ann.instance_map, facade()[2].instance_map)
+    assert s.ann.groups == facade()[2].groups
+    win.editor.refresh_now()
+    assert win.editor.instance_list.topLevelItemCount() == 1  # the group, lights nested
+    assert win.editor.instance_list.topLevelItem(0).childCount() == 6
+    assert len(win.editor.canvas._group_items) == 2  # group box + caption
+    assert "*" not in win.windowTitle()
+    lights = win.editor.canvas.layers["lights"].array
+    assert lights[35, 25, 3] > 0 and lights[50, 25, 3] == 0
+    key(qtbot, win, Qt.Key.Key_L)  # labels layer on
+    assert win.editor.canvas.layers["labels"].isVisible()
+    win.editor.layer_sliders["lights"].setValue(30)
+    assert win.editor.canvas.layers["lights"].opacity() == pytest.approx(0.3)
+    close_window(win)
+
+
+def test_paint_superpixels_shift_remove_undo_redo(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path, with_annotation=False))
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_2)  # window_parked
+    assert s.current_class == 2
+    click(qtbot, c, 24, 64)
+    assert s.current_id == 2001
+    expected = sp_mask(s, [pixel_of(c, vp(c, 24, 64))])
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected)
+    pix = drag(qtbot, c, [(60, 64), (80, 66), (100, 64)])
+    expected |= sp_mask(s, pix)
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected)
+    assert (s.ann.instance_map != 0).sum() == expected.sum()
+    assert "*" in win.windowTitle()
+    # Shift removes the superpixel under the click
+    click(qtbot, c, 80, 66, mods=SHIFT)
+    removed = sp_mask(s, [pixel_of(c, vp(c, 80, 66))])
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected & ~removed)
+    # undo / redo with the keyboard: the drag is one step
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected)
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, sp_mask(s, [pixel_of(c, vp(c, 24, 64))]))
+    key(qtbot, win, Qt.Key.Key_Z, CTRL | SHIFT)
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected)
+    key(qtbot, win, Qt.Key.Key_Y, CTRL)
+    np.testing.assert_array_equal(s.ann.instance_map == 2001, expected & ~removed)
+    # the overlay follows the map in the changed region
+    lights = c.layers["lights"].array
+    np.testing.assert_array_equal(lights[..., 3] > 0, s.ann.instance_map != 0)
+    close_window(win)
+
+
+def test_brush_eraser_exact_pixels(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path, with_annotation=False))
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_B)
+    assert win.editor.controller.tool == Tool.BRUSH
+    win.editor.brush_spin.setValue(2)
+    pix = drag(qtbot, c, [(30, 100), (50, 102), (70, 100)])
+    xs, ys = path_pixels(pix)
+    expected = np.zeros((H, W), bool)
+    expected.reshape(-1)[disk_index((H, W), xs, ys, 2)] = True
+    np.testing.assert_array_equal(s.ann.instance_map == s.current_id, expected)
+    assert s.current_id == 1001
+    key(qtbot, win, Qt.Key.Key_E)
+    win.editor.brush_spin.setValue(1)
+    click(qtbot, c, 50, 102)
+    x, y = pixel_of(c, vp(c, 50, 102))
+    expected.reshape(-1)[disk_index((H, W), np.array([x]), np.array([y]), 1)] = False
+    np.testing.assert_array_equal(s.ann.instance_map == 1001, expected)
+    # the eraser kept the light (it exists until deleted)
+    assert 1001 in s.ann.instance_ids()
+    # Delete removes it; undo brings it back
+    click(qtbot, c, 30, 100, button=RIGHT)
+    assert s.selection == {1001}
+    key(qtbot, win, Qt.Key.Key_Delete)
+    assert s.ann.instance_ids() == []
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    np.testing.assert_array_equal(s.ann.instance_map == 1001, expected)
+    close_window(win)
+
+
+def test_group_change_class_save_reopen(qtbot, tmp_path):
+    folder = make_folder(tmp_path)
+    win = open_window(qtbot, folder)
+    s, c = win.editor.session, win.editor.canvas
+    # label two bottom-row windows as separate lights with the brush (N = new light between)
+    key(qtbot, win, Qt.Key.Key_B)
+    win.editor.brush_spin.setValue(3)
+    for x0 in WINDOW_XS[:2]:
+        key(qtbot, win, Qt.Key.Key_N)
+        drag(qtbot, c, [(x0 + 4, 63), (x0 + 5, 66), (x0 + 4, 68)])
+    assert s.ann.instance_ids()[-2:] == [1007, 1008]
+    # Ctrl+click both, group them as a car_group (Alt+2), Ctrl+G
+    key(qtbot, win, Qt.Key.Key_Escape)
+    click(qtbot, c, WINDOW_XS[0] + 4, 66, mods=CTRL)
+    click(qtbot, c, WINDOW_XS[1] + 4, 66, mods=CTRL)
+    assert s.selection == {1007, 1008}
+    key(qtbot, win, Qt.Key.Key_2, Qt.KeyboardModifier.AltModifier)
+    assert s.group_class == 14
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups[14001].members == (1007, 1008)
+    # a light taken from the first group into a new one leaves the old group consistent
+    key(qtbot, win, Qt.Key.Key_Escape)
+    win.editor.refresh_now()
+    assert not win.editor.instance_list.selectedItems()
+    items = win.editor.instance_list._items
+    items[1001].setSelected(True)
+    items[1002].setSelected(True)  # list multi-select drives the session selection
+    assert s.selection == {1001, 1002}
+    key(qtbot, win, Qt.Key.Key_5, Qt.KeyboardModifier.AltModifier)  # bicycle_group
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups[13001].members == (1003, 1004, 1005, 1006)
+    assert s.ann.groups[17001].members == (1001, 1002)
+    # change class of light 1008: select, class 3, C -> id re-encoded, group follows
+    click(qtbot, c, WINDOW_XS[1] + 4, 66, button=RIGHT)
+    key(qtbot, win, Qt.Key.Key_3)
+    key(qtbot, win, Qt.Key.Key_C)
+    assert s.ann.groups[14001].members == (1007, 3001)
+    mask_3001 = s.ann.instance_map == 3001
+    assert mask_3001.sum() > 0 and not (s.ann.instance_map == 1008).any()
+    s.ann.validate()
+    expected = s.ann.copy()
+    key(qtbot, win, Qt.Key.Key_S, CTRL)
+    assert "*" not in win.windowTitle()
+    assert A.find_recovery(folder, "facade") is None
+    close_window(win)
+    # reopen: identical pixel by pixel
+    back = load_annotation(folder, "facade")
+    np.testing.assert_array_equal(back.instance_map, expected.instance_map)
+    assert back.groups == expected.groups
+    win2 = open_window(qtbot, folder)
+    np.testing.assert_array_equal(win2.editor.session.ann.instance_map, expected.instance_map)
+    assert win2.editor.session.ann.groups == expected.groups
+    assert A.load_coco(folder / "facade_lights_coco.json").groups == expected.groups
+    close_window(win2)
+
+
+def test_failed_save_keeps_previous_files(qtbot, tmp_path, monkeypatch):
+    folder = make_folder(tmp_path)
+    paths = A.annotation_paths(folder, "facade")
+    before = {k: p.read_bytes() for k, p in paths.items()}
+    win = open_window(qtbot, folder)
+    key(qtbot, win, Qt.Key.Key_B)
+    drag(qtbot, win.editor.canvas, [(100, 100), (140, 100)])
+    real = A._write_bytes
+    written = []
+
+    def fail_after_temp(path, data):
+        real(path, data)  # the temp file is complete...
+        written.append(path)
+        if len(written) == 2:
+            raise OSError("simulated crash while saving")  # ...and then the save dies
+
+    monkeypatch.setattr(A, "_write_bytes", fail_after_temp)
+    key(qtbot, win, Qt.Key.Key_S, CTRL)
+    assert "previous files kept" in win.statusBar().currentMessage()
+    assert "*" in win.windowTitle()  # still unsaved
+    assert {k: p.read_bytes() for k, p in paths.items()} == before
+    assert not [p for p in folder.iterdir() if ".tmp-" in p.name]
+    monkeypatch.setattr(A, "_write_bytes", real)
+    assert win.save()
+    assert paths["json"].read_bytes() != before["json"]
+    close_window(win)
+
+
+def test_autosave_and_crash_recovery(qtbot, tmp_path):
+    folder = make_folder(tmp_path)
+    win = open_window(qtbot, folder)
+    key(qtbot, win, Qt.Key.Key_B)
+    drag(qtbot, win.editor.canvas, [(100, 100), (140, 104)])
+    edited = win.editor.session.ann.copy()
+    rec = A.autosave_path(folder, "facade")
+    qtbot.waitUntil(rec.exists, timeout=5000)  # debounced autosave after the edit
+    # "crash": the window goes away without closeEvent (no save, no prompt)
+    win.autosave_timer.stop()
+    win.hide()
+    win2 = open_window(qtbot, folder, answers={"restore": "Restore"})
+    np.testing.assert_array_equal(win2.editor.session.ann.instance_map, edited.instance_map)
+    assert "*" in win2.windowTitle()
+    # closing: Cancel keeps the window, Save writes and removes the recovery file
+    win2.answers = {"discard": "Cancel"}
+    assert not win2.close() and win2.isVisible()
+    win2.answers = {"discard": "Save"}
+    assert win2.close()
+    assert not rec.exists()
+    np.testing.assert_array_equal(load_annotation(folder, "facade").instance_map, edited.instance_map)
+    # a recovery file the user declines is discarded
+    A.write_recovery(LightAnnotation.empty(H, W), folder, "facade")
+    win3 = open_window(qtbot, folder, answers={"restore": "Discard"})
+    assert not rec.exists()
+    np.testing.assert_array_equal(win3.editor.session.ann.instance_map, edited.instance_map)
+    close_window(win3)
+
+
+def test_step_through_folder_with_done_flags(qtbot, tmp_path):
+    folder = make_folder(tmp_path, names=("a", "b"), with_annotation=False)
+    win = open_window(qtbot, folder)
+    assert win.item.name == "a" and "[1/2]" in win.windowTitle()
+    key(qtbot, win, Qt.Key.Key_B)
+    drag(qtbot, win.editor.canvas, [(10, 10), (20, 10)])
+    win.toggle_done()
+    assert "✓" in win.windowTitle()
+    assert win.next_image()  # saves "a" first
+    assert win.item.name == "b"
+    qtbot.waitUntil(lambda: win.editor.session.superpixels_ready, timeout=10000)
+    items = discover_items(folder)
+    assert items[0].is_done() and not items[1].has_annotation()
+    assert win.previous_image()
+    assert win.editor.session.ann.meta.get("done") is True
+    assert (win.editor.session.ann.instance_map != 0).sum() > 0
+    close_window(win)
+
+
+def test_window_row_as_group_in_few_actions_on_synthetic_scene(qtbot, tmp_path):
+    """docs/annotation.md's recipe: 1, R, T, one drag along the row, Ctrl+G (1 mouse action)."""
+    from npsim_core.scene import save_scene
+    from npsim_core.synthetic import street_scene
+
+    scene = street_scene(512, 256)
+    gt = scene.lights
+    st = gt.stats()
+    # the most visible row of windows: a windows_group of >= 5 lights with the largest smallest window
+    rows = [g for g in gt.groups.values() if g.class_id == 13 and len(g.members) >= 5]
+    row = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
+    members = sorted(row.members, key=lambda m: st[m]["bbox"][0])
+    centres = [((st[m]["bbox"][0] + st[m]["bbox"][2]) // 2, (st[m]["bbox"][1] + st[m]["bbox"][3]) // 2)
+               for m in members]
+    save_scene(scene.with_(lights=None), tmp_path / "street")  # start from an empty annotation
+    win = open_window(qtbot, tmp_path / "street")
+    s, c = win.editor.session, win.editor.canvas
+    actions = 0
+    for k in (Qt.Key.Key_1, Qt.Key.Key_R, Qt.Key.Key_T):
+        key(qtbot, win, k)
+        actions += 1
+    assert win.editor.options.split_regions and win.editor.options.similar_only
+    drag(qtbot, c, centres)  # one drag through the row's windows
+    actions += 1
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    actions += 1
+    assert actions < 10
+    assert len(s.ann.groups) == 1
+    group = next(iter(s.ann.groups.values()))
+    assert group.class_id == 13 and len(group.members) == len(members)
+    # each window became its own light, overlapping the true window well
+    for m, new in zip(members, sorted(group.members, key=lambda i: s.ann.stats()[i]["bbox"][0])):
+        a, b = gt.instance_map == m, s.ann.instance_map == new
+        iou = (a & b).sum() / (a | b).sum()
+        assert iou >= 0.5, (m, new, iou)
+    close_window(win)
+
+
+def test_synthetic_scene_opens_with_its_lights(qtbot, tmp_path):
+    from npsim_core.scene import save_scene
+    from npsim_core.synthetic import street_scene
+
+    scene = street_scene(256, 128)
+    save_scene(scene, tmp_path / "street")
+    win = open_window(qtbot, tmp_path / "street")
+    s = win.editor.session
+    np.testing.assert_array_equal(s.ann.instance_map, scene.lights.instance_map)
+    assert s.ann.groups == scene.lights.groups
+    win.editor.refresh_now()
+    assert win.editor.instance_list.topLevelItemCount() >= len(scene.lights.groups)
+    img = win.grab().toImage()
+    assert img.width() > 800 and not img.isNull()
+    close_window(win)
+
+
+def test_zoom_under_mouse_pan_base_image_and_help(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    c = win.editor.canvas
+    z0 = c.zoom()
+    p = vp(c, 100, 50)
+    before = c.mapToScene(p)
+    ev = QWheelEvent(QPointF(p), QPointF(c.viewport().mapToGlobal(p)), QPoint(0, 0), QPoint(0, 720),
+                     Qt.MouseButton.NoButton, NOMOD, Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(c.viewport(), ev)
+    assert c.zoom() == pytest.approx(z0 * 1.0015 ** 720, rel=1e-3)
+    # (the image now overflows the view both ways, so the point under the mouse can stay put)
+    assert c.horizontalScrollBar().maximum() > 0 and c.verticalScrollBar().maximum() > 0
+    after = c.mapToScene(p)
+    assert abs(after.x() - before.x()) < 1 and abs(after.y() - before.y()) < 1  # anchored under the mouse
+    # middle-button pan moves the view
+    h0 = c.horizontalScrollBar().value()
+    qtbot.mousePress(c.viewport(), Qt.MouseButton.MiddleButton, NOMOD, p)
+    qtbot.mouseMove(c.viewport(), p + QPoint(-40, 0))
+    qtbot.mouseRelease(c.viewport(), Qt.MouseButton.MiddleButton, NOMOD, p + QPoint(-40, 0))
+    assert c.horizontalScrollBar().value() != h0
+    # another view under the same overlays
+    depth_view = np.zeros((H, W, 3), np.uint8)
+    depth_view[..., 2] = 200
+    win.editor.set_base_image(depth_view)
+    assert c.base.array[5, 5, 2] == 200
+    # F1 shows the shortcut sheet
+    key(qtbot, win, Qt.Key.Key_F1)
+    dlg = win.editor._shortcut_dialog
+    assert dlg.isVisible() and dlg.table.rowCount() > 20
+    dlg.close()
+    close_window(win)
