@@ -21,6 +21,11 @@ from .errors import NpsimInputError
 
 PathLike = str | os.PathLike
 
+# mkstemp creates 0600 files; finished files get the usual 0666 & ~umask instead (read once at import,
+# since reading the umask means setting it).
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
+
 
 # --------------------------------------------------------------------------- atomic writing
 @contextmanager
@@ -41,6 +46,11 @@ def atomic_path(path: PathLike, suffix: str | None = None) -> Iterator[Path]:
         yield tmp_path
         with open(tmp_path, "rb+") as fh:
             os.fsync(fh.fileno())
+        try:  # keep the mode of a file being replaced; new files get the umask's mode
+            mode = path.stat().st_mode & 0o7777
+        except FileNotFoundError:
+            mode = 0o666 & ~_UMASK
+        os.chmod(tmp_path, mode)
         os.replace(tmp_path, path)
     except BaseException:
         tmp_path.unlink(missing_ok=True)

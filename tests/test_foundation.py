@@ -397,3 +397,16 @@ def test_normal_metrics_hand_computed():
     zero = pred.copy()
     zero[0, 0] = 0.0
     assert np.isnan(angular_error_deg(zero, gt)[0, 0])
+
+
+def test_atomic_writes_give_normal_file_permissions(tmp_path):
+    import os
+
+    umask = os.umask(0o022)
+    os.umask(umask)
+    p = tmp_path / "new.json"
+    nio.write_json(p, {"a": 1})
+    assert p.stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's private 0600
+    os.chmod(p, 0o640)
+    nio.write_json(p, {"a": 2})
+    assert p.stat().st_mode & 0o777 == 0o640  # replacing keeps the file's mode
