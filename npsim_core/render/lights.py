@@ -1,0 +1,366 @@
+"""Night light table and probabilistic light activation (SPEC §5).
+
+Light table
+-----------
+``resources/light_table.json`` holds, per light class 1..12: a colour (black-body
+CCT in kelvin or an explicit chromaticity ``[r/g, b/g]`` in linear sRGB), a
+strength range ``[lo, hi]`` in SOLO's emission units, a ``spread`` (std of the
+per-light log-chromaticity jitter), an activation probability range, whether
+the lamp also *throws* light into the scene through a spot emitter, and an
+``origin`` note saying where each number comes from. A user table with the same
+layout overrides any field (merged per class) -- :func:`load_light_table`.
+
+Units: Mitsuba radiance = ``unit_scale * s * (r/g, 1, b/g)`` (SPEC §5 with one
+global scale), so SOLO's relative strengths hold.
+
+Activation
+----------
+:func:`activate_lights`: each light instance is Bernoulli(p). For lights in a
+group, ``p ~ U(p_lo, p_hi)`` is drawn once per (group, member class) and shared
+by those members (so they are correlated); ``group_all_together`` switches a
+group as one (one Bernoulli with the member-count-weighted mean p). Ungrouped
+lights draw their own p. Everything comes from one ``numpy.random.Generator``
+seeded with ``seed`` and visits lights in sorted id order: the same seed gives
+the same night.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..annotation import LightAnnotation, class_of
+from ..errors import NpsimInputError
+from ..labels import light_classes
+from ..resources import load_json_resource
+
+LIGHT_CLASS_IDS = tuple(range(1, 13))
+INFERRED_CLASS = 12
+
+# CIE XYZ -> linear sRGB (D65), IEC 61966-2-1.
+_XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
+                         [-0.9692660, 1.8760108, 0.0415560],
+                         [0.0556434, -0.2040259, 1.0572252]])
+
+
+def cct_to_xy(cct_k: float) -> tuple[float, float]:
+    """CIE 1931 xy of a black body at ``cct_k`` kelvin (Kim et al. 2002 cubic fit, 1667..25000 K)."""
+    T = float(cct_k)
+    if not (1667.0 <= T <= 25000.0):
+        raise NpsimInputError(f"colour temperature {T} K is outside 1667..25000 K (the black-body fit's range)")
+    if T <= 4000.0:
+        x = -0.2661239e9 / T**3 - 0.2343589e6 / T**2 + 0.8776956e3 / T + 0.179910
+    else:
+        x = -3.0258469e9 / T**3 + 2.1070379e6 / T**2 + 0.2226347e3 / T + 0.240390
+    if T <= 2222.0:
+        y = -1.1063814 * x**3 - 1.34811020 * x**2 + 2.18555832 * x - 0.20219683
+    elif T <= 4000.0:
+        y = -0.9549476 * x**3 - 1.37418593 * x**2 + 2.09137015 * x - 0.16748867
+    else:
+        y = 3.0817580 * x**3 - 5.87338670 * x**2 + 3.75112997 * x - 0.37001483
+    return x, y
+
+
+def cct_to_chromaticity(cct_k: float) -> tuple[float, float]:
+    """Linear-sRGB chromaticity ``(r/g, b/g)`` of a black body at ``cct_k`` kelvin.
+
+    Negative channels (outside the sRGB gamut, e.g. blue below ~1900 K) are
+    clipped to a small positive floor.
+    """
+    x, y = cct_to_xy(cct_k)
+    xyz = np.array([x / y, 1.0, (1.0 - x - y) / y])
+    rgb = np.maximum(_XYZ_TO_SRGB @ xyz, 1e-3)
+    return float(rgb[0] / rgb[1]), float(rgb[2] / rgb[1])
+
+
+@dataclass(frozen=True)
+class LightClassSpec:
+    """Night appearance of one light class.
+
+    Attributes
+    ----------
+    class_id, name : light class (1..12) and its name.
+    chromaticity : (r/g, b/g) in linear sRGB.
+    strength : (lo, hi) SOLO emission units; per light s ~ U(lo, hi).
+    spread : std of the per-light jitter of log(r/g), log(b/g).
+    p : (lo, hi) activation probability range.
+    throw : the lamp also lights the scene through a spot emitter (lamp heads, car lamps).
+    share_in_group : members of one group with this class share strength and colour.
+    cct_k : colour temperature the chromaticity came from (None for explicit colours).
+    origin : where the numbers come from.
+    """
+
+    class_id: int
+    name: str
+    chromaticity: tuple[float, float]
+    strength: tuple[float, float]
+    spread: float
+    p: tuple[float, float]
+    throw: bool
+    share_in_group: bool
+    cct_k: float | None
+    origin: str
+
+
+@dataclass(frozen=True)
+class LightTable:
+    """Light classes plus the global settings of the night (units, ego headlights, throw spots, sky)."""
+
+    classes: dict[int, LightClassSpec]
+    unit_scale: float
+    ego_headlight: dict
+    throw: dict
+    sky_radiance: tuple[float, float, float]
+    source: str = "default"
+
+    def spec(self, class_id: int) -> LightClassSpec:
+        try:
+            return self.classes[int(class_id)]
+        except KeyError:
+            raise NpsimInputError(f"light table has no class {class_id}; light classes are 1..12") from None
+
+    def radiance(self, strength: float, chromaticity: tuple[float, float]) -> np.ndarray:
+        """Mitsuba radiance RGB ``unit_scale * s * (r/g, 1, b/g)``."""
+        rg, bg = chromaticity
+        return (self.unit_scale * float(strength) * np.array([rg, 1.0, bg])).astype(np.float64)
+
+    def ego_chromaticity(self) -> tuple[float, float]:
+        e = self.ego_headlight
+        if "chromaticity" in e:
+            return tuple(float(v) for v in e["chromaticity"])  # type: ignore[return-value]
+        return cct_to_chromaticity(float(e.get("cct_K", 5000)))
+
+
+def _merge(default: dict, user: dict) -> dict:
+    out = copy.deepcopy(default)
+    for key, val in user.items():
+        if key == "classes":
+            if not isinstance(val, dict):
+                raise NpsimInputError("light table: 'classes' must be an object keyed by class id ('1'..'12')")
+            for cid, fields in val.items():
+                cur = out["classes"].setdefault(str(cid), {})
+                if not isinstance(fields, dict):
+                    raise NpsimInputError(f"light table: class {cid} must be an object of fields")
+                # A user CCT replaces a default explicit colour (and vice versa).
+                if "cct_K" in fields and "chromaticity" not in fields:
+                    cur.pop("chromaticity", None)
+                if "chromaticity" in fields and "cct_K" not in fields:
+                    cur.pop("cct_K", None)
+                cur.update(fields)
+        elif isinstance(val, dict) and isinstance(out.get(key), dict):
+            out[key] = {**out[key], **val}
+        else:
+            out[key] = val
+    return out
+
+
+def _range(doc: dict, key: str, where: str, lo_bound: float, hi_bound: float) -> tuple[float, float]:
+    v = doc.get(key)
+    if not (isinstance(v, (list, tuple)) and len(v) == 2):
+        raise NpsimInputError(f"{where}: '{key}' must be a [low, high] pair, got {v!r}")
+    lo, hi = float(v[0]), float(v[1])
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo_bound <= lo <= hi <= hi_bound):
+        raise NpsimInputError(f"{where}: '{key}' = {v} must satisfy {lo_bound} <= low <= high <= {hi_bound}")
+    return lo, hi
+
+
+def parse_light_table(doc: dict, source: str = "light table") -> LightTable:
+    """Validate a (merged) light-table document and build a :class:`LightTable`."""
+    names = {c.id: c.name for c in light_classes() if not c.is_group}
+    classes: dict[int, LightClassSpec] = {}
+    raw = doc.get("classes", {})
+    for cid in LIGHT_CLASS_IDS:
+        where = f"{source}: class {cid} ({names.get(cid)})"
+        c = raw.get(str(cid))
+        if c is None:
+            raise NpsimInputError(f"{where} is missing; every light class 1..12 needs an entry")
+        cct = c.get("cct_K")
+        if "chromaticity" in c:
+            ch = c["chromaticity"]
+            if not (isinstance(ch, (list, tuple)) and len(ch) == 2 and all(float(x) > 0 for x in ch)):
+                raise NpsimInputError(f"{where}: 'chromaticity' must be [r/g, b/g] with positive values, got {ch!r}")
+            chroma = (float(ch[0]), float(ch[1]))
+            cct = None
+        elif cct is not None:
+            chroma = cct_to_chromaticity(float(cct))
+        else:
+            raise NpsimInputError(f"{where}: give 'cct_K' (kelvin) or 'chromaticity' [r/g, b/g]")
+        spread = float(c.get("spread", 0.0))
+        if not (0.0 <= spread <= 2.0):
+            raise NpsimInputError(f"{where}: 'spread' must be in [0, 2] (log-chromaticity std), got {spread}")
+        classes[cid] = LightClassSpec(
+            class_id=cid, name=str(c.get("name", names.get(cid, str(cid)))), chromaticity=chroma,
+            strength=_range(c, "strength", where, 0.0, 1e9), spread=spread, p=_range(c, "p", where, 0.0, 1.0),
+            throw=bool(c.get("throw", False)), share_in_group=bool(c.get("share_in_group", False)),
+            cct_k=None if cct is None else float(cct), origin=str(c.get("origin", "")))
+    unit = float(doc.get("unit_scale", 0.01))
+    if not (math.isfinite(unit) and unit > 0):
+        raise NpsimInputError(f"{source}: 'unit_scale' must be a positive number, got {doc.get('unit_scale')!r}")
+    sky = doc.get("sky", {}).get("radiance", [0.0, 0.0, 0.0])
+    if not (len(sky) == 3 and all(math.isfinite(float(v)) and float(v) >= 0 for v in sky)):
+        raise NpsimInputError(f"{source}: sky.radiance must be three non-negative numbers, got {sky!r}")
+    ego = dict(doc.get("ego_headlight", {}))
+    _range(ego, "strength", f"{source}: ego_headlight", 0.0, 1e9)
+    return LightTable(classes=classes, unit_scale=unit, ego_headlight=ego, throw=dict(doc.get("throw", {})),
+                      sky_radiance=tuple(float(v) for v in sky), source=source)  # type: ignore[arg-type]
+
+
+def load_light_table(path: str | Path | None = None) -> LightTable:
+    """The default light table, with the user table at ``path`` (JSON) merged over it.
+
+    The user file may give any subset of fields, e.g.
+    ``{"classes": {"1": {"p": [0.8, 1.0]}}, "unit_scale": 0.02}``.
+    """
+    default = load_json_resource("light_table.json")
+    if path is None:
+        return parse_light_table(copy.deepcopy(default), "resources/light_table.json")
+    p = Path(path)
+    if not p.is_file():
+        raise NpsimInputError(f"{p}: light table not found; pass a JSON file laid out like resources/light_table.json")
+    try:
+        user = json.loads(p.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise NpsimInputError(f"{p}: not valid JSON ({exc})") from None
+    if not isinstance(user, dict):
+        raise NpsimInputError(f"{p}: a light table must be a JSON object")
+    return parse_light_table(_merge(default, user), str(p))
+
+
+# --------------------------------------------------------------------------- activation
+@dataclass(frozen=True)
+class LightState:
+    """One light instance in one night."""
+
+    id: int
+    class_id: int
+    on: bool
+    strength: float
+    chromaticity: tuple[float, float]
+    #: Mitsuba radiance RGB (zero when off).
+    radiance: tuple[float, float, float]
+    p: float
+    group: int | None
+
+
+@dataclass(frozen=True)
+class ActiveLights:
+    """The result of :func:`activate_lights`: every annotated light's state."""
+
+    lights: dict[int, LightState]
+    seed: int
+    group_all_together: bool
+    table_source: str = "default"
+    info: dict = field(default_factory=dict)
+
+    @property
+    def on_ids(self) -> list[int]:
+        return [i for i, s in sorted(self.lights.items()) if s.on]
+
+    def to_json(self) -> dict:
+        return {"seed": self.seed, "group_all_together": self.group_all_together, "table": self.table_source,
+                "n_lights": len(self.lights), "n_on": len(self.on_ids),
+                "lights": [{"id": s.id, "class_id": s.class_id, "class_name": _class_name(s.class_id), "on": s.on,
+                            "p": round(s.p, 6), "strength": round(s.strength, 6),
+                            "chromaticity": [round(v, 6) for v in s.chromaticity],
+                            "radiance": [round(v, 8) for v in s.radiance], "group": s.group}
+                           for _, s in sorted(self.lights.items())]}
+
+
+def _class_name(cid: int) -> str:
+    for c in light_classes():
+        if c.id == cid:
+            return c.name
+    return str(cid)
+
+
+def inferred_chromaticity(image: np.ndarray, mask: np.ndarray) -> tuple[float, float] | None:
+    """(r/g, b/g) of the mean linearised daytime colour under ``mask`` (None if empty or black)."""
+    if not mask.any():
+        return None
+    lin = srgb_to_linear(image[mask].astype(np.float32) / 255.0).mean(axis=0)
+    if lin[1] <= 1e-4:
+        return None
+    return (float(np.clip(lin[0] / lin[1], 0.05, 20.0)), float(np.clip(lin[2] / lin[1], 0.05, 20.0)))
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed: int, *,
+                    group_all_together: bool = False, image: np.ndarray | None = None,
+                    force: dict[int, bool] | None = None) -> ActiveLights:
+    """Draw one night: which annotated lights are on, how strong and what colour.
+
+    Parameters
+    ----------
+    annotation : light instances and groups (None -> no lights).
+    table : the light table.
+    seed : seeds a ``numpy.random.default_rng``; same seed -> same night.
+    group_all_together : a group switches as one (all members on or all off).
+    image : (H, W, 3) uint8 daytime sRGB; gives ``inferred`` lights their colour.
+    force : optional ``{id: on}`` overrides applied after the draw (e.g. a GUI toggle).
+
+    Returns
+    -------
+    ActiveLights with a :class:`LightState` per light id (radiance zero when off).
+    """
+    rng = np.random.default_rng(int(seed))
+    if annotation is None:
+        return ActiveLights({}, int(seed), group_all_together, table.source)
+    ids = annotation.instance_ids()
+    member_group: dict[int, int] = {}
+    for gid in sorted(annotation.groups):
+        for m in annotation.groups[gid].members:
+            member_group.setdefault(int(m), gid)
+
+    # Shared draws per (group, class), made in sorted order so they depend only on the seed.
+    shared: dict[tuple[int, int], dict] = {}
+    for gid in sorted(annotation.groups):
+        classes = sorted({class_of(m) for m in annotation.groups[gid].members if member_group.get(m) == gid})
+        for cid in classes:
+            spec = table.spec(cid)
+            shared[(gid, cid)] = {"p": float(rng.uniform(*spec.p)), "s": float(rng.uniform(*spec.strength)),
+                                  "jit": rng.normal(0.0, 1.0, 2)}
+    group_on: dict[int, bool] = {}
+    if group_all_together:
+        for gid in sorted(annotation.groups):
+            mem = [m for m in annotation.groups[gid].members if member_group.get(m) == gid]
+            if mem:
+                p = float(np.mean([shared[(gid, class_of(m))]["p"] for m in mem]))
+                group_on[gid] = bool(rng.random() < p)
+
+    states: dict[int, LightState] = {}
+    for lid in ids:
+        cid = class_of(lid)
+        spec = table.spec(cid)
+        gid = member_group.get(lid)
+        # Every light consumes the same number of draws whatever its group, so adding a
+        # group does not reshuffle unrelated lights.
+        own_p, own_s, own_jit, u = (float(rng.uniform(*spec.p)), float(rng.uniform(*spec.strength)),
+                                    rng.normal(0.0, 1.0, 2), float(rng.random()))
+        if gid is not None:
+            sh = shared[(gid, cid)]
+            p = sh["p"]
+            s, jit = (sh["s"], sh["jit"]) if spec.share_in_group else (own_s, own_jit)
+            on = group_on[gid] if group_all_together else bool(u < p)
+        else:
+            p, s, jit, on = own_p, own_s, own_jit, bool(u < own_p)
+        if force and lid in force:
+            on = bool(force[lid])
+        chroma = spec.chromaticity
+        if cid == INFERRED_CLASS and image is not None:
+            chroma = inferred_chromaticity(image, annotation.mask(lid)) or chroma
+        if spec.spread > 0:
+            chroma = (chroma[0] * math.exp(spec.spread * jit[0]), chroma[1] * math.exp(spec.spread * jit[1]))
+        rad = table.radiance(s, chroma) if on else np.zeros(3)
+        states[lid] = LightState(id=lid, class_id=cid, on=on, strength=s, chromaticity=chroma,
+                                 radiance=tuple(float(v) for v in rad), p=p, group=gid)
+    return ActiveLights(states, int(seed), group_all_together, table.source)

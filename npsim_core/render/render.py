@@ -1,0 +1,140 @@
+"""Rendering a :class:`~npsim_core.render.scene_builder.BuiltScene`: progressive preview and final quality.
+
+Both return (or yield) the **linear** RGB image, float32 HxWx3, in Mitsuba
+radiance units (camera post-processing is separate: :mod:`camera_post`).
+
+Threads: older Mitsuba 3 releases need the builder thread's environment in
+every thread that renders; the builder captures it (``BuiltScene.thread_env``)
+and these functions enter it, so they may be called from worker threads (the
+GUI's render worker). Mitsuba 3.9 dropped ``ThreadEnvironment`` and renders
+from any Python thread as is (measured); then ``thread_env`` is None.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterator
+
+import numpy as np
+
+from ..errors import NpsimCancelled, NpsimInputError
+from .scene_builder import BuiltScene, thread_env_scope
+
+CancelCheck = Callable[[], bool] | threading.Event | None
+
+
+@dataclass(frozen=True)
+class PreviewParams:
+    """Progressive preview: ``passes`` passes of ``spp_per_pass`` at ``scale`` of the full resolution,
+    path length ``max_depth`` (3 = direct light + one bounce; cheaper than the final's 4)."""
+
+    scale: float = 0.25
+    spp_per_pass: int = 4
+    passes: int = 4
+    seed: int = 0
+    max_depth: int = 3
+
+
+@dataclass(frozen=True)
+class PreviewFrame:
+    """One progressive step: the running average after ``pass_index + 1`` passes."""
+
+    image: np.ndarray
+    pass_index: int
+    spp: int
+    seconds: float
+
+
+def _cancelled(cancel: CancelCheck) -> bool:
+    if cancel is None:
+        return False
+    if isinstance(cancel, threading.Event):
+        return cancel.is_set()
+    return bool(cancel())
+
+
+def _size(built: BuiltScene, scale: float) -> tuple[int, int]:
+    if not (0 < scale <= 4):
+        raise NpsimInputError(f"render scale must be in (0, 4], got {scale}")
+    W, H = built.intrinsics.width, built.intrinsics.height
+    return max(1, int(round(W * scale))), max(1, int(round(H * scale)))
+
+
+def render_linear(built: BuiltScene, *, spp: int, seed: int = 0, scale: float = 1.0,
+                  width: int | None = None, height: int | None = None, pixel_centres: bool = False,
+                  max_depth: int | None = None) -> np.ndarray:
+    """One render of ``spp`` samples per pixel -> (H, W, 3) float32 linear RGB.
+
+    ``max_depth`` overrides the scene's path length for this render only.
+    """
+    import mitsuba as mi
+
+    if spp < 1:
+        raise NpsimInputError(f"spp must be >= 1, got {spp}")
+    w, h = (width, height) if width and height else _size(built, scale)
+    with thread_env_scope(mi, built.thread_env):
+        kw = {} if max_depth is None else {"integrator": built.integrator(int(max_depth))}
+        img = mi.render(built.scene, sensor=built.sensor(w, h, pixel_centres=pixel_centres), spp=int(spp),
+                        seed=int(seed), **kw)
+        return np.array(img, dtype=np.float32)[..., :3]
+
+
+def render_preview(built: BuiltScene, params: PreviewParams = PreviewParams(),
+                   cancel: CancelCheck = None) -> Iterator[PreviewFrame]:
+    """Progressive preview: yields the running mean after each pass (different seeds).
+
+    ``cancel`` (a ``threading.Event`` or a callable returning True) is checked
+    before every pass; when set the generator raises :class:`NpsimCancelled`.
+    """
+    acc = None
+    t0 = time.perf_counter()
+    for k in range(int(params.passes)):
+        if _cancelled(cancel):
+            raise NpsimCancelled("preview render cancelled")
+        img = render_linear(built, spp=params.spp_per_pass, seed=params.seed * 100003 + k, scale=params.scale,
+                            max_depth=params.max_depth)
+        acc = img if acc is None else acc + img
+        yield PreviewFrame(acc / (k + 1), k, (k + 1) * params.spp_per_pass, time.perf_counter() - t0)
+
+
+def render_final(built: BuiltScene, *, spp: int = 64, seed: int = 0, scale: float = 1.0,
+                 cancel: CancelCheck = None, passes: int = 1) -> np.ndarray:
+    """Final-quality linear render at ``scale`` of the full resolution.
+
+    With ``passes`` > 1 the spp are split into passes (cancellable between them).
+    """
+    passes = max(1, int(passes))
+    per = max(1, int(spp) // passes)
+    acc = None
+    for k in range(passes):
+        if _cancelled(cancel):
+            raise NpsimCancelled("final render cancelled")
+        img = render_linear(built, spp=per, seed=seed * 100003 + 7919 + k, scale=scale)
+        acc = img if acc is None else acc + img
+    return acc / passes
+
+
+def render_labels(built_label_scene: BuiltScene, *, passes: int = 8, seed: int = 0) -> np.ndarray:
+    """Decode a :func:`scene_builder.build_label_scene` render -> (H, W) int32 labelIds, -1 = no surface (sky).
+
+    ``passes`` renders of 1 spp (box filter: each pixel holds exactly one sample's
+    code, no averaging of codes) at random positions inside the pixel; each pixel
+    takes the label hit most often (ties -> lowest id). A pixel is -1 only when
+    every sample missed the mesh (sky, or the outer half-pixel of the mesh border:
+    a Worldsheet grid spans pixel centres, not pixel extents).
+    """
+    b = built_label_scene
+    W, H = b.intrinsics.width, b.intrinsics.height
+    counts = np.zeros((257, H * W), dtype=np.int32)
+    flat = np.arange(H * W)
+    for k in range(max(1, int(passes))):
+        img = render_linear(b, spp=1, seed=seed * 7919 + k, width=W, height=H)
+        code = np.rint(img[..., 0]).astype(np.int64).ravel()  # labelId + 1, 0 = miss
+        code = np.clip(code, 0, 256)
+        np.add.at(counts, (code, flat), 1)
+    hits = counts[1:]
+    best = hits.argmax(axis=0)
+    out = np.where(hits.max(axis=0) > 0, best, -1)
+    return out.reshape(H, W).astype(np.int32)

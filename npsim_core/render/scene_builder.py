@@ -1,0 +1,471 @@
+"""Mitsuba 3 scene from a :class:`~npsim_core.mesh.types.SceneMesh` (SPEC §5).
+
+Design
+------
+* **World frame = OpenCV camera frame** (x right, y down, z forward, metres).
+  Mitsuba's perspective camera looks along local +z with +y up and +x to the
+  *left* of the image, so its ``to_world`` is a 180° rotation about z
+  (``diag(-1, -1, 1)``, a proper rotation -- Mitsuba forbids scale there).
+* **Intrinsics exactly**: ``fov = 2 atan(W / (2 fx))`` on the x axis, and
+  ``principal_point_offset_{x,y} = (W/2 - cx - 0.5) / W``, ``(H/2 - cy - 0.5) / H``:
+  Mitsuba adds the offset (in film fractions) to the film sample position
+  whose pixel centres are at ``(u + 0.5) / W`` (perspective.cpp, ``sample_ray``),
+  while OpenCV centres are at integer ``u``. Mitsuba has one focal length, so for
+  ``fy != fx`` every world y coordinate (vertices, lamp positions) is scaled by
+  ``fy / fx`` (0.1 % for Cityscapes): the projection is then exact and the
+  geometry changes imperceptibly. Fov and offsets do not depend on resolution,
+  so previews use the same camera with a smaller film.
+* **Meshes in memory**: all parts are concatenated; faces are split into one
+  ``mi.Mesh`` per material kind (non-light faces) plus one per annotated light
+  instance (faces whose three vertices carry that light id). Each light mesh
+  has an ``area`` emitter; lights that are off have radiance 0 *and* emitter
+  ``sampling_weight`` 0, so :meth:`BuiltScene.apply_lights` toggles lights via
+  ``mi.traverse`` + ``params.update()`` and never rebuilds geometry.
+* **Directional falloff**: an area emitter on a lamp mask emits (Lambertian)
+  toward the camera -- it makes the lamp glow but lights little else. Classes
+  with ``throw`` (street lights, car front lamps) also get a Mitsuba ``spot``
+  at the mask's 3-D centroid: street lights aim straight down (world down, using
+  the camera pitch), car lamps along the mask's mean normal tilted 10° down.
+  Spot intensity = radiance · mask area · ``throw.gain``; Mitsuba's spot has a
+  smooth falloff between ``beam_deg`` and ``cutoff_deg`` (standing in for SOLO's
+  cos/cos² falloff).
+* **Ego headlights**: two spots 0.5 m left/right of the camera, 0.65 m above the
+  ground, aimed at the road 15 m ahead; on by default, switchable in place.
+* **Night sky**: a constant environment of ``sky.radiance`` (dim, bluish);
+  sky pixels (no mesh) show it.
+* Textures: one bitmap of the albedo map, looked up with the mesh UVs (Mitsuba
+  bitmaps have v = 0 at the top row, so v is flipped on upload).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..annotation import LightAnnotation
+from ..camera import Intrinsics
+from ..errors import NpsimInputError
+from ..mesh.types import SceneMesh
+from .lights import ActiveLights, LightTable, cct_to_chromaticity
+from .materials import GLASS_LIGHT_CLASSES, KINDS, Materials
+from .variant import set_variant
+
+
+#: Emitter sampling weight of a light that is off: (almost) never picked for next-event
+#: estimation, but never exactly 0 so a night with no light at all still has a valid
+#: emitter distribution (Mitsuba refuses an all-zero one). Changing it through
+#: ``params.update()`` rebuilds Mitsuba's emitter distribution (measured).
+OFF_WEIGHT = 1e-6
+
+
+@dataclass(frozen=True)
+class BuildParams:
+    """Scene-building options.
+
+    ego_headlights : the ego vehicle's two low beams (can also be toggled later).
+    sky : dim constant night sky (False = black world).
+    throw_spots : lamp heads / car lamps also get a spot lighting the scene.
+    max_depth : path length of the final render's path tracer (2 = direct light only, 3 = one bounce).
+    camera_height, camera_pitch : metres / radians, place the ego lamps and the street-light aim.
+    """
+
+    ego_headlights: bool = True
+    sky: bool = True
+    throw_spots: bool = True
+    max_depth: int = 4
+    camera_height: float = 1.22
+    camera_pitch: float = 0.038
+
+
+def camera_dict(intr: Intrinsics, width: int | None = None, height: int | None = None, *,
+                pixel_centres: bool = False) -> dict:
+    """Mitsuba ``perspective`` sensor reproducing ``intr`` (module docstring), film ``width`` x ``height``.
+
+    ``pixel_centres`` samples each pixel at its centre (stratified, no jitter) --
+    for 1-spp label renders; the camera is nudged by 0.01 px so those rays do not
+    pass exactly through grid vertices (where a ray can slip between triangles).
+    """
+    import mitsuba as mi
+
+    W, H = intr.width, intr.height
+    w, h = int(width or W), int(height or H)
+    fov = math.degrees(2.0 * math.atan(W / (2.0 * intr.fx)))
+    sampler = ({"type": "stratified", "sample_count": 1, "jitter": False} if pixel_centres
+               else {"type": "independent", "sample_count": 1})
+    nudge = 0.01 if pixel_centres else 0.0
+    return {"type": "perspective", "fov": fov, "fov_axis": "x",
+            "principal_point_offset_x": (W / 2.0 - intr.cx - 0.5 + nudge) / W,
+            "principal_point_offset_y": (H / 2.0 - intr.cy - 0.5 + nudge) / H,
+            "near_clip": 0.01, "far_clip": 1e5,
+            "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 180.0),
+            "sampler": sampler,
+            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb", "component_format": "float32"}}
+
+
+def _y_scale(intr: Intrinsics) -> float:
+    return float(intr.fy / intr.fx)
+
+
+@dataclass
+class _Geometry:
+    """All parts concatenated, with per-face attributes."""
+
+    vertices: np.ndarray  # (V, 3) float32, world (y already scaled)
+    uv: np.ndarray        # (V, 2) float32, Mitsuba convention (v = 0 top)
+    faces: np.ndarray     # (F, 3) int64
+    face_label: np.ndarray
+    face_light: np.ndarray
+
+
+def _face_light_majority(light_id: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Light id of each face: the id at least two of its vertices share (0 otherwise).
+
+    Looser than ``MeshPart.face_light_id`` (all three) so that thin light masks
+    (one or two pixels wide) still get emissive faces.
+    """
+    l = np.asarray(light_id)[faces]
+    pick = np.where((l[:, 0] == l[:, 1]) | (l[:, 0] == l[:, 2]), l[:, 0], np.where(l[:, 1] == l[:, 2], l[:, 1], 0))
+    return pick.astype(np.int32)
+
+
+def _gather(mesh: SceneMesh, y_scale: float) -> _Geometry:
+    vs, uvs, fs, fl, fli = [], [], [], [], []
+    off = 0
+    for p in mesh.parts:
+        if p.n_faces == 0:
+            continue
+        v = np.asarray(p.vertices, dtype=np.float32)
+        if not np.isfinite(v).all():
+            raise NpsimInputError(f"mesh part {p.name!r} has non-finite vertices; remove invalid pixels before meshing")
+        vs.append(v)
+        uv = np.asarray(p.uv, dtype=np.float32).copy()
+        uv[:, 1] = 1.0 - uv[:, 1]
+        uvs.append(uv)
+        fs.append(np.asarray(p.faces, dtype=np.int64) + off)
+        fl.append(p.face_label())
+        fli.append(_face_light_majority(p.light_id, p.faces))
+        off += p.n_vertices
+    if not fs:
+        raise NpsimInputError("the scene mesh has no faces (all sky or invalid depth?); check the depth map")
+    verts = np.concatenate(vs)
+    verts[:, 1] *= y_scale
+    return _Geometry(verts, np.concatenate(uvs), np.concatenate(fs), np.concatenate(fl), np.concatenate(fli))
+
+
+def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "object":
+    """A ``mi.Mesh`` of the selected faces with compacted vertices."""
+    faces = geo.faces[face_sel]
+    used, inv = np.unique(faces.ravel(), return_inverse=True)
+    m = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), has_vertex_normals=False,
+                has_vertex_texcoords=True, props=props)
+    p = mi.traverse(m)
+    FT, UT = type(p["vertex_positions"]), type(p["faces"])
+    p["vertex_positions"] = FT(np.ascontiguousarray(geo.vertices[used]).ravel())
+    p["faces"] = UT(inv.astype(np.uint32).ravel())
+    p["vertex_texcoords"] = FT(np.ascontiguousarray(geo.uv[used]).ravel())
+    p.update()
+    return m
+
+
+def _face_areas_centroid(geo: _Geometry, sel: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Total area (m²), area-weighted centroid and mean unit normal of the selected faces."""
+    f = geo.faces[sel]
+    v = geo.vertices.astype(np.float64)
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    cr = np.cross(b - a, c - a)
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    tot = float(area.sum())
+    cen = ((a + b + c) / 3.0 * area[:, None]).sum(0) / max(tot, 1e-12)
+    n = cr.sum(0)
+    n = n / max(np.linalg.norm(n), 1e-12)
+    return tot, cen, n
+
+
+def _level_to_camera(pitch: float) -> np.ndarray:
+    """Rotation taking a level (gravity-aligned, y down) frame to the camera frame pitched down by ``pitch``."""
+    c, s = math.cos(pitch), math.sin(pitch)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]], dtype=np.float64)
+
+
+def _spot_transform(mi, origin: np.ndarray, direction: np.ndarray):
+    d = direction / np.linalg.norm(direction)
+    up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    return mi.ScalarTransform4f().look_at(origin=[float(x) for x in origin], target=[float(x) for x in origin + d],
+                                          up=[float(x) for x in up])
+
+
+@dataclass
+class BuiltScene:
+    """A loaded Mitsuba scene plus the handles needed to toggle lights in place."""
+
+    scene: object
+    variant: str
+    intrinsics: Intrinsics
+    table: LightTable | None
+    #: light id -> traverse key prefix of its area emitter (``<shape>.emitter``).
+    area_keys: dict[int, str] = field(default_factory=dict)
+    #: light id -> (spot key prefix, intensity per unit radiance (W/sr per radiance)).
+    spot_keys: dict[int, tuple[str, float]] = field(default_factory=dict)
+    ego_keys: list[str] = field(default_factory=list)
+    ego_intensity: np.ndarray | None = None
+    thread_env: object = None
+    build_seconds: float = 0.0
+    n_faces: int = 0
+    info: dict = field(default_factory=dict)
+    _params: object = None
+    _sensors: dict = field(default_factory=dict)
+    _active: ActiveLights | None = None
+    _ego_on: bool = True
+
+    @property
+    def params(self):
+        import mitsuba as mi
+
+        if self._params is None:
+            self._params = mi.traverse(self.scene)
+        return self._params
+
+    def sensor(self, width: int, height: int, *, pixel_centres: bool = False):
+        """A sensor of the scene's camera with a ``width`` x ``height`` film (cached)."""
+        import mitsuba as mi
+
+        key = (int(width), int(height), pixel_centres)
+        if key not in self._sensors:
+            self._sensors[key] = mi.load_dict(camera_dict(self.intrinsics, width, height, pixel_centres=pixel_centres))
+        return self._sensors[key]
+
+    def integrator(self, max_depth: int):
+        """A path tracer of the given path length (cached), for renders that override the scene's."""
+        import mitsuba as mi
+
+        key = ("integrator", int(max_depth))
+        if key not in self._sensors:
+            self._sensors[key] = mi.load_dict({"type": "path", "max_depth": int(max_depth)})
+        return self._sensors[key]
+
+    def apply_lights(self, active: ActiveLights) -> float:
+        """Set every light's radiance (0 when off) in place; returns the seconds it took."""
+        t0 = time.perf_counter()
+        p = self.params
+        for lid, key in self.area_keys.items():
+            st = active.lights.get(lid)
+            rad = [0.0, 0.0, 0.0] if st is None or not st.on else list(st.radiance)
+            p[f"{key}.radiance.value"] = type(p[f"{key}.radiance.value"])(*rad)
+            p[f"{key}.sampling_weight"] = 1.0 if st is not None and st.on else OFF_WEIGHT
+        for lid, (key, gain) in self.spot_keys.items():
+            st = active.lights.get(lid)
+            inten = [0.0, 0.0, 0.0] if st is None or not st.on else [gain * r for r in st.radiance]
+            p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*inten)
+            p[f"{key}.sampling_weight"] = 1.0 if st is not None and st.on else OFF_WEIGHT
+        self._set_ego(p, self._ego_on)
+        p.update()
+        self._active = active
+        return time.perf_counter() - t0
+
+    def set_ego_headlights(self, on: bool) -> None:
+        """Switch the ego vehicle's headlights in place."""
+        self._ego_on = bool(on)
+        p = self.params
+        self._set_ego(p, self._ego_on)
+        p.update()
+
+    def _set_ego(self, p, on: bool) -> None:
+        for key in self.ego_keys:
+            val = self.ego_intensity if on else np.zeros(3)
+            p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*[float(x) for x in val])
+            p[f"{key}.sampling_weight"] = 1.0 if on else OFF_WEIGHT
+
+
+def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, table: LightTable,
+                annotation: LightAnnotation | None = None, active: ActiveLights | None = None,
+                params: BuildParams = BuildParams(), *, variant: str | None = None) -> BuiltScene:
+    """Build the night scene in memory.
+
+    Parameters
+    ----------
+    mesh : camera-frame scene mesh (OpenCV frame, front faces toward the camera).
+    intrinsics : the camera of the mesh (``mesh.width`` x ``mesh.height``).
+    materials : albedo/roughness maps and BSDF kinds (:func:`materials.estimate_materials`).
+    table : light table (units, throw spots, ego headlights, sky).
+    annotation : light instances; their faces become separate emissive meshes.
+    active : initial light states (None: all off until :meth:`BuiltScene.apply_lights`).
+    variant : Mitsuba variant (None -> :func:`variant.choose_variant`).
+    """
+    t0 = time.perf_counter()
+    _check(mesh, intrinsics)
+    mi = set_variant(variant)
+    ys = _y_scale(intrinsics)
+    geo = _gather(mesh, ys)
+    F = len(geo.faces)
+
+    bitmap = mi.Bitmap(np.ascontiguousarray(materials.albedo, dtype=np.float32))
+    tex = mi.load_dict({"type": "bitmap", "bitmap": bitmap, "raw": True, "filter_type": "nearest",
+                        "wrap_mode": "clamp"})
+    kind_of_face = materials.kind_lut[geo.face_label.astype(np.intp)]
+    light_cls = geo.face_light // 1000
+    kind_of_face = np.where(np.isin(light_cls, GLASS_LIGHT_CLASSES), KINDS.index("glass"), kind_of_face)
+    rough = materials.roughness
+
+    def mean_alpha(sel: np.ndarray) -> float:
+        # Mitsuba's rough plastic takes one alpha per BSDF: mean roughness² of the pixels of that kind.
+        px = np.clip((geo.uv[geo.faces[sel][:, 0]] * [rough.shape[1], rough.shape[0]]).astype(int),
+                     0, [rough.shape[1] - 1, rough.shape[0] - 1])
+        r = float(np.mean(rough[px[:, 1], px[:, 0]])) if len(px) else 0.5
+        return float(np.clip(r * r, 0.01, 1.0))
+
+    bsdf_cache: dict[str, object] = {}
+
+    def bsdf(kind: str):
+        # One BSDF per kind, shared by all shapes of that kind (rough plastic takes ~0.07 s to build).
+        if kind in bsdf_cache:
+            return bsdf_cache[kind]
+        sel = kind_of_face == KINDS.index(kind)
+        if kind == "diffuse":
+            b = mi.load_dict({"type": "diffuse", "reflectance": tex})
+        elif kind == "glass":
+            # Unlit window: dark glass-like coat (spec 4 % via plastic IOR 1.5, little diffuse).
+            b = mi.load_dict({"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": 0.03},
+                              "alpha": mean_alpha(sel), "int_ior": 1.5})
+        else:
+            b = mi.load_dict({"type": "roughplastic", "diffuse_reflectance": tex, "alpha": mean_alpha(sel),
+                              "int_ior": 1.5, "nonlinear": kind == "paint"})
+        bsdf_cache[kind] = b
+        return b
+
+    objects: dict[str, object] = {}
+    light_ids = sorted(int(i) for i in np.unique(geo.face_light) if i != 0)
+    base = geo.face_light == 0
+    if annotation is None:
+        base = np.ones(F, bool)
+        light_ids = []
+    for ki, kind in enumerate(KINDS):
+        sel = base & (kind_of_face == ki)
+        if sel.any():
+            props = mi.Properties()
+            props["bsdf"] = bsdf(kind)
+            objects[f"mesh_{kind}"] = _submesh(mi, f"mesh_{kind}", geo, sel, props)
+
+    built = BuiltScene(scene=None, variant=mi.variant(), intrinsics=intrinsics, table=table, n_faces=F)
+    throw = table.throw
+    pitch = params.camera_pitch
+    R = _level_to_camera(pitch)
+    down = R @ np.array([0.0, 1.0, 0.0])
+    down[1] *= ys
+    for lid in light_ids:
+        sel = geo.face_light == lid
+        props = mi.Properties()
+        kind = KINDS[int(np.bincount(kind_of_face[sel]).argmax())]
+        props["bsdf"] = bsdf(kind)
+        props["emitter"] = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+                                         "sampling_weight": OFF_WEIGHT})
+        name = f"light_{lid}"
+        objects[name] = _submesh(mi, name, geo, sel, props)
+        built.area_keys[lid] = f"{name}.emitter"
+        spec = table.classes.get(lid // 1000)
+        if params.throw_spots and spec is not None and spec.throw:
+            area, cen, n = _face_areas_centroid(geo, sel)
+            if spec.class_id in (8, 9):  # street lights: aim at the ground below the lamp head
+                d = down
+                origin = cen + 0.15 * d + 0.05 * n
+            else:  # car lamps: along the lamp's normal, tilted 10 deg toward the ground
+                d = n + math.tan(math.radians(10.0)) * down
+                origin = cen + 0.05 * n
+            sname = f"spot_{lid}"
+            objects[sname] = {"type": "spot", "intensity": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+                              "cutoff_angle": float(throw.get("cutoff_deg", 70.0)),
+                              "beam_width": float(throw.get("beam_deg", 45.0)),
+                              "to_world": _spot_transform(mi, origin, d), "sampling_weight": OFF_WEIGHT}
+            built.spot_keys[lid] = (sname, area * float(throw.get("gain", 20.0)))
+
+    # Ego vehicle headlights: level frame (y down), lamps 0.65 m above the ground, aimed 15 m ahead.
+    ego = table.ego_headlight
+    h = params.camera_height
+    chroma = (tuple(ego["chromaticity"]) if "chromaticity" in ego else cct_to_chromaticity(float(ego.get("cct_K", 5000))))
+    s_ego = 0.5 * sum(ego["strength"])
+    w_m, h_m = ego.get("size_m", [0.3, 0.15])
+    built.ego_intensity = table.radiance(s_ego, chroma) * w_m * h_m * float(ego.get("gain", 60.0))
+    for side, x in (("left", -0.5), ("right", 0.5)):
+        o = R @ np.array([x, h - 0.65, 0.3])
+        t = R @ np.array([x, h, 15.0])
+        o[1] *= ys
+        t[1] *= ys
+        name = f"ego_{side}"
+        objects[name] = {"type": "spot", "intensity": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+                         "cutoff_angle": float(ego.get("cutoff_deg", 35.0)),
+                         "beam_width": float(ego.get("beam_deg", 20.0)),
+                         "to_world": _spot_transform(mi, o, t - o), "sampling_weight": OFF_WEIGHT}
+        built.ego_keys.append(name)
+    built._ego_on = params.ego_headlights
+
+    scene_dict = {"type": "scene", "integrator": {"type": "path", "max_depth": int(params.max_depth)},
+                  "sensor": camera_dict(intrinsics)}
+    if params.sky:
+        scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)}}
+    scene_dict.update(objects)
+    built.scene = mi.load_dict(scene_dict)
+    built.thread_env = capture_thread_env(mi)
+    if active is not None:
+        built.apply_lights(active)
+    else:
+        built.set_ego_headlights(built._ego_on)
+    built.build_seconds = time.perf_counter() - t0
+    built.info = {"variant": built.variant, "faces": F, "shapes": len(objects), "lights": len(light_ids),
+                  "throw_spots": len(built.spot_keys), "ego_headlights": params.ego_headlights,
+                  "y_scale": ys, "materials": materials.source}
+    return built
+
+
+def build_label_scene(mesh: SceneMesh, intrinsics: Intrinsics, labels: np.ndarray, *,
+                      variant: str | None = None) -> BuiltScene:
+    """Unshaded label scene for alignment checks.
+
+    The label map is a texture (nearest texel, mesh UVs) on an area emitter covering
+    the whole mesh, radiance ``(labelId + 1, 0, 0)``; no other light, path length 1.
+    A render therefore shows, per pixel, the label of the source pixel whose
+    surface the camera ray hits -- exactly how the night render looks up albedo.
+    """
+    t0 = time.perf_counter()
+    _check(mesh, intrinsics)
+    lab = np.asarray(labels)
+    if lab.shape != (intrinsics.height, intrinsics.width):
+        raise NpsimInputError(f"labels are {lab.shape}, expected {(intrinsics.height, intrinsics.width)}")
+    mi = set_variant(variant)
+    geo = _gather(mesh, _y_scale(intrinsics))
+    codes = np.zeros(lab.shape + (3,), np.float32)
+    codes[..., 0] = lab.astype(np.float32) + 1.0
+    tex = {"type": "bitmap", "bitmap": mi.Bitmap(codes), "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}})
+    props["emitter"] = mi.load_dict({"type": "area", "radiance": tex})
+    objects = {"labels": _submesh(mi, "labels", geo, np.ones(len(geo.faces), bool), props)}
+    scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": 1},
+                          "sensor": camera_dict(intrinsics), **objects})
+    return BuiltScene(scene=scene, variant=mi.variant(), intrinsics=intrinsics, table=None, n_faces=len(geo.faces),
+                      thread_env=capture_thread_env(mi), build_seconds=time.perf_counter() - t0)
+
+
+def capture_thread_env(mi):
+    """Mitsuba's thread environment of the calling thread, or None where the binding no longer
+    exists (Mitsuba 3.9 renders from any Python thread without it -- measured here)."""
+    env_cls = getattr(mi, "ThreadEnvironment", None)
+    return env_cls() if env_cls is not None else None
+
+
+def thread_env_scope(mi, env):
+    """Context manager entering ``env`` (no-op when None)."""
+    import contextlib
+
+    scoped = getattr(mi, "ScopedSetThreadEnvironment", None)
+    return scoped(env) if (env is not None and scoped is not None) else contextlib.nullcontext()
+
+
+def _check(mesh: SceneMesh, intr: Intrinsics) -> None:
+    if not isinstance(mesh, SceneMesh):
+        raise NpsimInputError(f"expected a SceneMesh, got {type(mesh).__name__}")
+    if (mesh.width, mesh.height) != (intr.width, intr.height):
+        raise NpsimInputError(f"mesh is for {mesh.width}x{mesh.height} but the intrinsics are for "
+                              f"{intr.width}x{intr.height}; use Intrinsics.resized()")
