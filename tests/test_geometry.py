@@ -247,6 +247,8 @@ def test_alignment_recovers_known_scale_and_shift_with_outliers():
     assert al.scale == pytest.approx(0.7, rel=2e-3)
     assert al.shift == pytest.approx(0.03, abs=5e-4)
     assert al.n == 46 * 64
+    sub = align_scale_shift(x, target, max_pixels=500)  # regular subsample, same answer
+    assert sub.n <= 500 and sub.scale == pytest.approx(0.7, rel=1e-2) and sub.shift == pytest.approx(0.03, abs=2e-3)
     mask = np.zeros_like(out)
     mask[10:20] = True
     al2 = align_scale_shift(x, inv_true, mask)

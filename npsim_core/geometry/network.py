@@ -53,6 +53,8 @@ class NetworkParams:
         Huber threshold in units of the residuals' robust scale (1.4826 MAD).
     iterations : int
         Reweighting iterations of the robust fit.
+    max_align_pixels : int
+        At most this many reference pixels (a regular subsample) enter the fit.
     max_depth : float
         Depths beyond this (m) and non-positive inverse depths become invalid.
     popup : PopupParams
@@ -64,6 +66,7 @@ class NetworkParams:
     align_max_depth: float = 60.0
     huber_delta: float = 1.5
     iterations: int = 10
+    max_align_pixels: int = 100_000
     max_depth: float = 300.0
     invalid_ids: tuple[int, ...] = DEFAULT_INVALID_IDS
     popup: PopupParams = PopupParams()
@@ -84,13 +87,14 @@ class Alignment:
 
 
 def align_scale_shift(x: np.ndarray, target: np.ndarray, mask: np.ndarray | None = None, *,
-                      huber_delta: float = 1.5, iterations: int = 10) -> Alignment:
+                      huber_delta: float = 1.5, iterations: int = 10, max_pixels: int | None = None) -> Alignment:
     """Robust least-squares fit ``target ~ scale * x + shift`` over ``mask`` (finite pixels only).
 
     Iteratively reweighted least squares with Huber weights; the residual scale
     is re-estimated each iteration as 1.4826 x the median absolute residual, so
     up to roughly a third of outliers (cars on the road, label errors) barely
-    move the fit. Computed in float64 on standardised ``x``.
+    move the fit. Computed in float64 on standardised ``x``; with ``max_pixels``
+    a regular subsample of at most that many pixels is used.
     """
     x = np.asarray(x, dtype=np.float64)
     t = np.asarray(target, dtype=np.float64)
@@ -98,6 +102,9 @@ def align_scale_shift(x: np.ndarray, target: np.ndarray, mask: np.ndarray | None
     if mask is not None:
         m &= np.asarray(mask, dtype=bool)
     xs, ts = x[m], t[m]
+    if max_pixels and xs.size > max_pixels:  # a regular subsample: same fit, bounded cost, deterministic
+        step = -(-xs.size // max_pixels)
+        xs, ts = xs[::step], ts[::step]
     if xs.size < 10:
         raise NpsimInputError(f"cannot align the network's depth: only {xs.size} usable reference pixels "
                               "(the image needs visible ground: road, sidewalk, terrain)")
@@ -194,7 +201,8 @@ def align_to_prior(scene: Scene, inverse: np.ndarray, params: NetworkParams) -> 
     ref = ground & np.isfinite(prior.depth) & (prior.depth <= params.align_max_depth)
     with np.errstate(divide="ignore"):
         target = 1.0 / prior.depth.astype(np.float64)
-    al = align_scale_shift(inverse, target, ref, huber_delta=params.huber_delta, iterations=params.iterations)
+    al = align_scale_shift(inverse, target, ref, huber_delta=params.huber_delta, iterations=params.iterations,
+                           max_pixels=params.max_align_pixels)
     inv = al.scale * np.asarray(inverse, dtype=np.float64) + al.shift
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = np.where(inv > 1.0 / params.max_depth, 1.0 / inv, np.nan)
