@@ -45,7 +45,8 @@ from .errors import NpsimInputError
 @dataclass(frozen=True)
 class Change:
     """What an edit touched: ``rect`` = (x0, y0, x1, y1) half-open pixel box or None; ids touched;
-    ``structure`` = the set of lights or groups changed (lists must refresh)."""
+    ``structure`` = the set of lights or groups changed (pixel-only edits leave it False: lights
+    stay registered when they lose pixels, so the set of lights cannot change by painting)."""
 
     rect: tuple[int, int, int, int] | None = None
     ids: frozenset[int] = frozenset()
@@ -131,7 +132,7 @@ class EditCommand:
         structure = self.before != self.after
         if structure:
             ids = ids | (self.before.ids() ^ self.after.ids()) | _changed_group_ids(self.before, self.after)
-        return Change(rect, ids, structure or self.diff is not None)
+        return Change(rect, ids, structure)
 
     def redo(self, ann: LightAnnotation) -> Change:
         if self.diff is not None:

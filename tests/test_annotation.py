@@ -329,3 +329,18 @@ def test_default_region_size_scales_with_width():
 
     assert [default_region_size(w) for w in (256, 1024, 2048, 4096)] == [8, 8, 16, 24]
     assert SuperpixelParams.for_image(2048).region_size == 16
+
+
+def test_cli_annotate_list(tmp_path, capsys):
+    from npsim_core.cli import main
+
+    img = np.zeros((4, 6, 3), np.uint8)
+    write_image(tmp_path / "a.png", img)
+    write_image(tmp_path / "b.png", img)
+    ann = LightAnnotation.empty(4, 6)
+    ann.meta["done"] = True
+    save_annotation(ann, tmp_path, "a")
+    assert main(["annotate", str(tmp_path), "--list"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split("\t")[:2] for line in out] == [["a", "done"], ["b", "-"]]
+    assert main(["annotate", str(tmp_path / "nothing")]) == 2

@@ -421,3 +421,21 @@ def test_zoom_under_mouse_pan_base_image_and_help(qtbot, tmp_path):
     assert dlg.isVisible() and dlg.table.rowCount() > 20
     dlg.close()
     close_window(win)
+
+
+def test_newer_or_corrupt_annotation_opens_read_only_and_is_not_overwritten(qtbot, tmp_path):
+    folder = make_folder(tmp_path)
+    paths = A.annotation_paths(folder, "facade")
+    doc = paths["json"].read_text().replace('"version": 1', '"version": 99')
+    paths["json"].write_text(doc)
+    before = {k: p.read_bytes() for k, p in paths.items()}
+    win = open_window(qtbot, folder)
+    s = win.editor.session
+    assert s.readonly_reason and "newer" in s.readonly_reason
+    key(qtbot, win, Qt.Key.Key_B)
+    drag(qtbot, win.editor.canvas, [(100, 100), (120, 100)])
+    assert not win.save()
+    assert "read-only" in win.windowTitle()
+    win.answers = {"discard": "Discard"}
+    assert win.close()
+    assert {k: p.read_bytes() for k, p in paths.items()} == before

@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPen
-from PySide6.QtWidgets import (QGraphicsEllipseItem, QGraphicsItem, QGraphicsRectItem, QGraphicsScene,
+from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen
+from PySide6.QtWidgets import (QGraphicsEllipseItem, QGraphicsItem, QGraphicsPathItem, QGraphicsRectItem,
+                               QGraphicsScene,
                                QGraphicsSimpleTextItem, QGraphicsView, QStyleOptionGraphicsItem)
 
 
@@ -99,7 +100,7 @@ class EditorCanvas(QGraphicsView):
             self.layers[name].setZValue(z)
             self.scene().addItem(self.layers[name])
         self.layers["labels"].setOpacity(0.35)
-        self.layers["superpixels"].setOpacity(0.45)
+        self.layers["superpixels"].setOpacity(0.35)
         self.layers["lights"].setOpacity(0.85)
         self._group_items: list[QGraphicsItem] = []
         self.cursor_item = QGraphicsEllipseItem()
@@ -107,6 +108,14 @@ class EditorCanvas(QGraphicsView):
         self.cursor_item.setZValue(50)
         self.cursor_item.setVisible(False)
         self.scene().addItem(self.cursor_item)
+        self.path_item = QGraphicsPathItem()  # the drag path, for tools that act on release
+        pen = QPen(QColor(255, 80, 200), 0)
+        pen.setCosmetic(True)
+        pen.setWidthF(2.0)
+        self.path_item.setPen(pen)
+        self.path_item.setZValue(49)
+        self.scene().addItem(self.path_item)
+        self._path = QPainterPath()
         self.brush_radius = 0.0
         self._pan_last: QPointF | None = None
         self._space = False
@@ -138,7 +147,7 @@ class EditorCanvas(QGraphicsView):
         self.layers[name].setOpacity(float(opacity))
 
     def set_group_boxes(self, boxes: list[tuple[int, list[int], tuple[int, int, int], str]]) -> None:
-        """Draw dashed boxes: (group id, [x0, y0, x1, y1] inclusive, colour, caption)."""
+        """Draw dashed boxes: (group id, [x0, y0, x1, y1] inclusive, colour, caption); empty caption = none."""
         for it in self._group_items:
             self.scene().removeItem(it)
         self._group_items = []
@@ -150,6 +159,10 @@ class EditorCanvas(QGraphicsView):
             r = QGraphicsRectItem(QRectF(b[0] - 0.5, b[1] - 0.5, b[2] - b[0] + 2, b[3] - b[1] + 2))
             r.setPen(pen)
             r.setZValue(10)
+            self.scene().addItem(r)
+            self._group_items.append(r)
+            if not caption:
+                continue
             t = QGraphicsSimpleTextItem(caption)
             t.setBrush(QBrush(QColor(*color)))
             f = QFont()
@@ -158,9 +171,8 @@ class EditorCanvas(QGraphicsView):
             t.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
             t.setPos(b[0] - 0.5, b[1] - 0.5)
             t.setZValue(11)
-            for it in (r, t):
-                self.scene().addItem(it)
-                self._group_items.append(it)
+            self.scene().addItem(t)
+            self._group_items.append(t)
             t.moveBy(0, -t.boundingRect().height() / max(self.zoom(), 1e-6))
 
     # ----------------------------------------------------------------- navigation
@@ -243,7 +255,10 @@ class EditorCanvas(QGraphicsView):
         if self.handler is not None and event.button() in (Qt.MouseButton.LeftButton, Qt.MouseButton.RightButton):
             self._pressed = True
             x, y = self.image_pos(event.position())
+            self._path = QPainterPath(QPointF(x, y))
             self.handler.press(x, y, event)
+            self.path_item.setVisible(bool(getattr(self.handler, "shows_path", lambda: False)()))
+            self.path_item.setPath(self._path)
             event.accept()
             return
         super().mousePressEvent(event)
@@ -263,6 +278,9 @@ class EditorCanvas(QGraphicsView):
         self.hovered.emit(int(np.floor(x)) if inside else -1, int(np.floor(y)) if inside else -1)
         if self._pressed and self.handler is not None:
             self.handler.move(x, y, event)
+            if self.path_item.isVisible():
+                self._path.lineTo(QPointF(x, y))
+                self.path_item.setPath(self._path)
             event.accept()
             return
         super().mouseMoveEvent(event)
@@ -277,6 +295,7 @@ class EditorCanvas(QGraphicsView):
             self._pressed = False
             x, y = self.image_pos(event.position())
             self.handler.release(x, y, event)
+            self.path_item.setVisible(False)
             event.accept()
             return
         super().mouseReleaseEvent(event)

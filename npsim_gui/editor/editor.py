@@ -402,12 +402,16 @@ class AnnotationEditor(QWidget):
         self.instance_list.rebuild(s.ann, s.selection, s.current_id)
         st = s.ann.stats()
         boxes = []
+        few = len(s.ann.groups) <= 6
         for gid in sorted(s.ann.groups):
             b = s.ann.group_bbox(gid, st)
             if b is not None:
-                sel = gid in s.selection
+                # Selected groups (or groups of selected lights) in white with a caption;
+                # captions for all only when there are few, so busy scenes stay readable.
+                sel = gid in s.selection or bool(set(s.ann.groups[gid].members) & s.selection)
                 color = (255, 255, 255) if sel else class_color(class_of(gid))
-                boxes.append((gid, b, color, f"{light_class(class_of(gid)).name} {gid}"))
+                caption = f"{light_class(class_of(gid)).name} {gid}" if (sel or few) else ""
+                boxes.append((gid, b, color, caption))
         self.canvas.set_group_boxes(boxes)
 
     def refresh_now(self) -> None:

@@ -120,6 +120,10 @@ class ToolController:
         self.session.end_stroke()
         self._last = None
 
+    def shows_path(self) -> bool:
+        """True while a drag whose effect comes on release is under way (the canvas draws its path)."""
+        return self._active == "superpixel" and self._sp_deferred()
+
     # ----------------------------------------------------------------- helpers
     def _ensure_current(self) -> int:
         """The light strokes paint into; a new one of the current class when there is none."""

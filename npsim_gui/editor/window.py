@@ -198,6 +198,8 @@ class EditorWindow(QMainWindow):
         return True
 
     def autosave(self) -> None:
+        if self.editor.session.readonly_reason:
+            return  # the recovery file would shadow a file we could not read
         try:
             p = self.editor.session.autosave()
             if p is not None:
@@ -221,8 +223,13 @@ class EditorWindow(QMainWindow):
         if not s.is_dirty:
             return True
         self.autosave()  # nothing is lost even if the dialog is answered wrongly or the app dies now
-        choice = self.ask("discard", "Unsaved changes", f"Save your changes before you {why}?",
-                          ["Save", "Discard", "Cancel"], "Save")
+        if s.readonly_reason:
+            choice = self.ask("discard", "Unsaved changes",
+                              f"This annotation is read-only ({s.readonly_reason}). Discard your changes and "
+                              f"{why}?", ["Discard", "Cancel"], "Cancel")
+        else:
+            choice = self.ask("discard", "Unsaved changes", f"Save your changes before you {why}?",
+                              ["Save", "Discard", "Cancel"], "Save")
         if choice == "Save":
             return self.save()
         if choice == "Discard":
@@ -243,6 +250,7 @@ class EditorWindow(QMainWindow):
         name = it.name if it else s.stem
         pos = f" [{self.index + 1}/{len(self.items)}]" if self.items else ""
         done = " ✓" if s.ann.meta.get("done") else ""
+        done += " (read-only)" if s.readonly_reason else ""
         star = "*" if s.is_dirty else ""
         self.setWindowTitle(f"{star}{name}{pos}{done} — NPSim light annotation")
         self.done_action.setChecked(bool(s.ann.meta.get("done")))

@@ -1,0 +1,99 @@
+"""Make the documentation screenshots of the editor (run under Xvfb).
+
+``xvfb-run -a -s "-screen 0 1280x1024x24" .venv/bin/python -m npsim_gui.editor.screenshot docs/img``
+writes ``editor.png`` (the synthetic street scene, 256x128, with its light
+annotation, one windows_group selected) and ``editor_row.png`` (512x256, a
+window row labelled with the recipe from docs/annotation.md).
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+from PySide6.QtCore import QPointF, Qt
+from PySide6.QtTest import QTest
+from PySide6.QtWidgets import QApplication
+
+from npsim_core.annotation import discover_items
+from npsim_core.scene import save_scene
+
+from .window import EditorWindow
+
+
+def _settle(app: QApplication, win: EditorWindow) -> None:
+    win.activateWindow()
+    win.editor.canvas.setFocus()
+    while not win.editor.session.superpixels_ready or QApplication.focusWidget() is not win.editor.canvas:
+        app.processEvents()
+        QTest.qWait(20)
+    win.editor.refresh_now()
+    app.processEvents()
+
+
+def _open(folder: Path) -> EditorWindow:
+    win = EditorWindow(autosave_ms=10**9)
+    win.answers = {"discard": "Discard", "restore": "Discard"}
+    win.set_items(discover_items(folder))
+    win.show()
+    return win
+
+
+def main(out_dir: str = "docs/img") -> None:
+    from npsim_core.synthetic import street_scene
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = street_scene(256, 128)
+        save_scene(scene, Path(tmp) / "street")
+        win = _open(Path(tmp) / "street")
+        _settle(app, win)
+        s = win.editor.session
+        rows = [g for g in s.ann.groups.values() if g.class_id == 13 and len(g.members) >= 5]
+        if rows:
+            st = s.ann.stats()
+            g = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
+            s.set_selection({g.id, *g.members}, current=g.members[0])
+        _settle(app, win)
+        win.grab().save(str(out / "editor.png"))
+        win.answers = {"discard": "Discard"}
+        win.close()
+
+        # The window-row recipe at 512x256: 1, R, T, one drag, Ctrl+G.
+        big = street_scene(512, 256)
+        st = big.lights.stats()
+        rows = [g for g in big.lights.groups.values() if g.class_id == 13 and len(g.members) >= 5]
+        row = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
+        members = sorted(row.members, key=lambda m: st[m]["bbox"][0])
+        centres = [((st[m]["bbox"][0] + st[m]["bbox"][2]) // 2 + 0.5, (st[m]["bbox"][1] + st[m]["bbox"][3]) // 2 + 0.5)
+                   for m in members]
+        save_scene(big.with_(lights=None), Path(tmp) / "street512")
+        win = _open(Path(tmp) / "street512")
+        _settle(app, win)
+        c = win.editor.canvas
+        for k in (Qt.Key.Key_1, Qt.Key.Key_R, Qt.Key.Key_T):
+            QTest.keyClick(c, k)
+        assert win.editor.options.split_regions and win.editor.options.similar_only
+        vps = [c.view_point(x, y) for x, y in centres]
+        QTest.mousePress(c.viewport(), Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, vps[0])
+        for p in vps[1:]:
+            QTest.mouseMove(c.viewport(), p)
+        QTest.mouseRelease(c.viewport(), Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, vps[-1])
+        QTest.keyClick(c, Qt.Key.Key_G, Qt.KeyboardModifier.ControlModifier)
+        _settle(app, win)
+        # Zoom onto the row so the result is visible.
+        x0 = min(cx for cx, _ in centres) - 40
+        x1 = max(cx for cx, _ in centres) + 40
+        y = sum(cy for _, cy in centres) / len(centres)
+        c.set_zoom(c.viewport().width() / (x1 - x0))
+        c.centerOn(QPointF((x0 + x1) / 2, y))
+        _settle(app, win)
+        win.grab().save(str(out / "editor_row.png"))
+        win.close()
+
+
+if __name__ == "__main__":
+    main(*(sys.argv[1:2] or []))
