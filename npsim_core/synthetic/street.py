@@ -28,14 +28,13 @@ ROAD_X = (-6.0, 4.5)
 LEFT_WALK_X = (-11.0, -6.0)
 RIGHT_WALK_X = (4.5, 9.5)
 KERB = 0.15
-STREET_Z0 = -6.0
+STREET_Z0 = 2.0  # nothing nearer is in view (ground is visible from z ~ 4.5 m); keeps screen boxes tight
 PROUD = 0.01  # lights sit 1 cm in front of their host surface
 
 FACADE_COLORS = [(0.55, 0.45, 0.35), (0.62, 0.58, 0.50), (0.45, 0.30, 0.22), (0.70, 0.66, 0.58),
                  (0.50, 0.52, 0.55), (0.60, 0.50, 0.38), (0.38, 0.36, 0.34), (0.72, 0.62, 0.45)]
 CAR_COLORS = [(0.60, 0.61, 0.62), (0.03, 0.03, 0.035), (0.80, 0.80, 0.78), (0.45, 0.04, 0.03),
               (0.05, 0.12, 0.35), (0.25, 0.26, 0.27), (0.30, 0.33, 0.20), (0.75, 0.55, 0.10)]
-#: Few distinct glossy colours: the renderer makes one mesh per glossy colour.
 GLASS_BUILDING = [(0.05, 0.07, 0.09), (0.04, 0.05, 0.05), (0.07, 0.08, 0.07)]
 GLASS_CAR = (0.02, 0.025, 0.03)
 
@@ -89,6 +88,7 @@ def build_street(seed: int = 0) -> StreetLayout:
         z += 9.0
 
     # --- facades on both sides, then the far building closing the street
+    facades: dict[int, list[tuple[float, float, float]]] = {-1: [], 1: []}  # side -> (z0, z1, facade x)
     for side in (-1, 1):
         facade_x0 = LEFT_WALK_X[0] if side < 0 else RIGHT_WALK_X[1]
         z = STREET_Z0
@@ -105,6 +105,7 @@ def build_street(seed: int = 0) -> StreetLayout:
             back = fx + side * 12.0
             col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
             P.box((min(fx, back), 0.0, z), (max(fx, back), h, z1), BUILDING, col)
+            facades[side].append((z, z1, fx))
             _facade_windows(P, rng, ids, groups, axis=0, plane=fx - side * PROUD, along=(z, z1), height=h,
                             ground_shop=bool(rng.random() < 0.6))
             z = z1
@@ -115,11 +116,12 @@ def build_street(seed: int = 0) -> StreetLayout:
     _facade_windows(P, rng, ids, groups, axis=2, plane=far_z - PROUD, along=(-25.0, 25.0), height=far_h,
                     ground_shop=True)
 
-    # --- advertisement panel on the first building on the right's ground floor
+    # --- advertisement panel on a right-hand facade's ground floor, above the shop windows
     az = float(rng.uniform(14.0, 24.0))
+    z0, z1, fx = next(f for f in facades[1] if f[0] <= az < f[1])
+    az = min(max(az, z0 + 0.3), z1 - 3.5)
     ad = ids.new(ADVERTISEMENT)
-    P.rect(0, RIGHT_WALK_X[1] - PROUD, (2.9, az), (3.8, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
-           light=ad)
+    P.rect(0, fx - PROUD, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp", light=ad)
 
     # --- parked cars in the parking strips
     n_cars = 0
