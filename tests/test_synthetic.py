@@ -250,3 +250,27 @@ def test_street_scene_cache(tmp_path, monkeypatch):
     second = street_scene(40, 20, seed=0)
     assert np.array_equal(first.depth_gt, second.depth_gt, equal_nan=True)
     assert np.array_equal(first.image, second.image)
+
+
+def test_import_is_cheap():
+    import subprocess
+    import sys
+
+    code = "import sys, npsim_core.synthetic, npsim_core.commands.sample; print('mitsuba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_albedo_texture_is_consistent_with_image(scene):
+    # Textured albedo stays in [0, 1], is uniform on lights (untextured) and varies on the road.
+    road = (scene.labels == 7) & (scene.lights.instance_map == 0)
+    assert scene.albedo[road].std(axis=0).max() > 0.005
+    on = scene.lights.instance_map > 0
+    for i in scene.lights.instance_ids()[:20]:
+        m = scene.lights.instance_map == i
+        assert np.ptp(scene.albedo[m], axis=0).max() < 1e-6
+    assert on.any()
+    # Brighter albedo -> brighter pixels on sunlit road (rank correlation is positive).
+    lum = scene.image[road].astype(np.float32).mean(axis=1)
+    alb = scene.albedo[road].mean(axis=1)
+    assert np.corrcoef(lum, alb)[0, 1] > 0.0

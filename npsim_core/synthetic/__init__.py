@@ -22,12 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from ..annotation import GroupInstance, LightAnnotation
-from ..camera import Intrinsics
+from ..camera import Intrinsics, backproject
 from ..errors import NpsimInputError
 from ..scene import Scene, load_scene, save_scene
 from .prediction import PredictionErrors, simulate_prediction
 from .primitives import MATERIALS, ROUGHNESS, CameraPose, GroundTruth, Primitives, raycast
 from .street import SKY, StreetLayout, build_street
+from .texture import albedo_factor
 
 __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_prediction", "SCENE_VERSION",
            "CAMERA_HEIGHT", "CAMERA_PITCH", "build_street", "raycast", "CameraPose", "street_ground_truth",
@@ -81,17 +82,20 @@ def linear_to_srgb8(x: np.ndarray) -> np.ndarray:
 
 
 def auto_spp(width: int, height: int) -> int:
-    """Samples per pixel when none are given: 8 up to 1024x512 pixels, 4 above.
+    """Samples per pixel when none are given: 16 up to 512x256 pixels, 4 above.
 
     The sun is a delta light, so samples only antialias edges (see
     :func:`.render.render_day`); render time is linear in pixels x spp.
     """
-    return 8 if width * height <= 1024 * 512 else 4
+    return 16 if width * height <= 512 * 256 else 4
 
 
-def _pow2(n: int) -> int:
-    """Mitsuba's low-discrepancy sampler needs a power-of-two sample count."""
-    return 1 << max(0, int(n) - 1).bit_length()
+def _pow4(n: int) -> int:
+    """Mitsuba's low-discrepancy sampler needs a square power-of-two count (1, 4, 16, 64, ...)."""
+    k = 1
+    while k < n:
+        k *= 4
+    return k
 
 
 def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp: int | None = None,
@@ -106,7 +110,7 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
         Varies the layout (buildings, windows, cars, colours, pole spacing) and the
         simulated prediction errors.
     spp : int, optional
-        Mitsuba samples per pixel for the daytime RGB (rounded up to a power of two);
+        Mitsuba samples per pixel for the daytime RGB (rounded up to 1, 4, 16, 64, ...);
         default :func:`auto_spp`.
     prediction : PredictionErrors, optional
         Error model of the simulated depth/normal network (defaults documented there).
@@ -126,7 +130,7 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     spp = auto_spp(width, height) if spp is None else int(spp)
     if spp < 1:
         raise NpsimInputError(f"spp must be >= 1, got {spp}")
-    spp = _pow2(spp)
+    spp = _pow4(spp)
     t0 = time.perf_counter()
     layout, intr, pose, gt = street_ground_truth(width, height, seed)
     prims = layout.prims
@@ -137,10 +141,13 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     rough_lut = np.array([ROUGHNESS[m] for m in MATERIALS], dtype=np.float32)
     roughness = np.where(hit, rough_lut[prims.material[idx]], 1.0).astype(np.float32)
     lights = _lights(prims, gt.prim, layout)
-    t1 = time.perf_counter()
     glass = hit & (prims.material[idx] == MATERIALS.index("glass"))
+    points_w = backproject(gt.depth, intr) @ pose.R_cw.astype(np.float32) + pose.center.astype(np.float32)
+    tex = albedo_factor(points_w, labels, lights.instance_map, seed)
+    t1 = time.perf_counter()
     linear = render_day(prims, intr, pose, spp=spp, seed=seed, albedo=albedo, normals=gt.normals, prim=gt.prim,
-                        glass_mask=glass.astype(np.float32))
+                        glass_mask=glass.astype(np.float32), texture=tex)
+    albedo = np.clip(albedo * tex[..., None], 0.0, 1.0)
     t2 = time.perf_counter()
     depth, normals = simulate_prediction(gt.depth, gt.normals, params, seed)
     t3 = time.perf_counter()

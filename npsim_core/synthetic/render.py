@@ -116,7 +116,7 @@ GROUND_BOUNCE = (0.10, 0.10, 0.10)
 def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: int = 4, seed: int = 0,
                sun_irradiance: float = 3.2, mode: str = "fast", albedo: np.ndarray | None = None,
                normals: np.ndarray | None = None, prim: np.ndarray | None = None,
-               glass_mask: np.ndarray | None = None) -> np.ndarray:
+               glass_mask: np.ndarray | None = None, texture: np.ndarray | None = None) -> np.ndarray:
     """Linear RGB (H, W, 3) float32 of the lit street, sky composited as a gradient.
 
     ``mode="fast"`` (default): Mitsuba's ``direct`` integrator traces the sun's
@@ -126,7 +126,8 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     unoccluded ambient term ``albedo * (sky (1 + n.up)/2 + ground (1 - n.up)/2)``,
     box-filtered over 3x3 where the primitive id ``prim`` changes (cheap edge
     antialiasing), and glass (``glass_mask``) gets a Schlick-Fresnel reflection of
-    the sky. (Mitsuba's AOV integrator would give antialiased albedo/normals but
+    the sky. ``texture`` (H, W) multiplies the surface radiance (an albedo factor,
+    see :mod:`.texture`; exact for this linear-in-albedo model). (Mitsuba's AOV integrator would give antialiased albedo/normals but
     is ~30x slower than the render itself in ``scalar_rgb``; measured.)
 
     ``mode="path"``: a path tracer (max depth 3) with a constant sky environment,
@@ -178,6 +179,8 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     blurred = cv2.blur(ambient, (3, 3), borderType=cv2.BORDER_REPLICATE)
     ambient = np.where(edge[..., None], blurred, ambient)
     out = rgb + ambient
+    if texture is not None:
+        out *= texture[..., None]
     partial = alpha[..., 0] < 1.0
     if partial.any():
         out[partial] += (1.0 - alpha[partial]) * sky_gradient(intr, pose)[partial]
