@@ -104,7 +104,8 @@ def usable_mask(depth: np.ndarray, labels: np.ndarray, exclude: Iterable[int] | 
     return ok
 
 
-def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None = None) -> np.ndarray:
+def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None = None,
+               cells: np.ndarray | None = None) -> np.ndarray:
     """Triangulate a grid of vertices, two triangles per quad, front face toward the camera.
 
     Parameters
@@ -116,6 +117,8 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
         values at nodes without a vertex are ignored).
     group : (h, w) int, optional
         Sheet id per node; a triangle is only made from three nodes of the same group.
+    cells : (h-1, w-1) bool, optional
+        Only these quads are triangulated (the reducer passes the quads no larger cell covers).
 
     Returns
     -------
@@ -131,6 +134,9 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     index, points, has = index[r0:r1, c0:c1], points[r0:r1, c0:c1], has[r0:r1, c0:c1]
     ha, hb, hc, hd = has[:-1, :-1], has[:-1, 1:], has[1:, :-1], has[1:, 1:]
+    if cells is not None:
+        cm = cells[r0:r1 - 1, c0:c1 - 1]
+        ha, hb, hc, hd = ha & cm, hb & cm, hc & cm, hd & cm
     if group is not None:
         group = group[r0:r1, c0:c1]
         ga, gb, gc, gd = group[:-1, :-1], group[:-1, 1:], group[1:, :-1], group[1:, 1:]
