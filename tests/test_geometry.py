@@ -363,3 +363,20 @@ def test_estimate_cli_writes_scene_folder(tmp_path, capsys):
     np.testing.assert_allclose(back.depth, s.depth_gt, equal_nan=True)
     assert main(["estimate", str(tmp_path / "scene"), "--method", "files"]) == 2
     assert "--depth" in capsys.readouterr().err
+
+
+def test_estimate_cli_network(tmp_path, tiny_checkpoint, capsys):
+    from npsim_core.cli import main
+    from npsim_core.scene import load_scene, save_scene
+
+    save_scene(toy_street(pole=None), tmp_path / "scene")
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "network", "--checkpoint", str(tiny_checkpoint),
+                 "-o", str(tmp_path / "out")]) == 0
+    back = load_scene(tmp_path / "out")
+    assert back.provenance["geometry"]["method"] == "network" and back.depth.shape == (64, 128)
+    capsys.readouterr()
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "network"]) == 2
+    assert "--checkpoint DIR" in capsys.readouterr().err
+    assert main(["estimate", str(tmp_path / "scene"), "--method", "network", "--checkpoint",
+                 str(tmp_path / "missing")]) == 2
+    assert "checkpoint folder not found" in capsys.readouterr().err
