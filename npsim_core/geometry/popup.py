@@ -19,14 +19,20 @@ Model (in the spirit of Hoiem et al.'s "Automatic Photo Pop-up")
   trimmed of outliers) defines a vertical plane through the contact line. A
   contact shorter than ``min_contact_extent`` metres, or a line through the
   camera, gives a fronto-parallel vertical plane (normal ``-f``) at the
-  contacts' median distance. Every pixel of the segment gets that plane's
-  depth along its ray, clamped to ``[min_depth, max_depth]``.
-* Segments without ground contact (a sign on a pole, a building top above a
-  car) stand on whatever is below them: in rounds, a segment whose bottom
-  boundary touches already-placed pixels is fitted the same way to those
-  pixels' 3D points. What is still unplaced afterwards (regions floating in
-  sky) takes the depth of its nearest placed pixel and a fronto-parallel
-  normal.
+  contacts' median distance; narrow things (``fronto_ids``: poles, signs,
+  people, bikes) are always fronto-parallel. Every pixel of the segment gets
+  its plane's depth along its ray, clamped to ``[min_depth, max_depth]``.
+* A segment is placed from the ground alone when its ground contacts are at
+  least ``ground_fraction`` of its bottom boundary's support, or give a
+  successful line fit. Otherwise it rests (also) on other segments (a sign on
+  a pole, a facade behind parked cars, a tree crown over a car): in rounds,
+  once at least half of its support is placed, it is fitted to the ground
+  contacts plus the 3D points of the placed pixels below it -- facades
+  (``facade_ids``) by a line (ignoring ``thin_ids``/``fronto_ids`` supports in
+  front of them when there is anything else), everything else
+  fronto-parallel at its nearest support. What is still unplaced afterwards
+  (regions floating in sky) takes the depth of its nearest placed pixel and a
+  fronto-parallel normal.
 * Sky, ego vehicle, rectification border and out-of-roi pixels are invalid (NaN).
 
 All work is vectorised over the image; the only Python loops are over
