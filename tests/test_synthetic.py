@@ -68,11 +68,15 @@ def test_labels_cover_every_pixel_with_known_ids(scene):
     assert {7, 8, 11, 17, 21, 23, 26} <= present
 
 
-def test_all_classes_present_at_moderate_size():
-    _, _, _, gt = street_ground_truth(512, 256, seed=0)
-    layout, *_ = street_ground_truth(8, 4, seed=0)
+@pytest.mark.parametrize("seed", [0, 5])
+def test_all_classes_present_at_moderate_size(seed):
+    layout, _, _, gt = street_ground_truth(512, 256, seed=seed)
     labels = np.where(gt.prim >= 0, layout.prims.label[np.maximum(gt.prim, 0)], 23)
     assert {7, 8, 11, 17, 19, 20, 21, 23, 26} <= set(int(i) for i in np.unique(labels))
+    for lab in (8, 19, 20):  # sidewalk, traffic light, sign: visible, not just a stray pixel
+        assert (labels == lab).sum() >= 30, lab
+    lights = np.where(gt.prim >= 0, layout.prims.light[np.maximum(gt.prim, 0)], 0)
+    assert {1, 2, 3, 4, 8, 10, 12} <= set(int(i) // 1000 for i in np.unique(lights) if i)
 
 
 def test_sky_is_the_only_nan(scene):

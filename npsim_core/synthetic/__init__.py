@@ -35,7 +35,7 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
            "cache_dir", "auto_spp"]
 
 #: Bump whenever the scene's content changes (it is part of the cache key).
-SCENE_VERSION = 1
+SCENE_VERSION = 2
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.

@@ -116,24 +116,30 @@ def build_street(seed: int = 0) -> StreetLayout:
     _facade_windows(P, rng, ids, groups, axis=2, plane=far_z - PROUD, along=(-25.0, 25.0), height=far_h,
                     ground_shop=True)
 
-    # --- advertisement panel on a right-hand facade's ground floor, above the shop windows
-    az = float(rng.uniform(14.0, 24.0))
+    # --- advertisement panels above the shop windows: one on a right-hand facade (often hidden by
+    # trees), one on the far building facing the camera (always in view)
+    az = float(rng.uniform(27.0, 45.0))  # the right facade enters the view at z ~ 23 m
     z0, z1, fx = next(f for f in facades[1] if f[0] <= az < f[1])
     az = min(max(az, z0 + 0.3), z1 - 3.5)
-    ad = ids.new(ADVERTISEMENT)
-    P.rect(0, fx - PROUD, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp", light=ad)
+    P.rect(0, fx - PROUD, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
+           light=ids.new(ADVERTISEMENT))
+    ax = float(rng.uniform(-4.0, 1.0))
+    P.rect(2, far_z - PROUD, (ax, 3.0), (ax + 4.0, 3.9), BUILDING, (0.85, 0.75, 0.2), "lamp",
+           light=ids.new(ADVERTISEMENT))
 
     # --- parked cars in the parking strips
     n_cars = 0
+    # Occupancy varies per side and seed; gaps keep the sidewalk and kerb visible between cars.
     for side, x_in, x_out, p_forward in ((-1, -3.8, -5.85, 0.4), (1, 2.35, 4.35, 0.85)):
-        z = float(rng.uniform(4.0, 9.0))
+        occupancy = float(rng.uniform(0.35, 0.8))
+        z = float(rng.uniform(4.0, 9.0) if side > 0 else rng.uniform(5.0, 16.0))
         while z < far_z - 12.0:
             length = float(rng.uniform(3.9, 4.8))
-            if rng.random() < 0.8:
+            if rng.random() < occupancy:
                 _car(P, rng, ids, groups, x_lo=min(x_in, x_out) + 0.05, x_hi=max(x_in, x_out) - 0.05,
                      z0=z, length=length, forward=bool(rng.random() < p_forward))
                 n_cars += 1
-            z += length + float(rng.uniform(0.8, 3.5))
+            z += length + float(rng.uniform(0.8, 4.0))
 
     # --- street lights (poles with arms over the road), trees between them
     pole_zs = []
@@ -146,6 +152,7 @@ def build_street(seed: int = 0) -> StreetLayout:
             tz = z + spacing * 0.5
             if tz < far_z - 6.0:
                 _tree(P, rng, px + side * 1.2, tz)
+                pole_zs.append((side, tz))
             z += spacing
 
     # --- a traffic light and a traffic sign on the right sidewalk, clear of the lamp poles
@@ -166,7 +173,7 @@ def build_street(seed: int = 0) -> StreetLayout:
 def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float, float]) -> float:
     for _ in range(50):
         z = float(rng.uniform(*rng_z))
-        if all(abs(z - tz) > 4.0 for s, tz in taken if s == side):
+        if all(abs(z - tz) > 4.5 for s, tz in taken if s == side):
             return z
     return float(rng_z[1])
 
