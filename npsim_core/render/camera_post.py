@@ -10,8 +10,9 @@ are never touched: the label map of a night is the day's, copied unchanged.
 ISO presets (:data:`ISO_PRESETS`): analogue gain g = ISO/100; shot-noise
 variance grows with g and read-noise variance with g² (the standard
 Poisson-Gaussian sensor model, Foi et al. 2008), anchored at ISO 100 to
-β1 = 1e-4, β2 = 2e-7 (σ ≈ 1 % at mid-grey, a clean daylight sensor). At ISO 3200
-this gives σ ≈ 4.4 % at a signal of 0.05 (typical night grain); the thesis
+β1 = 1e-4, β2 = 2e-8 (σ ≈ 0.7 % at mid-grey, a clean daylight sensor). At ISO 1600
+this gives σ ≈ 0.9 % at a signal of 0.05 and a read-noise floor σ ≈ 0.23 % (about
+8/255 in sRGB near black: typical night grain); the thesis
 calibrates β1, β2 from real noisy/clean pairs, which can be passed explicitly.
 """
 
@@ -25,11 +26,11 @@ import numpy as np
 from ..errors import NpsimInputError
 
 _BETA1_ISO100 = 1e-4
-_BETA2_ISO100 = 2e-7
+_BETA2_ISO100 = 2e-8
 
 
 def iso_noise(iso: float) -> tuple[float, float]:
-    """(β1, β2) for an ISO setting: β1 = 1e-4·g, β2 = 2e-7·g², g = ISO/100."""
+    """(β1, β2) for an ISO setting: β1 = 1e-4·g, β2 = 2e-8·g², g = ISO/100."""
     if not (iso > 0):
         raise NpsimInputError(f"ISO must be positive, got {iso}")
     g = float(iso) / 100.0

@@ -185,6 +185,15 @@ def _face_areas_centroid(geo: _Geometry, sel: np.ndarray) -> tuple[float, np.nda
     return tot, cen, n
 
 
+def _lum(rgb) -> float:
+    """Rec. 709 luminance of a linear RGB triple."""
+    return float(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
+
+
+def _cone_solid_angle(cutoff_deg: float) -> float:
+    return 2.0 * math.pi * (1.0 - math.cos(math.radians(cutoff_deg)))
+
+
 def _level_to_camera(pitch: float) -> np.ndarray:
     """Rotation taking a level (gravity-aligned, y down) frame to the camera frame pitched down by ``pitch``."""
     c, s = math.cos(pitch), math.sin(pitch)
@@ -208,8 +217,13 @@ class BuiltScene:
     table: LightTable | None
     #: light id -> traverse key prefix of its area emitter (``<shape>.emitter``).
     area_keys: dict[int, str] = field(default_factory=dict)
+    #: light id -> emitting area (m²), for power-proportional emitter sampling.
+    area_m2: dict[int, float] = field(default_factory=dict)
     #: light id -> (spot key prefix, intensity per unit radiance (W/sr per radiance)).
     spot_keys: dict[int, tuple[str, float]] = field(default_factory=dict)
+    #: solid angle (sr) of the throw spots' and of the ego spots' cones.
+    spot_solid_angle: float = 1.0
+    ego_solid_angle: float = 1.0
     ego_keys: list[str] = field(default_factory=list)
     ego_intensity: np.ndarray | None = None
     thread_env: object = None
@@ -251,16 +265,23 @@ class BuiltScene:
         """Set every light's radiance (0 when off) in place; returns the seconds it took."""
         t0 = time.perf_counter()
         p = self.params
+        # Emitters are picked for next-event estimation in proportion to their power
+        # (area light: pi * L * A; spot: I * cone solid angle), so a street lamp is not
+        # sampled as rarely as one of fifty dim windows.
         for lid, key in self.area_keys.items():
             st = active.lights.get(lid)
-            rad = [0.0, 0.0, 0.0] if st is None or not st.on else list(st.radiance)
+            on = st is not None and st.on
+            rad = list(st.radiance) if on else [0.0, 0.0, 0.0]
             p[f"{key}.radiance.value"] = type(p[f"{key}.radiance.value"])(*rad)
-            p[f"{key}.sampling_weight"] = 1.0 if st is not None and st.on else OFF_WEIGHT
+            p[f"{key}.sampling_weight"] = (max(math.pi * _lum(rad) * self.area_m2.get(lid, 1.0), OFF_WEIGHT)
+                                           if on else OFF_WEIGHT)
         for lid, (key, gain) in self.spot_keys.items():
             st = active.lights.get(lid)
-            inten = [0.0, 0.0, 0.0] if st is None or not st.on else [gain * r for r in st.radiance]
+            on = st is not None and st.on
+            inten = [gain * r for r in st.radiance] if on else [0.0, 0.0, 0.0]
             p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*inten)
-            p[f"{key}.sampling_weight"] = 1.0 if st is not None and st.on else OFF_WEIGHT
+            p[f"{key}.sampling_weight"] = (max(_lum(inten) * self.spot_solid_angle, OFF_WEIGHT)
+                                           if on else OFF_WEIGHT)
         self._set_ego(p, self._ego_on)
         p.update()
         self._active = active
@@ -277,7 +298,7 @@ class BuiltScene:
         for key in self.ego_keys:
             val = self.ego_intensity if on else np.zeros(3)
             p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*[float(x) for x in val])
-            p[f"{key}.sampling_weight"] = 1.0 if on else OFF_WEIGHT
+            p[f"{key}.sampling_weight"] = max(_lum(val) * self.ego_solid_angle, OFF_WEIGHT) if on else OFF_WEIGHT
 
 
 def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, table: LightTable,
@@ -351,6 +372,8 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
 
     built = BuiltScene(scene=None, variant=mi.variant(), intrinsics=intrinsics, table=table, n_faces=F)
     throw = table.throw
+    built.spot_solid_angle = _cone_solid_angle(float(throw.get("cutoff_deg", 70.0)))
+    built.ego_solid_angle = _cone_solid_angle(float(table.ego_headlight.get("cutoff_deg", 35.0)))
     pitch = params.camera_pitch
     R = _level_to_camera(pitch)
     down = R @ np.array([0.0, 1.0, 0.0])
@@ -365,9 +388,10 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
         name = f"light_{lid}"
         objects[name] = _submesh(mi, name, geo, sel, props)
         built.area_keys[lid] = f"{name}.emitter"
+        area, cen, n = _face_areas_centroid(geo, sel)
+        built.area_m2[lid] = area
         spec = table.classes.get(lid // 1000)
         if params.throw_spots and spec is not None and spec.throw:
-            area, cen, n = _face_areas_centroid(geo, sel)
             if spec.class_id in (8, 9):  # street lights: aim at the ground below the lamp head
                 d = down
                 origin = cen + 0.15 * d + 0.05 * n
@@ -404,7 +428,12 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     scene_dict = {"type": "scene", "integrator": {"type": "path", "max_depth": int(params.max_depth)},
                   "sensor": camera_dict(intrinsics)}
     if params.sky:
-        scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)}}
+        # Sky power ~ pi * L_sky * (area it lights): weigh it against the lamps with the mesh's area.
+        f = geo.faces
+        v = geo.vertices.astype(np.float64)
+        mesh_area = float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+        scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)},
+                             "sampling_weight": max(math.pi * _lum(table.sky_radiance) * mesh_area, OFF_WEIGHT)}
     scene_dict.update(objects)
     built.scene = mi.load_dict(scene_dict)
     built.thread_env = capture_thread_env(mi)

@@ -1,0 +1,117 @@
+"""Light table and probabilistic light activation (SPEC §5) -- statistics, no rendering."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from npsim_core.annotation import GroupInstance, LightAnnotation
+from npsim_core.errors import NpsimInputError
+from npsim_core.render.lights import (activate_lights, cct_to_chromaticity, inferred_chromaticity,
+                                      load_light_table)
+
+
+def _windows(n: int, grouped: bool, cls: int = 1) -> LightAnnotation:
+    """n one-pixel-row lights of class ``cls`` on a strip, optionally all in one windows_group."""
+    m = np.zeros((4, 4 * n), np.int32)
+    ids = [cls * 1000 + k + 1 for k in range(n)]
+    for k, i in enumerate(ids):
+        m[1:3, 4 * k:4 * k + 3] = i
+    groups = {13001: GroupInstance(13001, tuple(ids))} if grouped else {}
+    return LightAnnotation(m, groups)
+
+
+def test_default_table_complete_with_origins():
+    t = load_light_table()
+    assert sorted(t.classes) == list(range(1, 13))
+    for spec in t.classes.values():
+        assert spec.origin, f"class {spec.name} lacks an origin note"
+        assert 0 <= spec.p[0] <= spec.p[1] <= 1
+        assert spec.strength[0] <= spec.strength[1]
+    # SOLO reference values (SPEC §5)
+    assert t.spec(1).p == (0.3, 0.6) and t.spec(1).strength == (1, 20)
+    assert t.spec(8).strength == (850, 1000) and t.spec(8).p == (1.0, 1.0)
+    assert t.spec(5).p == (0.95, 1.0) and t.spec(4).strength == (60, 90)
+    # sodium street light is orange, LED cooler, rear lamps red
+    assert t.spec(9).chromaticity[0] > 2.5 and t.spec(9).chromaticity[1] < 0.15
+    assert t.spec(8).chromaticity[0] < t.spec(9).chromaticity[0]
+    assert t.spec(6).chromaticity[0] > 3 and t.spec(6).chromaticity[1] < 0.5
+
+
+def test_blackbody_chromaticity():
+    rg, bg = cct_to_chromaticity(6504)  # close to D65 white
+    assert abs(rg - 1) < 0.1 and abs(bg - 1) < 0.1
+    warm, cool = cct_to_chromaticity(2700), cct_to_chromaticity(5000)
+    assert warm[0] > cool[0] > 1 and warm[1] < cool[1] < 1
+    with pytest.raises(NpsimInputError):
+        cct_to_chromaticity(500)
+
+
+def test_user_table_overrides_and_validates(tmp_path):
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps({"classes": {"1": {"p": [0.9, 1.0], "cct_K": 4000}, "4": {"strength": [1, 2]}},
+                             "unit_scale": 0.5}))
+    t = load_light_table(p)
+    assert t.spec(1).p == (0.9, 1.0) and t.spec(1).cct_k == 4000
+    assert t.spec(1).chromaticity == pytest.approx(cct_to_chromaticity(4000))
+    assert t.spec(4).strength == (1, 2) and t.spec(4).chromaticity == load_light_table().spec(4).chromaticity
+    assert t.spec(8).strength == (850, 1000)  # untouched classes keep the default
+    assert t.unit_scale == 0.5
+    p.write_text(json.dumps({"classes": {"2": {"p": [0.8, 0.2]}}}))
+    with pytest.raises(NpsimInputError, match="class 2"):
+        load_light_table(p)
+    with pytest.raises(NpsimInputError):
+        load_light_table(tmp_path / "missing.json")
+
+
+def test_same_seed_same_night_different_seeds_differ():
+    ann = _windows(12, grouped=False)
+    t = load_light_table()
+    a, b = activate_lights(ann, t, 7), activate_lights(ann, t, 7)
+    assert a.to_json() == b.to_json()
+    sets = {tuple(activate_lights(ann, t, s).on_ids) for s in range(10)}
+    assert len(sets) >= 5
+    st = a.lights[1001]
+    assert st.on == any(st.radiance) and (not st.on or st.radiance[1] == pytest.approx(t.unit_scale * st.strength))
+
+
+def test_group_all_together_shares_state():
+    ann = _windows(8, grouped=True)
+    t = load_light_table()
+    n_on = []
+    for s in range(200):
+        states = {v.on for v in activate_lights(ann, t, s, group_all_together=True).lights.values()}
+        assert len(states) == 1
+        n_on.append(states.pop())
+    assert 0.2 < np.mean(n_on) < 0.7  # p ~ U(.3, .6) for windows
+
+
+def _count_dispersion(ann, seeds=3000):
+    t = load_light_table()
+    counts = np.array([len(activate_lights(ann, t, s).on_ids) for s in range(seeds)], float)
+    n = len(ann.instance_ids())
+    p = counts.mean() / n
+    return counts.var() / (n * p * (1 - p))
+
+
+def test_group_members_correlated_ungrouped_independent():
+    # Shared p per (group, class): the number of lit windows is over-dispersed versus a binomial.
+    grouped = _count_dispersion(_windows(20, grouped=True))
+    alone = _count_dispersion(_windows(20, grouped=False))
+    assert grouped > 1.3, grouped
+    assert 0.85 < alone < 1.15, alone
+
+
+def test_forced_and_inferred_colour():
+    img = np.zeros((4, 8, 3), np.uint8)
+    img[...] = (200, 30, 20)  # a red traffic-light lens in daylight
+    ann = LightAnnotation(np.zeros((4, 8), np.int32))
+    ann.instance_map[1:3, 2:5] = 12001
+    t = load_light_table()
+    rg, bg = inferred_chromaticity(img, ann.mask(12001))
+    assert rg > 5 and bg < 1
+    act = activate_lights(ann, t, 0, image=img, force={12001: False})
+    assert not act.lights[12001].on and act.lights[12001].chromaticity == pytest.approx((rg, bg))
+    assert activate_lights(None, t, 0).lights == {}

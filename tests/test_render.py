@@ -1,0 +1,250 @@
+"""Night rendering: pixel alignment, determinism, emitter colour, darkness, camera noise, variant choice, CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import threading
+
+import numpy as np
+import pytest
+
+from npsim_core.annotation import LightAnnotation
+from npsim_core.camera import Intrinsics
+from npsim_core.errors import NpsimCancelled, NpsimInputError
+from npsim_core.io import read_image, read_label_image
+from npsim_core.mesh.grid import grid_mesh
+from npsim_core.render import variant as variant_mod
+from npsim_core.render.camera_post import CameraParams, add_noise, apply_camera, iso_noise
+from npsim_core.render.lights import activate_lights, load_light_table
+from npsim_core.render.materials import estimate_materials
+from npsim_core.render.render import PreviewParams, render_final, render_labels, render_linear, render_preview
+from npsim_core.render.scene_builder import BuildParams, build_label_scene, build_scene
+from npsim_core.synthetic import street_scene
+
+SCALAR = "scalar_rgb"
+
+
+def _miou(pred: np.ndarray, gt: np.ndarray) -> tuple[float, dict]:
+    ious = {}
+    for c in np.unique(gt):
+        a, b = gt == c, pred == c
+        ious[int(c)] = (a & b).sum() / (a | b).sum()
+    return float(np.mean(list(ious.values()))), ious
+
+
+@pytest.fixture(scope="module")
+def street():
+    s = street_scene(128, 64)
+    mesh = grid_mesh(s.depth_gt, s.intrinsics, s.labels, s.lights.instance_map)
+    return s, mesh
+
+
+@pytest.mark.parametrize("variant", ["scalar_rgb", "llvm_ad_rgb"])
+def test_label_render_reproduces_labels(variant):
+    """THE key test: the day labels fit the rendered night pixel for pixel (IoU >= 0.99)."""
+    s = street_scene(256, 128)
+    # The synthetic camera has cx off-centre by ~9 px and fx != fy: a wrong principal-point
+    # sign or a missing fy/fx correction would shift the image and fail this.
+    assert abs(s.intrinsics.cx - (s.width - 1) / 2) > 5 and s.intrinsics.fx != s.intrinsics.fy
+    mesh = grid_mesh(s.depth_gt, s.intrinsics, s.labels, s.lights.instance_map)
+    got = render_labels(build_label_scene(mesh, s.intrinsics, s.labels, variant=variant))
+    got = np.where(got < 0, 23, got)  # no surface = sky
+    miou, ious = _miou(got, s.labels)
+    assert miou >= 0.99, ious
+    assert (got == s.labels).mean() >= 0.995
+    assert min(ious.values()) >= 0.95, ious
+
+
+def test_camera_matches_intrinsics_on_a_point():
+    """A small emissive square at a known 3-D point lands on the pixel K predicts."""
+    intr = Intrinsics(50.0, 53.0, 20.3, 9.7, 48, 24)
+    depth = np.full((24, 48), np.nan, np.float32)
+    depth[5:8, 30:33] = 4.0  # a 3x3 patch of pixels -> 2x2 quads centred on pixel (31, 6)
+    labels = np.full((24, 48), 23, np.uint8)
+    labels[5:8, 30:33] = 20
+    mesh = grid_mesh(depth, intr, labels)
+    got = render_labels(build_label_scene(mesh, intr, labels, variant=SCALAR), passes=16)
+    ys, xs = np.nonzero(got == 20)
+    assert len(xs) > 0
+    assert xs.mean() == pytest.approx(31.0, abs=0.3) and ys.mean() == pytest.approx(6.0, abs=0.3)
+
+
+def _build(s, mesh, active, **kw):
+    table = kw.pop("table", load_light_table())
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
+                              light_classes=s.lights.class_map())
+    return build_scene(mesh, s.intrinsics, mats, table, s.lights, active,
+                       BuildParams(**kw), variant=SCALAR), table
+
+
+def test_same_seed_identical_night_and_toggle_in_place(street):
+    s, mesh = street
+    table = load_light_table()
+    a = activate_lights(s.lights, table, 3, image=s.image)
+    built, _ = _build(s, mesh, a, max_depth=2)
+    img1 = render_final(built, spp=4, seed=3)
+    img2 = render_final(built, spp=4, seed=3)
+    assert np.array_equal(img1, img2)
+    # switch every light off in place: same Mitsuba scene object, darker image, then back on
+    scene_obj = built.scene
+    off = activate_lights(s.lights, table, 3, image=s.image, force={i: False for i in s.lights.instance_ids()})
+    built.apply_lights(off)
+    dark = render_final(built, spp=4, seed=3)
+    assert built.scene is scene_obj
+    assert dark.mean() < 0.8 * img1.mean()
+    built.apply_lights(a)
+    assert np.array_equal(render_final(built, spp=4, seed=3), img1)
+
+
+def test_different_seeds_different_active_sets(street):
+    s, _ = street
+    table = load_light_table()
+    sets = {tuple(activate_lights(s.lights, table, k).on_ids) for k in range(6)}
+    assert len(sets) == 6
+
+
+def test_emitter_colour_matches_table(tmp_path):
+    """A lit sodium street light's pixels have the table's chromaticity (r/g, b/g)."""
+    H, W = 24, 32
+    intr = Intrinsics.from_fov(W, H, 60)
+    depth = np.full((H, W), 5.0, np.float32)
+    labels = np.full((H, W), 11, np.uint8)
+    ann = LightAnnotation(np.zeros((H, W), np.int32))
+    ann.instance_map[8:16, 10:22] = 9001  # street_light_LT (sodium)
+    user = tmp_path / "t.json"
+    user.write_text(json.dumps({"classes": {"9": {"spread": 0.0}}}))
+    table = load_light_table(user)
+    mesh = grid_mesh(depth, intr, labels, ann.instance_map)
+    image = np.full((H, W, 3), 128, np.uint8)
+    mats = estimate_materials(image, labels, light_classes=ann.class_map())
+    act = activate_lights(ann, table, 0)
+    assert act.lights[9001].on
+    built = build_scene(mesh, intr, mats, table, ann, act,
+                        BuildParams(ego_headlights=False, sky=False, throw_spots=False), variant=SCALAR)
+    img = render_final(built, spp=8)
+    patch = img[10:14, 12:20].reshape(-1, 3).mean(0)
+    rg, bg = table.spec(9).chromaticity
+    assert patch[0] / patch[1] == pytest.approx(rg, rel=0.03)
+    assert patch[2] / patch[1] == pytest.approx(bg, rel=0.1, abs=0.005)
+    assert patch[1] == pytest.approx(table.unit_scale * act.lights[9001].strength, rel=0.05)
+
+
+def test_no_lights_only_dim_sky(street):
+    s, mesh = street
+    table = load_light_table()
+    off = activate_lights(s.lights, table, 0, force={i: False for i in s.lights.instance_ids()})
+    built, _ = _build(s, mesh, off, ego_headlights=False)
+    img = render_final(built, spp=4)
+    sky = s.labels == 23
+    assert img.mean() < 0.01 and img.max() < 0.1
+    # sky pixels show exactly the night sky's constant radiance
+    assert img[sky].mean(0) == pytest.approx(np.array(table.sky_radiance), rel=1e-3)
+    assert 0 < img[~sky].mean() < img[sky].mean()
+    # and the ego headlights light the road when switched on in place
+    built.set_ego_headlights(True)
+    lit = render_final(built, spp=4)
+    road = s.labels == 7
+    assert lit[road].mean() > 5 * img[road].mean()
+
+
+def test_preview_progressive_and_cancellable(street):
+    s, mesh = street
+    built, _ = _build(s, mesh, activate_lights(s.lights, load_light_table(), 1), max_depth=2)
+    frames = list(render_preview(built, PreviewParams(scale=0.5, spp_per_pass=2, passes=3, max_depth=2)))
+    assert [f.spp for f in frames] == [2, 4, 6]
+    assert frames[-1].image.shape == (32, 64, 3) and frames[-1].image.dtype == np.float32
+    ev = threading.Event()
+    gen = render_preview(built, PreviewParams(scale=0.5, spp_per_pass=1, passes=5), cancel=ev)
+    next(gen)
+    ev.set()
+    with pytest.raises(NpsimCancelled):
+        next(gen)
+    # also renders from a worker thread
+    out = {}
+    t = threading.Thread(target=lambda: out.setdefault("img", render_linear(built, spp=1, scale=0.25)))
+    t.start()
+    t.join()
+    assert out["img"].shape == (16, 32, 3)
+
+
+def test_noise_statistics_match_betas():
+    rng = np.random.default_rng(0)
+    flat = np.full((256, 256, 3), 0.2, np.float32)
+    b1, b2 = 4e-3, 1e-4
+    noisy = add_noise(flat, b1, b2, rng)
+    assert noisy.mean() == pytest.approx(0.2, abs=1e-3)
+    assert noisy.var() == pytest.approx(b1 * 0.2 + b2, rel=0.03)
+    # through the camera pipeline with an ISO preset (exposure 0, neutral white balance)
+    _, lin = apply_camera(np.full((256, 256, 3), 0.05, np.float32), CameraParams(iso=3200, seed=1))
+    e1, e2 = iso_noise(3200)
+    assert lin.var() == pytest.approx(e1 * 0.05 + e2, rel=0.03)
+    assert iso_noise(400)[0] < e1 and iso_noise(400)[1] < e2
+    srgb, _ = apply_camera(np.full((4, 4, 3), 0.2159, np.float32), CameraParams(iso=None))
+    assert srgb.dtype == np.uint8 and (srgb == 128).all()  # sRGB(0.2159) = 128/255
+    with pytest.raises(NpsimInputError):
+        apply_camera(np.full((4, 4, 3), np.nan, np.float32))
+
+
+def test_motion_blur_only_on_moving_vehicles():
+    lin = np.zeros((20, 40, 3), np.float32)
+    lin[5:15, 18:22] = 1.0
+    labels = np.full((20, 40), 7, np.uint8)
+    labels[4:16, 10:30] = 26
+    lc = np.zeros((20, 40), np.uint8)
+    lc[6:8, 18:22] = 5  # moving_front light on the car
+    _, blurred = apply_camera(lin, CameraParams(iso=None, motion_blur_px=9), labels=labels, light_classes=lc)
+    _, still = apply_camera(lin, CameraParams(iso=None, motion_blur_px=9), labels=labels, light_classes=lc * 0)
+    assert np.array_equal(still, lin)
+    assert blurred[10, 15:25, 0].min() > 0 and blurred[10, 20, 0] < 1.0
+    assert (blurred[0:3] == 0).all()
+
+
+def test_variant_override_and_probe_cache(monkeypatch, tmp_path):
+    monkeypatch.setenv("NPSIM_MITSUBA_VARIANT", "scalar_rgb")
+    assert variant_mod.choose_variant().name == "scalar_rgb"
+    monkeypatch.setenv("NPSIM_MITSUBA_VARIANT", "cuda_rgb")
+    with pytest.raises(NpsimInputError):
+        variant_mod.choose_variant()
+    monkeypatch.delenv("NPSIM_MITSUBA_VARIANT")
+    monkeypatch.setattr(variant_mod, "CACHE_FILE", tmp_path / "v.json")
+    calls = []
+    monkeypatch.setattr(variant_mod, "probe_llvm", lambda: (calls.append(1), (False, "fake failure"))[1])
+    assert variant_mod.choose_variant().name == "scalar_rgb"
+    assert variant_mod.choose_variant().name == "scalar_rgb"
+    assert len(calls) == 1  # second answer came from the cache
+    assert variant_mod.choose_variant(refresh=True).reason == "fake failure" and len(calls) == 2
+
+
+def test_night_cli(tmp_path):
+    from npsim_core.cli import main
+    from npsim_core.scene import save_scene
+
+    s = street_scene(64, 32)
+    save_scene(s, tmp_path / "scene")
+    rc = main(["night", str(tmp_path / "scene"), "-o", str(tmp_path / "out"), "--variants", "2", "--seed", "5",
+               "--spp", "2", "--variant", "scalar_rgb"])
+    assert rc == 0
+    for k in range(2):
+        stem = tmp_path / "out" / f"{s.name}_night_{k}"
+        img = read_image(f"{stem}.png")
+        assert img.shape == (32, 64, 3)
+        assert np.array_equal(read_label_image(f"{stem}_labelIds.png"), s.labels)
+        assert np.load(f"{stem}_linear.npy").shape == (32, 64, 3)
+        lights = json.loads(open(f"{stem}_lights.json").read())
+        params = json.loads(open(f"{stem}_params.json").read())
+        assert lights["seed"] == 5 + k and params["seed"] == 5 + k and params["variant"] == "scalar_rgb"
+        assert img.mean() < 100  # a night, not a day
+    assert main(["night", str(tmp_path / "nope"), "-o", str(tmp_path / "o2")]) == 2
+
+
+def test_bad_inputs(street):
+    s, mesh = street
+    table = load_light_table()
+    mats = estimate_materials(s.image, s.labels)
+    with pytest.raises(NpsimInputError):
+        build_scene(mesh, s.intrinsics.resized(64, 32), mats, table, variant=SCALAR)
+    bad = dataclasses.replace(mesh.parts[0], vertices=mesh.parts[0].vertices.copy())
+    bad.vertices[0] = np.nan
+    with pytest.raises(NpsimInputError):
+        build_scene(dataclasses.replace(mesh, parts=[bad]), s.intrinsics, mats, table, variant=SCALAR)
