@@ -278,3 +278,14 @@ def test_albedo_texture_is_consistent_with_image(scene):
     lum = scene.image[road].astype(np.float32).mean(axis=1)
     alb = scene.albedo[road].mean(axis=1)
     assert np.corrcoef(lum, alb)[0, 1] > 0.0
+
+
+def test_render_in_child_process_matches_in_process():
+    """Used when the caller's process runs another Mitsuba variant; must give the same pixels."""
+    from npsim_core.synthetic.render import render_rgba
+
+    layout, intr, pose, _ = street_ground_truth(48, 24, seed=0)
+    a = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=False)
+    b = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=True)
+    assert a.shape == (24, 48, 4)
+    assert np.array_equal(a, b)

@@ -8,10 +8,15 @@ the optical axis at OpenCV pixel ``(cx, cy)``, i.e. at film coordinate
 ``(cx + 0.5, cy + 0.5)`` (Mitsuba pixel i covers [i, i+1)). Alignment with the
 numpy ray caster is checked in the tests (depth AOV at pixel centres).
 
-Lighting: a sun (directional emitter) and a sky-coloured constant environment;
-the integrator hides directly visible emitters and the film keeps alpha, so
-sky pixels are composited with a vertical gradient afterwards (boundary pixels
-blend by coverage).
+Lighting: see :func:`render_day` (sun traced by Mitsuba, sky ambient added in
+numpy). The film keeps alpha, so sky pixels are composited with a vertical
+gradient afterwards (boundary pixels blend by coverage).
+
+Variant: always ``scalar_rgb`` (deterministic: every pixel's samples are summed
+in a fixed order). Mitsuba's variant is process-global, so when the calling
+process already uses another variant (e.g. the relighting renderer chose
+``llvm_ad_rgb``) the render runs in a child process instead of switching the
+variant under the caller's feet.
 """
 
 from __future__ import annotations
@@ -29,15 +34,6 @@ _LOCK = threading.Lock()
 #: (u, v) corner order of a rectangle / box face, wound consistently; BSDFs are two-sided anyway.
 _BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                        [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], dtype=np.uint32)
-
-
-def _mitsuba():
-    import mitsuba as mi
-
-    with _LOCK:
-        if mi.variant() is None:
-            mi.set_variant("scalar_rgb")
-    return mi
 
 
 def mitsuba_geometry(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
@@ -127,8 +123,9 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     box-filtered over 3x3 where the primitive id ``prim`` changes (cheap edge
     antialiasing), and glass (``glass_mask``) gets a Schlick-Fresnel reflection of
     the sky. ``texture`` (H, W) multiplies the surface radiance (an albedo factor,
-    see :mod:`.texture`; exact for this linear-in-albedo model). (Mitsuba's AOV integrator would give antialiased albedo/normals but
-    is ~30x slower than the render itself in ``scalar_rgb``; measured.)
+    see :mod:`.texture`; exact for this linear-in-albedo model). (Mitsuba's AOV
+    integrator would give antialiased albedo/normals but is ~30x slower than the
+    render itself in ``scalar_rgb``; measured.)
 
     ``mode="path"``: a path tracer (max depth 3) with a constant sky environment,
     physically fuller (sky occlusion, one bounce) but noisy below ~64 spp and
@@ -137,21 +134,15 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     Units are arbitrary but fixed: a white diffuse surface facing the sun gets
     ``sun_irradiance/pi`` from the sun; the caller exposes to sRGB.
     """
-    mi = _mitsuba()
     if mode == "path":
-        integ = {"type": "path", "max_depth": 3, "hide_emitters": True}
-        d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance,
-                        {"sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RADIANCE)}}})
-        img = np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)  # RGBA, premultiplied
-        rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)
+        img = render_rgba(prims, intr, pose, kind="path", spp=spp, seed=seed, sun_irradiance=sun_irradiance)
+        rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)  # premultiplied by coverage
         return rgb + (1.0 - alpha) * sky_gradient(intr, pose)
     if mode != "fast":
         raise ValueError(f"render mode must be 'fast' or 'path', got {mode!r}")
     if albedo is None or normals is None or prim is None:
         raise ValueError("render_day(mode='fast') needs the pixel-centre albedo, normals and prim maps")
-    integ = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True}
-    d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance, {})
-    img = np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)
+    img = render_rgba(prims, intr, pose, kind="sun", spp=spp, seed=seed, sun_irradiance=sun_irradiance)
     rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)  # premultiplied by coverage
 
     up = pose.R_cw @ np.array([0.0, 1.0, 0.0])                    # world up in the camera frame
@@ -240,12 +231,72 @@ def render_depth_aov(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> n
     clip plane) with a 1-spp stratified sampler without jitter, so each sample
     sits exactly on the pixel centre. z is unaffected by the y scaling.
     """
-    mi = _mitsuba()
-    cam, _ = mitsuba_geometry(prims, intr, pose)
-    v, f, c = _mesh_arrays(prims, np.arange(len(prims)), cam)
-    scene = mi.load_dict({
-        "type": "scene", "integrator": {"type": "aov", "aovs": "p:position"},
-        "sensor": _sensor_dict(mi, intr, 1, 0, sampler={"type": "stratified", "sample_count": 1, "jitter": False}),
-        "mesh": _make_mesh(mi, "m", v, f, c, {"type": "diffuse"})})
-    img = np.array(mi.render(scene, spp=1), dtype=np.float32)  # channels: position x, y, z
-    return img[..., 2]
+    return render_rgba(prims, intr, pose, kind="position", spp=1, seed=0)[..., 2]
+
+
+def render_rgba(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, kind: str, spp: int, seed: int,
+                sun_irradiance: float = 3.2, subprocess: bool | None = None) -> np.ndarray:
+    """Run Mitsuba ``scalar_rgb`` and return its raw film (H, W, C) float32.
+
+    ``kind``: ``"sun"`` (direct integrator, sun only; RGBA), ``"path"`` (path tracer
+    with a constant sky; RGBA) or ``"position"`` (position AOV at pixel centres; XYZ).
+    ``subprocess=None`` renders in-process when the process's Mitsuba variant is
+    unset or already ``scalar_rgb``, else in a child process (see module docstring).
+    """
+    import mitsuba as mi
+
+    if subprocess is None:
+        subprocess = mi.variant() not in (None, "scalar_rgb")
+    if subprocess:
+        return _rgba_in_child(prims, intr, pose, kind=kind, spp=spp, seed=seed, sun_irradiance=sun_irradiance)
+    with _LOCK:
+        if mi.variant() is None:
+            mi.set_variant("scalar_rgb")
+    if kind == "position":
+        cam, _ = mitsuba_geometry(prims, intr, pose)
+        v, f, c = _mesh_arrays(prims, np.arange(len(prims)), cam)
+        d = {"type": "scene", "integrator": {"type": "aov", "aovs": "p:position"},
+             "sensor": _sensor_dict(mi, intr, 1, 0, sampler={"type": "stratified", "sample_count": 1,
+                                                            "jitter": False}),
+             "mesh": _make_mesh(mi, "m", v, f, c, {"type": "diffuse"})}
+    elif kind == "path":
+        integ = {"type": "path", "max_depth": 3, "hide_emitters": True}
+        d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance,
+                        {"sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RADIANCE)}}})
+    elif kind == "sun":
+        integ = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True}
+        d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance, {})
+    else:
+        raise ValueError(f"unknown render kind {kind!r}")
+    return np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)
+
+
+def _rgba_in_child(prims: Primitives, intr: Intrinsics, pose: CameraPose, **kw) -> np.ndarray:
+    import json
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory(prefix="npsim-synthetic-") as tmp:
+        src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npy"
+        np.savez(src, lo=prims.lo, hi=prims.hi, label=prims.label, light=prims.light, color=prims.color,
+                 material=prims.material, meta=json.dumps({"intr": intr.to_dict(), "height": pose.height,
+                                                          "pitch": pose.pitch, **kw}))
+        code = "import sys; from npsim_core.synthetic.render import _child_main; _child_main(sys.argv[1], sys.argv[2])"
+        proc = subprocess.run([sys.executable, "-c", code, str(src), str(dst)], capture_output=True, text=True)
+        if proc.returncode != 0 or not dst.exists():
+            raise RuntimeError(f"Mitsuba child render failed (exit {proc.returncode}): {proc.stderr[-2000:]}")
+        return np.load(dst)
+
+
+def _child_main(src: str, dst: str) -> None:
+    """Entry point of the child process started by :func:`_rgba_in_child`."""
+    import json
+
+    z = np.load(src)
+    meta = json.loads(str(z["meta"]))
+    prims = Primitives(z["lo"], z["hi"], z["label"], z["light"], z["color"], z["material"])
+    intr = Intrinsics.from_dict(meta.pop("intr"))
+    pose = CameraPose(meta.pop("height"), meta.pop("pitch"))
+    np.save(dst, render_rgba(prims, intr, pose, subprocess=False, **meta))
