@@ -344,3 +344,14 @@ def test_cli_annotate_list(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert [line.split("\t")[:2] for line in out] == [["a", "done"], ["b", "-"]]
     assert main(["annotate", str(tmp_path / "nothing")]) == 2
+
+
+def test_sparse_rle_equals_dense():
+    from npsim_core.annotation import rle_from_indices
+
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
+        mask = rng.random((h, w)) > rng.random()
+        idx = np.flatnonzero(mask.ravel(order="F"))
+        assert rle_from_indices(idx, h * w) == rle_encode(mask)

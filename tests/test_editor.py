@@ -107,6 +107,16 @@ def path_pixels(pix):
     return np.concatenate(xs), np.concatenate(ys)
 
 
+def assert_overlay_current(win):
+    """The incrementally updated light layer equals one drawn from scratch."""
+    from npsim_gui.editor.overlays import lights_region
+
+    s = win.editor.session
+    fresh = np.zeros(s.ann.shape + (4,), np.uint8)
+    lights_region(s.ann.instance_map, fresh, None, s.selection)
+    np.testing.assert_array_equal(win.editor.canvas.layers["lights"].array, fresh)
+
+
 def key(qtbot, win, k, mods=NOMOD):
     qtbot.keyClick(win.editor.canvas, k, mods)
 
@@ -170,6 +180,7 @@ def test_paint_superpixels_shift_remove_undo_redo(qtbot, tmp_path):
     # the overlay follows the map in the changed region
     lights = c.layers["lights"].array
     np.testing.assert_array_equal(lights[..., 3] > 0, s.ann.instance_map != 0)
+    assert_overlay_current(win)
     close_window(win)
 
 
@@ -200,6 +211,7 @@ def test_brush_eraser_exact_pixels(qtbot, tmp_path):
     assert s.ann.instance_ids() == []
     key(qtbot, win, Qt.Key.Key_Z, CTRL)
     np.testing.assert_array_equal(s.ann.instance_map == 1001, expected)
+    assert_overlay_current(win)
     close_window(win)
 
 
@@ -243,6 +255,7 @@ def test_group_change_class_save_reopen(qtbot, tmp_path):
     mask_3001 = s.ann.instance_map == 3001
     assert mask_3001.sum() > 0 and not (s.ann.instance_map == 1008).any()
     s.ann.validate()
+    assert_overlay_current(win)
     expected = s.ann.copy()
     key(qtbot, win, Qt.Key.Key_S, CTRL)
     assert "*" not in win.windowTitle()
@@ -340,15 +353,12 @@ def test_window_row_as_group_in_few_actions_on_synthetic_scene(qtbot, tmp_path):
     from npsim_core.scene import save_scene
     from npsim_core.synthetic import street_scene
 
+    from npsim_gui.editor.screenshot import front_window_row
+
     scene = street_scene(512, 256)
     gt = scene.lights
-    st = gt.stats()
-    # the most visible row of windows: a windows_group of >= 5 lights with the largest smallest window
-    rows = [g for g in gt.groups.values() if g.class_id == 13 and len(g.members) >= 5]
-    row = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
-    members = sorted(row.members, key=lambda m: st[m]["bbox"][0])
-    centres = [((st[m]["bbox"][0] + st[m]["bbox"][2]) // 2, (st[m]["bbox"][1] + st[m]["bbox"][3]) // 2)
-               for m in members]
+    row, members, centres = front_window_row(gt)  # the facade row facing the camera, visible windows
+    assert len(members) >= 4
     save_scene(scene.with_(lights=None), tmp_path / "street")  # start from an empty annotation
     win = open_window(qtbot, tmp_path / "street")
     s, c = win.editor.session, win.editor.canvas
@@ -357,19 +367,21 @@ def test_window_row_as_group_in_few_actions_on_synthetic_scene(qtbot, tmp_path):
         key(qtbot, win, k)
         actions += 1
     assert win.editor.options.split_regions and win.editor.options.similar_only
-    drag(qtbot, c, centres)  # one drag through the row's windows
+    drag(qtbot, c, [(int(x), int(y)) for x, y in centres])  # one drag through the row's windows
     actions += 1
     key(qtbot, win, Qt.Key.Key_G, CTRL)
     actions += 1
     assert actions < 10
+    assert_overlay_current(win)
     assert len(s.ann.groups) == 1
     group = next(iter(s.ann.groups.values()))
     assert group.class_id == 13 and len(group.members) == len(members)
     # each window became its own light, overlapping the true window well
+    ious = []
     for m, new in zip(members, sorted(group.members, key=lambda i: s.ann.stats()[i]["bbox"][0])):
         a, b = gt.instance_map == m, s.ann.instance_map == new
-        iou = (a & b).sum() / (a | b).sum()
-        assert iou >= 0.5, (m, new, iou)
+        ious.append((a & b).sum() / (a | b).sum())
+    assert min(ious) >= 0.4 and np.mean(ious) >= 0.75, ious
     close_window(win)
 
 

@@ -48,6 +48,8 @@ class AnnotationEditor(QWidget):
         self.canvas = EditorCanvas(self)
         self.canvas.handler = self.controller
         self._lights_rgba = np.zeros((1, 1, 4), np.uint8)
+        self._shown_selection: set[int] = set()  # selection the light layer was drawn with
+        self._stats: dict | None = None  # ann.stats() cache, dropped on every edit
         self._refresh_timer = QTimer(self)
         self._refresh_timer.setSingleShot(True)
         self._refresh_timer.setInterval(60)
@@ -350,6 +352,8 @@ class AnnotationEditor(QWidget):
         self.layer_boxes["labels"].setEnabled(s.labels is not None)
         self.canvas.set_layer("superpixels", np.zeros((H, W, 4), np.uint8))
         self._lights_rgba = np.zeros((H, W, 4), np.uint8)
+        self._stats = None
+        self._shown_selection = set(s.selection)
         lights_region(s.ann.instance_map, self._lights_rgba, None, s.selection)
         self.canvas.set_layer("lights", self._lights_rgba)
         self.sp_status.setText("computing…")
@@ -378,15 +382,32 @@ class AnnotationEditor(QWidget):
                                                  region_size=self.sp_size.value(),
                                                  compactness=self.sp_compact.value()))
 
+    def _ann_stats(self) -> dict:
+        if self._stats is None:
+            self._stats = self.session.ann.stats()
+        return self._stats
+
     def _on_changed(self, ch: Change) -> None:
+        self._stats = None
         if ch.rect is not None:
-            lights_region(self.session.ann.instance_map, self._lights_rgba, ch.rect, self.session.selection)
-            self.canvas.layers["lights"].update_rect(ch.rect)
+            # One pixel more on each side: outlines of the unchanged neighbours may change too.
+            x0, y0, x1, y1 = ch.rect
+            rect = (x0 - 1, y0 - 1, x1 + 1, y1 + 1)
+            lights_region(self.session.ann.instance_map, self._lights_rgba, rect, self.session.selection)
+            self.canvas.layers["lights"].update_rect(rect)
         self._refresh_timer.start()
 
     def _on_selection(self) -> None:
-        lights_region(self.session.ann.instance_map, self._lights_rgba, None, self.session.selection)
-        self.canvas.layers["lights"].update()
+        # Redraw only the boxes of the lights whose selected state changed.
+        sel = set(self.session.selection)
+        st = self._ann_stats()
+        boxes = [st[i]["bbox"] for i in self._shown_selection ^ sel if st.get(i, {}).get("bbox")]
+        self._shown_selection = sel
+        if boxes:
+            rect = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes) + 1,
+                    max(b[3] for b in boxes) + 1)
+            lights_region(self.session.ann.instance_map, self._lights_rgba, rect, sel)
+            self.canvas.layers["lights"].update_rect(rect)
         self.instance_list.set_selection(self.session.selection)
         self._refresh_timer.start()
 
@@ -400,7 +421,7 @@ class AnnotationEditor(QWidget):
     def _refresh_lists(self) -> None:
         s = self.session
         self.instance_list.rebuild(s.ann, s.selection, s.current_id)
-        st = s.ann.stats()
+        st = self._ann_stats()
         boxes = []
         few = len(s.ann.groups) <= 6
         for gid in sorted(s.ann.groups):

@@ -22,6 +22,31 @@ from npsim_core.scene import save_scene
 from .window import EditorWindow
 
 
+def front_window_row(lights):
+    """The windows_group to label in the docs' recipe and the drag through it.
+
+    Picks the row with the most unoccluded front-facing windows (areas within 15 %
+    of the row's largest: perspective does not shrink them along the row) and keeps
+    its visible windows (at least half that area). Returns (group, member ids left
+    to right, drag points = window centres in pixel-centre coordinates).
+    """
+    st = lights.stats()
+    best, best_score = None, -1
+    for g in lights.groups.values():
+        if g.class_id != 13:
+            continue
+        areas = [st[m]["area"] for m in g.members]
+        top = max(areas) if areas else 0
+        score = sum(a >= 0.85 * top for a in areas) if top >= 20 else 0
+        if score > best_score:
+            best, best_score = g, score
+    top = max(st[m]["area"] for m in best.members)
+    members = sorted((m for m in best.members if st[m]["area"] >= 0.5 * top), key=lambda m: st[m]["bbox"][0])
+    centres = [((st[m]["bbox"][0] + st[m]["bbox"][2]) // 2 + 0.5, (st[m]["bbox"][1] + st[m]["bbox"][3]) // 2 + 0.5)
+               for m in members]
+    return best, members, centres
+
+
 def _settle(app: QApplication, win: EditorWindow) -> None:
     win.activateWindow()
     win.editor.canvas.setFocus()
@@ -52,11 +77,8 @@ def main(out_dir: str = "docs/img") -> None:
         win = _open(Path(tmp) / "street")
         _settle(app, win)
         s = win.editor.session
-        rows = [g for g in s.ann.groups.values() if g.class_id == 13 and len(g.members) >= 5]
-        if rows:
-            st = s.ann.stats()
-            g = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
-            s.set_selection({g.id, *g.members}, current=g.members[0])
+        g, _, _ = front_window_row(s.ann)
+        s.set_selection({g.id, *g.members}, current=g.members[0])
         _settle(app, win)
         win.grab().save(str(out / "editor.png"))
         win.answers = {"discard": "Discard"}
@@ -64,12 +86,7 @@ def main(out_dir: str = "docs/img") -> None:
 
         # The window-row recipe at 512x256: 1, R, T, one drag, Ctrl+G.
         big = street_scene(512, 256)
-        st = big.lights.stats()
-        rows = [g for g in big.lights.groups.values() if g.class_id == 13 and len(g.members) >= 5]
-        row = max(rows, key=lambda g: min(st[m]["area"] for m in g.members))
-        members = sorted(row.members, key=lambda m: st[m]["bbox"][0])
-        centres = [((st[m]["bbox"][0] + st[m]["bbox"][2]) // 2 + 0.5, (st[m]["bbox"][1] + st[m]["bbox"][3]) // 2 + 0.5)
-                   for m in members]
+        _, _, centres = front_window_row(big.lights)
         save_scene(big.with_(lights=None), Path(tmp) / "street512")
         win = _open(Path(tmp) / "street512")
         _settle(app, win)
