@@ -35,7 +35,7 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
            "cache_dir", "auto_spp"]
 
 #: Bump whenever the scene's content changes (it is part of the cache key).
-SCENE_VERSION = 2
+SCENE_VERSION = 3
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.
@@ -156,7 +156,7 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
                  depth_gt=gt.depth, normals_gt=gt.normals, lights=lights, albedo=albedo, roughness=roughness,
                  camera_height=pose.height, camera_pitch=pose.pitch,
                  provenance={"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
-                             "seed": int(seed), "spp": int(spp), "renderer": "mitsuba scalar_rgb path tracer",
+                             "seed": int(seed), "spp": int(spp), "renderer": "mitsuba scalar_rgb direct (sun) + sky ambient (numpy)",
                              "prediction": params.as_dict(), "layout": layout.info,
                              "timing_s": {"ground_truth": round(t1 - t0, 3), "render": round(t2 - t1, 3),
                                           "prediction": round(t3 - t2, 3)}})

@@ -43,7 +43,8 @@ class PrimitiveList:
 
     Attributes per primitive: world bounds ``lo``/``hi`` (m), Cityscapes ``label``,
     light instance id ``light`` (0 = none), linear RGB base ``color`` in [0, 1],
-    material index into :data:`MATERIALS`.
+    material index into :data:`MATERIALS`, and for rectangles lying on a host face
+    ``out`` = +-1, the host's outward side along the rectangle's axis (0 = none).
     """
 
     lo: list
@@ -52,12 +53,13 @@ class PrimitiveList:
     light: list
     color: list
     material: list
+    out: list
 
     @classmethod
     def new(cls) -> "PrimitiveList":
-        return cls([], [], [], [], [], [])
+        return cls([], [], [], [], [], [], [])
 
-    def box(self, lo, hi, label: int, color, material: str = "diffuse", light: int = 0) -> None:
+    def box(self, lo, hi, label: int, color, material: str = "diffuse", light: int = 0, out: int = 0) -> None:
         lo = np.asarray(lo, dtype=np.float64)
         hi = np.asarray(hi, dtype=np.float64)
         a, b = np.minimum(lo, hi), np.maximum(lo, hi)
@@ -67,9 +69,10 @@ class PrimitiveList:
         self.light.append(int(light))
         self.color.append(np.asarray(color, dtype=np.float64))
         self.material.append(MATERIALS.index(material))
+        self.out.append(int(out))
 
     def rect(self, axis: int, at: float, lo2, hi2, label: int, color, material: str = "diffuse",
-             light: int = 0) -> None:
+             light: int = 0, out: int = 0) -> None:
         """Rectangle in the plane ``world[axis] == at``; ``lo2``/``hi2`` bound the other two axes in order."""
         others = [i for i in range(3) if i != axis]
         lo = np.zeros(3)
@@ -77,12 +80,13 @@ class PrimitiveList:
         lo[axis] = hi[axis] = at
         lo[others[0]], lo[others[1]] = lo2
         hi[others[0]], hi[others[1]] = hi2
-        self.box(lo, hi, label, color, material, light)
+        self.box(lo, hi, label, color, material, light, out)
 
     def arrays(self) -> "Primitives":
         return Primitives(lo=np.array(self.lo).reshape(-1, 3), hi=np.array(self.hi).reshape(-1, 3),
                           label=np.array(self.label, dtype=np.int32), light=np.array(self.light, dtype=np.int32),
-                          color=np.array(self.color).reshape(-1, 3), material=np.array(self.material, dtype=np.int32))
+                          color=np.array(self.color).reshape(-1, 3), material=np.array(self.material, dtype=np.int32),
+                          out=np.array(self.out, dtype=np.int32))
 
 
 @dataclass(frozen=True)
@@ -95,13 +99,14 @@ class Primitives:
     light: np.ndarray
     color: np.ndarray
     material: np.ndarray
+    out: np.ndarray
 
     def __len__(self) -> int:
         return int(self.lo.shape[0])
 
     def subset(self, keep: np.ndarray) -> "Primitives":
         return Primitives(self.lo[keep], self.hi[keep], self.label[keep], self.light[keep], self.color[keep],
-                          self.material[keep])
+                          self.material[keep], self.out[keep])
 
 
 @dataclass(frozen=True)
@@ -160,9 +165,11 @@ def _screen_box(prims: Primitives, i: int, intr: Intrinsics, pose: CameraPose) -
 def raycast(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> GroundTruth:
     """Nearest hit of every pixel-centre ray (exact; vectorised per primitive over its screen box).
 
-    Ties (coplanar primitives) go to the primitive listed first; lights are placed
-    1 cm proud of their host so no tie occurs there. Arithmetic is float32 (depth
-    relative error ~1e-7); rectangles take a cheaper single-plane path.
+    Ties (coplanar primitives) go to the primitive listed first, except that light
+    primitives win ties: they lie flush on their host face, and the plane
+    parameter of a rectangle and of the coplanar box face is computed with the
+    same float32 operations, so the tie is exact. Depth relative error ~1e-7;
+    rectangles take a cheaper single-plane path.
     """
     H, W = intr.height, intr.width
     rays_c = intr.pixel_rays(np.float64)                     # z = 1 -> ray parameter = z-depth
@@ -190,7 +197,8 @@ def raycast(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> GroundTrut
             t = (lo[a] - o[a]) * inv[y0:y1, x0:x1, a]
             pb = o[b] + t * d[..., b]
             pc = o[c] + t * d[..., c]
-            hit = (t > 1e-6) & (t < zb) & (pb >= lo[b]) & (pb <= hi[b]) & (pc >= lo[c]) & (pc <= hi[c])
+            closer = (t <= zb) if prims.light[i] else (t < zb)
+            hit = (t > 1e-6) & closer & (pb >= lo[b]) & (pb <= hi[b]) & (pc >= lo[c]) & (pc <= hi[c])
             if not hit.any():
                 continue
             zb[hit] = t[hit]

@@ -30,6 +30,8 @@ from ..camera import Intrinsics
 from .primitives import MATERIALS, CameraPose, Primitives
 
 _LOCK = threading.Lock()
+#: Metres by which flush rectangles are lifted off their host face in the render only.
+RENDER_LIFT = 0.003
 
 #: (u, v) corner order of a rectangle / box face, wound consistently; BSDFs are two-sided anyway.
 _BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
@@ -45,6 +47,10 @@ def mitsuba_geometry(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> t
     lo, hi = prims.lo, prims.hi
     sel = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], dtype=bool)  # x, y, z bits
     corners = np.where(sel[None], hi[:, None, :], lo[:, None, :])                        # (N, 8, 3) world
+    # Lift flush rectangles (lights) off their host face so the rasteriser does not z-fight.
+    flat = prims.lo == prims.hi
+    lift = np.where(flat, prims.out[:, None] * RENDER_LIFT, 0.0)
+    corners = corners + lift[:, None, :]
     cam = pose.world_to_camera(corners.reshape(-1, 3)).reshape(-1, 8, 3)
     cam[..., 1] *= intr.fy / intr.fx
     return cam, _BOX_FACES
@@ -281,7 +287,7 @@ def _rgba_in_child(prims: Primitives, intr: Intrinsics, pose: CameraPose, **kw) 
     with tempfile.TemporaryDirectory(prefix="npsim-synthetic-") as tmp:
         src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npy"
         np.savez(src, lo=prims.lo, hi=prims.hi, label=prims.label, light=prims.light, color=prims.color,
-                 material=prims.material, meta=json.dumps({"intr": intr.to_dict(), "height": pose.height,
+                 material=prims.material, out=prims.out, meta=json.dumps({"intr": intr.to_dict(), "height": pose.height,
                                                           "pitch": pose.pitch, **kw}))
         code = "import sys; from npsim_core.synthetic.render import _child_main; _child_main(sys.argv[1], sys.argv[2])"
         proc = subprocess.run([sys.executable, "-c", code, str(src), str(dst)], capture_output=True, text=True)
@@ -296,7 +302,7 @@ def _child_main(src: str, dst: str) -> None:
 
     z = np.load(src)
     meta = json.loads(str(z["meta"]))
-    prims = Primitives(z["lo"], z["hi"], z["label"], z["light"], z["color"], z["material"])
+    prims = Primitives(z["lo"], z["hi"], z["label"], z["light"], z["color"], z["material"], z["out"])
     intr = Intrinsics.from_dict(meta.pop("intr"))
     pose = CameraPose(meta.pop("height"), meta.pop("pitch"))
     np.save(dst, render_rgba(prims, intr, pose, subprocess=False, **meta))

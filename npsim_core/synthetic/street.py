@@ -29,7 +29,9 @@ LEFT_WALK_X = (-11.0, -6.0)
 RIGHT_WALK_X = (4.5, 9.5)
 KERB = 0.15
 STREET_Z0 = 2.0  # nothing nearer is in view (ground is visible from z ~ 4.5 m); keeps screen boxes tight
-PROUD = 0.01  # lights sit 1 cm in front of their host surface
+# Lights are flush with their host face (same plane, inside its bounds) and win depth ties in
+# the ray caster; ``out`` tells the renderer which side is outward (it lifts them 3 mm there
+# to avoid z-fighting). A proud pane would leave its host at grazing angles.
 
 FACADE_COLORS = [(0.55, 0.45, 0.35), (0.62, 0.58, 0.50), (0.45, 0.30, 0.22), (0.70, 0.66, 0.58),
                  (0.50, 0.52, 0.55), (0.60, 0.50, 0.38), (0.38, 0.36, 0.34), (0.72, 0.62, 0.45)]
@@ -106,14 +108,14 @@ def build_street(seed: int = 0) -> StreetLayout:
             col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
             P.box((min(fx, back), 0.0, z), (max(fx, back), h, z1), BUILDING, col)
             facades[side].append((z, z1, fx))
-            _facade_windows(P, rng, ids, groups, axis=0, plane=fx - side * PROUD, along=(z, z1), height=h,
+            _facade_windows(P, rng, ids, groups, axis=0, plane=fx, out=-side, along=(z, z1), height=h,
                             ground_shop=bool(rng.random() < 0.6))
             z = z1
     # Low enough that sky shows above it (the image top is only ~11 deg above the horizon).
     far_h = float(rng.uniform(9.0, 15.0))
     P.box((-45.0, 0.0, far_z), (45.0, far_h, far_z + 15.0), BUILDING,
           _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
-    _facade_windows(P, rng, ids, groups, axis=2, plane=far_z - PROUD, along=(-25.0, 25.0), height=far_h,
+    _facade_windows(P, rng, ids, groups, axis=2, plane=far_z, out=-1, along=(-25.0, 25.0), height=far_h,
                     ground_shop=True)
 
     # --- advertisement panels above the shop windows: one on a right-hand facade (often hidden by
@@ -121,11 +123,11 @@ def build_street(seed: int = 0) -> StreetLayout:
     az = float(rng.uniform(27.0, 45.0))  # the right facade enters the view at z ~ 23 m
     z0, z1, fx = next(f for f in facades[1] if f[0] <= az < f[1])
     az = min(max(az, z0 + 0.3), z1 - 3.5)
-    P.rect(0, fx - PROUD, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
-           light=ids.new(ADVERTISEMENT))
+    P.rect(0, fx, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
+           light=ids.new(ADVERTISEMENT), out=-1)
     ax = float(rng.uniform(-4.0, 1.0))
-    P.rect(2, far_z - PROUD, (ax, 3.0), (ax + 4.0, 3.9), BUILDING, (0.85, 0.75, 0.2), "lamp",
-           light=ids.new(ADVERTISEMENT))
+    P.rect(2, far_z, (ax, 3.0), (ax + 4.0, 3.9), BUILDING, (0.85, 0.75, 0.2), "lamp",
+           light=ids.new(ADVERTISEMENT), out=-1)
 
     # --- parked cars in the parking strips
     n_cars = 0
@@ -179,7 +181,7 @@ def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float
 
 
 def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, axis: int,
-                    plane: float, along: tuple[float, float], height: float, ground_shop: bool) -> None:
+                    plane: float, out: int, along: tuple[float, float], height: float, ground_shop: bool) -> None:
     """Rows of window panes on a facade (``axis`` 0: facade x = const, runs along z; 2: z = const, runs along x).
 
     Each floor's panes form one windows_group.
@@ -209,9 +211,9 @@ def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, group
             lid = ids.new(WINDOW_BUILDING)
             color = glass
             if axis == 0:
-                P.rect(0, plane, (sill, c0), (top, c0 + width), BUILDING, color, "glass", lid)
+                P.rect(0, plane, (sill, c0), (top, c0 + width), BUILDING, color, "glass", lid, out)
             else:
-                P.rect(2, plane, (c0, sill), (c0 + width, top), BUILDING, color, "glass", lid)
+                P.rect(2, plane, (c0, sill), (c0 + width, top), BUILDING, color, "glass", lid, out)
             members.append(lid)
         groups[gid] = members
 
@@ -240,20 +242,20 @@ def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *,
             P.box((wx0, 0.0, wz - 0.32), (wx1, 0.62, wz + 0.32), CAR, (0.02, 0.02, 0.02), "diffuse")
     members = []
     gy0, gy1 = body_top + 0.07, cab_top - 0.07
-    for x in (ca - PROUD, cb + PROUD):                                   # side windows
+    for x, out in ((ca, -1), (cb, 1)):                                   # side windows
         lid = ids.new(WINDOW_PARKED)
-        P.rect(0, x, (gy0, cz0 + 0.12), (gy1, cz1 - 0.12), CAR, GLASS_CAR, "glass", lid)
+        P.rect(0, x, (gy0, cz0 + 0.12), (gy1, cz1 - 0.12), CAR, GLASS_CAR, "glass", lid, out)
         members.append(lid)
-    for z in (cz0 - PROUD, cz1 + PROUD):                                 # wind-screen and rear window
+    for z, out in ((cz0, -1), (cz1, 1)):                                 # wind-screen and rear window
         lid = ids.new(WINDOW_PARKED)
-        P.rect(2, z, (ca + 0.08, gy0), (cb - 0.08, gy1), CAR, GLASS_CAR, "glass", lid)
+        P.rect(2, z, (ca + 0.08, gy0), (cb - 0.08, gy1), CAR, GLASS_CAR, "glass", lid, out)
         members.append(lid)
-    front_z, rear_z = (z1 + PROUD, z0 - PROUD) if forward else (z0 - PROUD, z1 + PROUD)
+    front, rear = ((z1, 1), (z0, -1)) if forward else ((z0, -1), (z1, 1))
     ly0, ly1 = body_top - 0.22, body_top - 0.07
-    for cls, z, col in ((PARKED_FRONT, front_z, (0.75, 0.75, 0.72)), (PARKED_REAR, rear_z, (0.45, 0.03, 0.02))):
+    for cls, (z, out), col in ((PARKED_FRONT, front, (0.75, 0.75, 0.72)), (PARKED_REAR, rear, (0.45, 0.03, 0.02))):
         for lx0, lx1 in ((xa + 0.08, xa + 0.38), (xb - 0.38, xb - 0.08)):
             lid = ids.new(cls)
-            P.rect(2, z, (lx0, ly0), (lx1, ly1), CAR, col, "lamp", lid)
+            P.rect(2, z, (lx0, ly0), (lx1, ly1), CAR, col, "lamp", lid, out)
             members.append(lid)
     groups[ids.new(CAR_GROUP)] = members
 
@@ -262,7 +264,7 @@ def _street_light(P: PrimitiveList, ids: _Ids, px: float, pz: float, toward: int
     """Pole, arm reaching over the road (direction ``toward`` in x), lamp head.
 
     The light instance is the head's diffuser: its underside and its end facing the
-    camera (-z), two panes 1 cm proud of the head sharing one instance id.
+    camera (-z), two panes on the head sharing one instance id.
     """
     top = 8.0
     grey = (0.32, 0.33, 0.34)
@@ -273,8 +275,8 @@ def _street_light(P: PrimitiveList, ids: _Ids, px: float, pz: float, toward: int
     P.box((ax - 0.4, h0, pz - 0.2), (ax + 0.4, h1, pz + 0.2), POLE, grey, "metal")
     lid = ids.new(STREET_LIGHT_HT)
     lens = (0.62, 0.62, 0.58)
-    P.rect(1, h0 - PROUD, (ax - 0.34, pz - 0.15), (ax + 0.34, pz + 0.15), POLE, lens, "lamp", lid)
-    P.rect(2, pz - 0.2 - PROUD, (ax - 0.34, h0 + 0.03), (ax + 0.34, h1 - 0.03), POLE, lens, "lamp", lid)
+    P.rect(1, h0, (ax - 0.34, pz - 0.15), (ax + 0.34, pz + 0.15), POLE, lens, "lamp", lid, -1)
+    P.rect(2, pz - 0.2, (ax - 0.34, h0 + 0.03), (ax + 0.34, h1 - 0.03), POLE, lens, "lamp", lid, -1)
 
 
 def _tree(P: PrimitiveList, rng: np.random.Generator, x: float, z: float) -> None:
@@ -293,7 +295,7 @@ def _traffic_light(P: PrimitiveList, ids: _Ids, x: float, z: float) -> list[int]
     members = []
     for yc, col in ((3.33, (0.35, 0.04, 0.03)), (3.0, (0.35, 0.22, 0.02)), (2.67, (0.03, 0.25, 0.08))):
         lid = ids.new(INFERRED)
-        P.rect(2, z - 0.14 - PROUD, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid)
+        P.rect(2, z - 0.14, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid, -1)
         members.append(lid)
     return members
 
