@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from npsim_core import annotation as A
-from npsim_core.annotation import (LightAnnotation, annotation_paths, autosave_path, discover_items, find_recovery,
+from npsim_core.annotation import (LightAnnotation, autosave_path, discover_items, find_recovery,
                                    from_coco, load_annotation, load_coco, load_recovery, rle_decode, rle_encode,
                                    rle_from_string, rle_to_string, save_annotation, to_coco, write_recovery)
 from npsim_core.annotation_ops import (UndoStack, change_class, delete_instance, erase, group_lights, new_instance,

@@ -451,3 +451,34 @@ def test_newer_or_corrupt_annotation_opens_read_only_and_is_not_overwritten(qtbo
     win.answers = {"discard": "Discard"}
     assert win.close()
     assert {k: p.read_bytes() for k, p in paths.items()} == before
+
+
+def test_fine_scale_and_fill_to_superpixel(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path, with_annotation=False))
+    s, c = win.editor.session, win.editor.canvas
+    qtbot.waitUntil(lambda: s.fine_ready, timeout=10000)
+    alt = Qt.KeyboardModifier.AltModifier
+    click(qtbot, c, 110, 100, mods=alt)  # Alt = the fine scale
+    x, y = pixel_of(c, vp(c, 110, 100))
+    fine = s.sp_fine == s.sp_fine[y, x]
+    np.testing.assert_array_equal(s.ann.instance_map == s.current_id, fine)
+    assert fine.sum() < (s.sp_coarse == s.sp_coarse[y, x]).sum()
+    # a rough brush blob inside one window, then Fill snaps it to the superpixels it mostly covers
+    key(qtbot, win, Qt.Key.Key_N)
+    key(qtbot, win, Qt.Key.Key_B)
+    win.editor.brush_spin.setValue(4)
+    wx = WINDOW_XS[3]
+    drag(qtbot, c, [(wx + 3, 62), (wx + 6, 66), (wx + 4, 69)])
+    iid = s.current_id
+    blob = s.ann.instance_map == iid
+    key(qtbot, win, Qt.Key.Key_F)
+    click(qtbot, c, wx + 4, 65)
+    lab = s.sp_coarse
+    cover = np.bincount(lab[blob], minlength=lab.max() + 1) / np.bincount(lab.ravel(), minlength=lab.max() + 1)
+    expected = (cover >= 0.5)[lab]
+    assert expected.sum() > 0 and (expected != blob).any()
+    np.testing.assert_array_equal(s.ann.instance_map == iid, expected)
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    np.testing.assert_array_equal(s.ann.instance_map == iid, blob)
+    assert_overlay_current(win)
+    close_window(win)

@@ -12,8 +12,8 @@ import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout,
-                               QGroupBox, QHBoxLayout, QLabel, QPushButton, QScrollArea, QSlider, QSpinBox,
-                               QToolButton, QVBoxLayout, QWidget)
+                               QGroupBox, QHBoxLayout, QLabel, QMainWindow, QPushButton, QScrollArea, QSlider,
+                               QSpinBox, QToolButton, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import class_of, is_group_class, is_light_class
 from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
@@ -451,8 +451,9 @@ class AnnotationEditor(QWidget):
             return
         iid = self.session.instance_at(x, y)
         what = f"{light_class(class_of(iid)).name} {iid}" if iid else "no light"
-        self.window().statusBar().showMessage(f"({x}, {y}) {what}  zoom {self.canvas.zoom():.2f}") \
-            if hasattr(self.window(), "statusBar") else None
+        win = self.window()
+        if isinstance(win, QMainWindow):
+            win.statusBar().showMessage(f"({x}, {y}) {what}")
 
     def _on_brush(self, v: int) -> None:
         self.options.brush_radius = float(v)

@@ -25,19 +25,22 @@ from .window import EditorWindow
 def front_window_row(lights):
     """The windows_group to label in the docs' recipe and the drag through it.
 
-    Picks the row with the most unoccluded front-facing windows (areas within 15 %
-    of the row's largest: perspective does not shrink them along the row) and keeps
-    its visible windows (at least half that area). Returns (group, member ids left
-    to right, drag points = window centres in pixel-centre coordinates).
+    Picks the row with the most unoccluded front-facing windows -- as large as the
+    row's largest (within 15 %) and on the same image rows (within 1 px), which is
+    what a facade facing the camera looks like -- and keeps its visible windows (at
+    least half that area). Returns (group, member ids left to right, drag points =
+    window centres in pixel-centre coordinates).
     """
     st = lights.stats()
     best, best_score = None, -1
-    for g in lights.groups.values():
-        if g.class_id != 13:
+    for g in sorted(lights.groups.values(), key=lambda g: g.id):
+        boxes = {m: st[m] for m in g.members if st[m]["bbox"]}
+        if g.class_id != 13 or not boxes:
             continue
-        areas = [st[m]["area"] for m in g.members]
-        top = max(areas) if areas else 0
-        score = sum(a >= 0.85 * top for a in areas) if top >= 20 else 0
+        ref = max(boxes, key=lambda m: boxes[m]["area"])
+        top, (ry0, ry1) = boxes[ref]["area"], (boxes[ref]["bbox"][1], boxes[ref]["bbox"][3])
+        score = sum(b["area"] >= 0.85 * top and abs(b["bbox"][1] - ry0) <= 1 and abs(b["bbox"][3] - ry1) <= 1
+                    for b in boxes.values()) if top >= 20 else 0
         if score > best_score:
             best, best_score = g, score
     top = max(st[m]["area"] for m in best.members)
@@ -77,7 +80,9 @@ def main(out_dir: str = "docs/img") -> None:
         win = _open(Path(tmp) / "street")
         _settle(app, win)
         s = win.editor.session
-        g, _, _ = front_window_row(s.ann)
+        # Highlight the row the recipe labels (picked at 512x256, where it is visible best).
+        gid = front_window_row(street_scene(512, 256).lights)[0].id
+        g = s.ann.groups.get(gid) or front_window_row(s.ann)[0]
         s.set_selection({g.id, *g.members}, current=g.members[0])
         _settle(app, win)
         win.grab().save(str(out / "editor.png"))

@@ -34,10 +34,12 @@ class _SuperpixelJob(QRunnable):
 
     def run(self) -> None:
         try:
+            # The coarse scale first: the tools can work while the fine one is computed.
             coarse = cached_superpixels(self.image, self.params, self.key)
-            fine = cached_superpixels(self.image, self.params.fine(), self.key)
             means = superpixel_means(self.image, coarse)
-            self.bridge.done.emit(self.generation, (coarse, fine, means))
+            self.bridge.done.emit(self.generation, ("coarse", coarse, means))
+            fine = cached_superpixels(self.image, self.params.fine(), self.key)
+            self.bridge.done.emit(self.generation, ("fine", fine, None))
         except Exception as exc:  # noqa: BLE001 -- reported in the GUI, never kills the worker pool
             self.bridge.done.emit(self.generation, exc)
 
@@ -126,12 +128,20 @@ class EditorSession(QObject):
         if isinstance(result, Exception):
             self.message.emit(f"superpixels failed: {result}")
             return
-        self.sp_coarse, self.sp_fine, self.sp_means = result
-        self.superpixelsReady.emit()
+        scale, labels, means = result
+        if scale == "coarse":
+            self.sp_coarse, self.sp_means = labels, means
+            self.superpixelsReady.emit()
+        else:
+            self.sp_fine = labels
 
     @property
     def superpixels_ready(self) -> bool:
         return self.sp_coarse is not None
+
+    @property
+    def fine_ready(self) -> bool:
+        return self.sp_fine is not None
 
     def sp_fine_means(self) -> np.ndarray:
         if self._sp_fine_means is None:

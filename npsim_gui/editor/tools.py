@@ -154,7 +154,7 @@ class ToolController:
         s = self.session
         labels = s.sp_fine if mods & Qt.KeyboardModifier.AltModifier else s.sp_coarse
         if labels is None:
-            s.message.emit("superpixels are still being computed; use the brush meanwhile")
+            s.message.emit("superpixels (this scale) are still being computed; use the brush meanwhile")
             self._active = None
             return
         H, W = labels.shape
