@@ -35,7 +35,7 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
            "cache_dir", "auto_spp"]
 
 #: Bump whenever the scene's content changes (it is part of the cache key).
-SCENE_VERSION = 3
+SCENE_VERSION = 4
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.
@@ -145,7 +145,8 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     points_w = backproject(gt.depth, intr) @ pose.R_cw.astype(np.float32) + pose.center.astype(np.float32)
     tex = albedo_factor(points_w, labels, lights.instance_map, seed)
     t1 = time.perf_counter()
-    linear = render_day(prims, intr, pose, spp=spp, seed=seed, albedo=albedo, normals=gt.normals, prim=gt.prim,
+    linear = render_day(prims, intr, pose, spp=spp, seed=seed, sun=layout.sun, albedo=albedo, normals=gt.normals,
+                        prim=gt.prim,
                         glass_mask=glass.astype(np.float32), texture=tex)
     albedo = np.clip(albedo * tex[..., None], 0.0, 1.0)
     t2 = time.perf_counter()

@@ -97,10 +97,10 @@ def sun_direction_camera(pose: CameraPose, azimuth_deg: float = -35.0, elevation
 
 
 def _scene_dict(mi, prims: Primitives, intr: Intrinsics, pose: CameraPose, integrator: dict, spp: int, seed: int,
-                sun_irradiance: float, emitters: dict) -> dict:
+                sun_irradiance: float, emitters: dict, sun: tuple[float, float]) -> dict:
     cam, _ = mitsuba_geometry(prims, intr, pose)
     d: dict = {"type": "scene", "integrator": integrator, "sensor": _sensor_dict(mi, intr, spp, seed),
-               "sun": {"type": "directional", "direction": sun_direction_camera(pose).tolist(),
+               "sun": {"type": "directional", "direction": sun_direction_camera(pose, *sun).tolist(),
                        "irradiance": {"type": "rgb", "value": [sun_irradiance] * 3}}, **emitters}
     for m, name in enumerate(MATERIALS):
         idx = np.flatnonzero(prims.material == m)
@@ -116,7 +116,7 @@ GROUND_BOUNCE = (0.10, 0.10, 0.10)
 
 
 def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: int = 4, seed: int = 0,
-               sun_irradiance: float = 3.2, mode: str = "fast", albedo: np.ndarray | None = None,
+               sun_irradiance: float = 3.2, sun: tuple[float, float] = (-35.0, 38.0), mode: str = "fast", albedo: np.ndarray | None = None,
                normals: np.ndarray | None = None, prim: np.ndarray | None = None,
                glass_mask: np.ndarray | None = None, texture: np.ndarray | None = None) -> np.ndarray:
     """Linear RGB (H, W, 3) float32 of the lit street, sky composited as a gradient.
@@ -138,17 +138,19 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     ~3x slower per sample; kept as a reference.
 
     Units are arbitrary but fixed: a white diffuse surface facing the sun gets
-    ``sun_irradiance/pi`` from the sun; the caller exposes to sRGB.
+    ``sun_irradiance/pi`` from the sun; the caller exposes to sRGB. ``sun`` =
+    (azimuth, elevation) in degrees, see :func:`sun_direction_camera`.
     """
     if mode == "path":
-        img = render_rgba(prims, intr, pose, kind="path", spp=spp, seed=seed, sun_irradiance=sun_irradiance)
+        img = render_rgba(prims, intr, pose, kind="path", spp=spp, seed=seed, sun_irradiance=sun_irradiance,
+                          sun=sun)
         rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)  # premultiplied by coverage
         return rgb + (1.0 - alpha) * sky_gradient(intr, pose)
     if mode != "fast":
         raise ValueError(f"render mode must be 'fast' or 'path', got {mode!r}")
     if albedo is None or normals is None or prim is None:
         raise ValueError("render_day(mode='fast') needs the pixel-centre albedo, normals and prim maps")
-    img = render_rgba(prims, intr, pose, kind="sun", spp=spp, seed=seed, sun_irradiance=sun_irradiance)
+    img = render_rgba(prims, intr, pose, kind="sun", spp=spp, seed=seed, sun_irradiance=sun_irradiance, sun=sun)
     rgb, alpha = img[..., :3], np.clip(img[..., 3:4], 0.0, 1.0)  # premultiplied by coverage
 
     up = pose.R_cw @ np.array([0.0, 1.0, 0.0])                    # world up in the camera frame
@@ -157,14 +159,16 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
     sky, ground = np.array(SKY_RADIANCE, np.float32), np.array(GROUND_BOUNCE, np.float32)
     ambient = albedo.astype(np.float32) * (sky * (1 + cos_up) / 2 + ground * (1 - cos_up) / 2)
     if glass_mask is not None and glass_mask.any():
-        rays = intr.pixel_rays(np.float32)
+        g = glass_mask > 0
+        rays = intr.pixel_rays(np.float32)[g]
         rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
-        cos_i = np.clip(-(rays * n).sum(-1), 0, 1)
+        ng = n[g]
+        cos_i = np.clip(-(rays * ng).sum(-1), 0, 1)
         fres = 0.04 + 0.96 * (1 - cos_i) ** 5
-        refl = rays + 2 * cos_i[..., None] * n                    # mirror direction (camera frame)
-        elev = np.clip(refl @ up.astype(np.float32), 0, 1)[..., None]
+        refl = rays + 2 * cos_i[:, None] * ng                     # mirror direction (camera frame)
+        elev = np.clip(refl @ up.astype(np.float32), 0, 1)[:, None]
         env = np.where(elev > 0, sky_at(elev), np.array(GROUND_BOUNCE) * 2.0)  # sky above, street below
-        ambient = ambient + (glass_mask[..., None] * fres[..., None] * env).astype(np.float32)
+        ambient[g] += (glass_mask[g][:, None] * fres[:, None] * env).astype(np.float32)
     ambient[prim < 0] = 0.0
     edge = np.zeros(prim.shape, dtype=bool)
     edge[:, 1:] |= prim[:, 1:] != prim[:, :-1]
@@ -180,7 +184,7 @@ def render_day(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, spp: in
         out *= texture[..., None]
     partial = alpha[..., 0] < 1.0
     if partial.any():
-        out[partial] += (1.0 - alpha[partial]) * sky_gradient(intr, pose)[partial]
+        out[partial] += (1.0 - alpha[partial]) * sky_gradient(intr, pose, partial)
     return out
 
 
@@ -192,9 +196,12 @@ def sky_at(elev: np.ndarray) -> np.ndarray:
     return (1 - t) * horizon + t * zenith
 
 
-def sky_gradient(intr: Intrinsics, pose: CameraPose) -> np.ndarray:
-    """(H, W, 3) linear sky colour by ray elevation: pale at the horizon, deeper blue above."""
-    rays = intr.pixel_rays(np.float32) @ pose.R_cw.astype(np.float32)
+def sky_gradient(intr: Intrinsics, pose: CameraPose, mask: np.ndarray | None = None) -> np.ndarray:
+    """Linear sky colour by ray elevation, (H, W, 3) or (N, 3) at ``mask``: pale at the horizon, blue above."""
+    rays = intr.pixel_rays(np.float32)
+    if mask is not None:
+        rays = rays[mask]
+    rays = rays @ pose.R_cw.astype(np.float32)
     elev = rays[..., 1] / np.linalg.norm(rays, axis=-1)
     return sky_at(elev[..., None]).astype(np.float32)
 
@@ -241,7 +248,8 @@ def render_depth_aov(prims: Primitives, intr: Intrinsics, pose: CameraPose) -> n
 
 
 def render_rgba(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, kind: str, spp: int, seed: int,
-                sun_irradiance: float = 3.2, subprocess: bool | None = None) -> np.ndarray:
+                sun_irradiance: float = 3.2, sun: tuple[float, float] = (-35.0, 38.0),
+                subprocess: bool | None = None) -> np.ndarray:
     """Run Mitsuba ``scalar_rgb`` and return its raw film (H, W, C) float32.
 
     ``kind``: ``"sun"`` (direct integrator, sun only; RGBA), ``"path"`` (path tracer
@@ -254,7 +262,8 @@ def render_rgba(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, kind: 
     if subprocess is None:
         subprocess = mi.variant() not in (None, "scalar_rgb")
     if subprocess:
-        return _rgba_in_child(prims, intr, pose, kind=kind, spp=spp, seed=seed, sun_irradiance=sun_irradiance)
+        return _rgba_in_child(prims, intr, pose, kind=kind, spp=spp, seed=seed, sun_irradiance=sun_irradiance,
+                              sun=list(sun))
     with _LOCK:
         if mi.variant() is None:
             mi.set_variant("scalar_rgb")
@@ -268,10 +277,10 @@ def render_rgba(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, kind: 
     elif kind == "path":
         integ = {"type": "path", "max_depth": 3, "hide_emitters": True}
         d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance,
-                        {"sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RADIANCE)}}})
+                        {"sky": {"type": "constant", "radiance": {"type": "rgb", "value": list(SKY_RADIANCE)}}}, sun)
     elif kind == "sun":
         integ = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True}
-        d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance, {})
+        d = _scene_dict(mi, prims, intr, pose, integ, spp, seed, sun_irradiance, {}, sun)
     else:
         raise ValueError(f"unknown render kind {kind!r}")
     return np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=np.float32)
@@ -305,4 +314,5 @@ def _child_main(src: str, dst: str) -> None:
     prims = Primitives(z["lo"], z["hi"], z["label"], z["light"], z["color"], z["material"], z["out"])
     intr = Intrinsics.from_dict(meta.pop("intr"))
     pose = CameraPose(meta.pop("height"), meta.pop("pitch"))
+    meta["sun"] = tuple(meta.get("sun", (-35.0, 38.0)))
     np.save(dst, render_rgba(prims, intr, pose, subprocess=False, **meta))

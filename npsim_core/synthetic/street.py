@@ -49,6 +49,8 @@ class StreetLayout:
     groups: dict[int, list[int]]          # group id -> member light ids (before visibility filtering)
     far_z: float
     info: dict = field(default_factory=dict)
+    #: Sun azimuth (deg, from +z toward +x) and elevation (deg); the sun is always to the left-front.
+    sun: tuple[float, float] = (-35.0, 38.0)
 
 
 class _Ids:
@@ -168,8 +170,10 @@ def build_street(seed: int = 0) -> StreetLayout:
     P.box((LEFT_WALK_X[0] + 0.05, KERB, hz), (LEFT_WALK_X[0] + 1.0, KERB + 0.9, hz + float(rng.uniform(4, 8))),
           VEGETATION, _jitter(rng, (0.08, 0.20, 0.05)), "foliage")
 
-    return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z,
-                        info={"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo)})
+    sun = (float(rng.uniform(-55.0, -20.0)), float(rng.uniform(30.0, 55.0)))
+    return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z, sun=sun,
+                        info={"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
+                              "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)})
 
 
 def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float, float]) -> float:
