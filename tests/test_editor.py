@@ -463,6 +463,13 @@ def test_fine_scale_and_fill_to_superpixel(qtbot, tmp_path):
     fine = s.sp_fine == s.sp_fine[y, x]
     np.testing.assert_array_equal(s.ann.instance_map == s.current_id, fine)
     assert fine.sum() < (s.sp_coarse == s.sp_coarse[y, x]).sum()
+    # D toggles the fine scale (for window managers that take Alt+drag): same result without Alt
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    key(qtbot, win, Qt.Key.Key_D)
+    assert win.editor.options.fine_scale
+    click(qtbot, c, 110, 100)
+    np.testing.assert_array_equal(s.ann.instance_map == s.current_id, fine)
+    key(qtbot, win, Qt.Key.Key_D)
     # a rough brush blob inside one window, then Fill snaps it to the superpixels it mostly covers
     key(qtbot, win, Qt.Key.Key_N)
     key(qtbot, win, Qt.Key.Key_B)
@@ -481,4 +488,24 @@ def test_fine_scale_and_fill_to_superpixel(qtbot, tmp_path):
     key(qtbot, win, Qt.Key.Key_Z, CTRL)
     np.testing.assert_array_equal(s.ann.instance_map == iid, blob)
     assert_overlay_current(win)
+    close_window(win)
+
+
+def test_space_pans_and_buttons_keep_focus_on_canvas(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    c = win.editor.canvas
+    c.set_zoom(c.zoom() * 3)
+    # clicking a panel button leaves the keyboard focus on the canvas
+    qtbot.mouseClick(win.editor.palette.buttons[3], LEFT)
+    assert win.editor.session.current_class == 3
+    assert QApplication.focusWidget() is c
+    h0 = c.horizontalScrollBar().value()
+    qtbot.keyPress(c, Qt.Key.Key_Space)
+    p = vp(c, 120, 60)
+    qtbot.mousePress(c.viewport(), LEFT, NOMOD, p)
+    qtbot.mouseMove(c.viewport(), p + QPoint(-50, 0))
+    qtbot.mouseRelease(c.viewport(), LEFT, NOMOD, p + QPoint(-50, 0))
+    qtbot.keyRelease(c, Qt.Key.Key_Space)
+    assert c.horizontalScrollBar().value() == h0 + 50  # panned by the drag
+    assert win.editor.session.stack.can_undo is False  # and painted nothing
     close_window(win)

@@ -11,9 +11,9 @@ from dataclasses import replace
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout,
-                               QGroupBox, QHBoxLayout, QLabel, QMainWindow, QPushButton, QScrollArea, QSlider,
-                               QSpinBox, QToolButton, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QAbstractButton, QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout,
+                               QGridLayout, QGroupBox, QHBoxLayout, QLabel, QMainWindow, QPushButton, QScrollArea,
+                               QSlider, QSpinBox, QToolButton, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import class_of, is_group_class, is_light_class
 from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
@@ -56,12 +56,18 @@ class AnnotationEditor(QWidget):
         self._refresh_timer.timeout.connect(self._refresh_lists)
         self._build_ui()
         self._build_actions()
+        # Buttons and check boxes never take the keyboard focus: Space (pan) and the
+        # shortcuts must keep going to the canvas, not re-press the last clicked button.
+        for w in self.findChildren(QAbstractButton):
+            w.setFocusPolicy(Qt.FocusPolicy.NoFocus)
+        self.side_panel.setFocusPolicy(Qt.FocusPolicy.NoFocus)
         s = self.session
         s.loaded.connect(self._on_loaded)
         s.changed.connect(self._on_changed)
         s.selectionChanged.connect(self._on_selection)
         s.currentChanged.connect(self._on_current)
         s.superpixelsReady.connect(self._on_superpixels)
+        s.fineReady.connect(self._on_superpixels)
         s.dirtyChanged.connect(self.dirtyChanged)
         s.message.connect(self.show_message)
         self.set_tool(Tool.SUPERPIXEL)
@@ -107,12 +113,15 @@ class AnnotationEditor(QWidget):
         self.tol_spin.valueChanged.connect(lambda v: setattr(self.options, "tolerance", float(v)))
         self.overwrite_box = QCheckBox("Paint over other lights")
         self.overwrite_box.toggled.connect(lambda v: setattr(self.options, "overwrite", v))
+        self.fine_box = QCheckBox("Fine superpixel scale (D; Alt inverts)")
+        self.fine_box.toggled.connect(self._on_fine_toggled)
         opts.addRow(self.split_box)
         sim = QHBoxLayout()
         sim.addWidget(self.similar_box)
         sim.addWidget(self.tol_spin)
         opts.addRow(sim)
         opts.addRow(self.overwrite_box)
+        opts.addRow(self.fine_box)
         tl.addLayout(opts, 2, 0, 1, 3)
         pl.addWidget(tools)
 
@@ -243,6 +252,7 @@ class AnnotationEditor(QWidget):
                                    or self.session.set_current(None))
         A["split"] = self._action("One light per region", "R", self.split_box.toggle)
         A["similar"] = self._action("Similar colour only", "T", self.similar_box.toggle)
+        A["fine"] = self._action("Fine superpixel scale", "D", self.fine_box.toggle)
         A["smaller"] = self._action("Brush smaller", "[", lambda: self.brush_spin.setValue(self.brush_spin.value() - 1))
         A["larger"] = self._action("Brush larger", "]", lambda: self.brush_spin.setValue(self.brush_spin.value() + 1))
         for name, key in (("labels", "L"), ("superpixels", "P"), ("lights", "M")):
@@ -373,8 +383,21 @@ class AnnotationEditor(QWidget):
             w.blockSignals(False)
 
     def _on_superpixels(self) -> None:
-        self.canvas.set_layer("superpixels", boundary_rgba(self.session.sp_coarse))
-        self.sp_status.setText(f"{int(self.session.sp_coarse.max()) + 1} sp")
+        self._show_superpixel_borders()
+
+    def _on_fine_toggled(self, on: bool) -> None:
+        self.options.fine_scale = on
+        self._show_superpixel_borders()
+
+    def _show_superpixel_borders(self) -> None:
+        """Borders of the scale the tools use (the fine one when the toggle is on and it is ready)."""
+        s = self.session
+        labels = s.sp_fine if self.options.fine_scale and s.sp_fine is not None else s.sp_coarse
+        if labels is None:
+            return
+        self.canvas.set_layer("superpixels", boundary_rgba(labels))
+        self.sp_status.setText(f"{int(s.sp_coarse.max()) + 1} superpixels"
+                               + (f", fine {int(s.sp_fine.max()) + 1}" if s.sp_fine is not None else ", fine: …"))
 
     def _apply_superpixel_settings(self) -> None:
         self.sp_status.setText("computing…")

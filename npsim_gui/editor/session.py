@@ -51,7 +51,8 @@ class EditorSession(QObject):
     selectionChanged = Signal()
     currentChanged = Signal()
     dirtyChanged = Signal(bool)
-    superpixelsReady = Signal()
+    superpixelsReady = Signal()  # the coarse scale is ready (fineReady follows)
+    fineReady = Signal()
     loaded = Signal()
     message = Signal(str)
 
@@ -134,6 +135,7 @@ class EditorSession(QObject):
             self.superpixelsReady.emit()
         else:
             self.sp_fine = labels
+            self.fineReady.emit()
 
     @property
     def superpixels_ready(self) -> bool:

@@ -20,6 +20,7 @@ SHORTCUTS: list[tuple[str, str]] = [
     ("G", "Group tool: clicks toggle lights in the selection"),
     ("R", "Toggle 'one new light per region' for superpixel drags"),
     ("T", "Toggle 'similar colour only' for superpixel drags"),
+    ("D", "Toggle the fine superpixel scale (Alt+click/drag uses the other scale)"),
     ("[ / ]", "Brush smaller / larger"),
     ("1-9, 0", "Light classes 1-10 (window_building ... advertisement)"),
     ("Ctrl+1, Ctrl+2", "Light classes 11 clock, 12 inferred"),

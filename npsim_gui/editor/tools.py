@@ -9,7 +9,8 @@ Modifiers (every tool)
 * right click: make the light under the cursor the current one (select it);
 * Ctrl+click: add/remove the light under the cursor to/from the selection;
 * Shift: remove instead of add (superpixel tool), erase (brush);
-* Alt: use the finer superpixel scale (superpixel and fill tools).
+* Alt: use the other superpixel scale (fine instead of coarse, or back when the
+  panel's *Fine scale* toggle, key D, is on -- for window managers that take Alt+drag).
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ class ToolOptions:
     split_regions: bool = False
     similar_only: bool = False
     tolerance: float = 0.0  # 0 = auto (two-cluster split of the dragged superpixels)
+    fine_scale: bool = False  # superpixel and fill tools use the fine scale (Alt inverts)
 
 
 def _mods(event) -> Qt.KeyboardModifier:
@@ -125,6 +127,10 @@ class ToolController:
         return self._active == "superpixel" and self._sp_deferred()
 
     # ----------------------------------------------------------------- helpers
+    def _fine(self, mods) -> bool:
+        """Fine scale: the panel toggle, inverted while Alt is held."""
+        return self.options.fine_scale != bool(mods & Qt.KeyboardModifier.AltModifier)
+
     def _ensure_current(self) -> int:
         """The light strokes paint into; a new one of the current class when there is none."""
         s = self.session
@@ -152,7 +158,7 @@ class ToolController:
     # ----------------------------------------------------------------- superpixel tool
     def _sp_press(self, x: int, y: int, mods) -> None:
         s = self.session
-        labels = s.sp_fine if mods & Qt.KeyboardModifier.AltModifier else s.sp_coarse
+        labels = s.sp_fine if self._fine(mods) else s.sp_coarse
         if labels is None:
             s.message.emit("superpixels (this scale) are still being computed; use the brush meanwhile")
             self._active = None
@@ -236,7 +242,7 @@ class ToolController:
     # ----------------------------------------------------------------- fill to superpixel
     def _fill_click(self, x: int, y: int, mods) -> None:
         s = self.session
-        labels = s.sp_fine if mods & Qt.KeyboardModifier.AltModifier else s.sp_coarse
+        labels = s.sp_fine if self._fine(mods) else s.sp_coarse
         iid = s.instance_at(x, y) or s.current_id
         if labels is None or not iid:
             s.message.emit("fill: click a light (superpixels must be ready)")
