@@ -31,8 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size", default="512x256", help="image size WIDTHxHEIGHT in pixels (default 512x256)")
     p.add_argument("-o", "--output", required=True, help="output scene folder (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="layout / prediction-error seed (default 0)")
-    p.add_argument("--spp", type=int, default=None, help="Mitsuba samples per pixel (default: 16 up to 512x256, "
-                                                         "fewer for larger images, at least 6)")
+    p.add_argument("--spp", type=int, default=None, help="Mitsuba samples per pixel (default: 16 up to 512x256 "
+                                                         "pixels, 4 above; rounded up to 4, 16, 64, ...)")
     p.add_argument("--preview", metavar="PNG", default=None,
                    help="also write a 2x3 overview (RGB, depth, normals, labels, lights, predicted depth); "
                         "default: <output>/overview.png")
@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     scene = make_street_scene(w, h, args.seed, spp=spp)
     t1 = time.perf_counter()
-    print(f"npsim sample: generated in {t1 - t0:.1f} s ({scene.provenance.get('timing_s')}); writing {out}",
+    print(f"npsim sample: generated in {t1 - t0:.1f} s at {scene.provenance.get('spp')} spp "
+          f"({scene.provenance.get('timing_s')}); writing {out}",
           file=sys.stderr, flush=True)
     save_scene(scene, out)
     if not args.no_preview:

@@ -91,8 +91,8 @@ def auto_spp(width: int, height: int) -> int:
 
 
 def _pow4(n: int) -> int:
-    """Mitsuba's low-discrepancy sampler needs a square power-of-two count (1, 4, 16, 64, ...)."""
-    k = 1
+    """Mitsuba's low-discrepancy sampler needs a square power-of-two count >= 4 (4, 16, 64, ...)."""
+    k = 4
     while k < n:
         k *= 4
     return k
@@ -110,7 +110,7 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
         Varies the layout (buildings, windows, cars, colours, pole spacing) and the
         simulated prediction errors.
     spp : int, optional
-        Mitsuba samples per pixel for the daytime RGB (rounded up to 1, 4, 16, 64, ...);
+        Mitsuba samples per pixel for the daytime RGB (rounded up to 4, 16, 64, ...);
         default :func:`auto_spp`.
     prediction : PredictionErrors, optional
         Error model of the simulated depth/normal network (defaults documented there).
