@@ -317,3 +317,15 @@ def test_ground_truth_invariants_across_seeds(seed):
     # A light never changes the semantic class of its host surface.
     host_prims = layout.prims.subset(layout.prims.light == 0)
     assert np.array_equal(layout.prims.label[gt.prim[on]], host_prims.label[host.prim[on]])
+
+
+def test_street_scene_unwritable_cache_still_returns_a_scene(tmp_path, monkeypatch):
+    import npsim_core.synthetic as syn
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("NPSIM_CACHE", str(blocker / "cache"))
+    monkeypatch.setattr(syn, "auto_spp", lambda w, h: 1)
+    with pytest.warns(RuntimeWarning, match="NPSIM_CACHE"):
+        s = street_scene(24, 12, seed=0)
+    assert s.image.shape == (12, 24, 3)

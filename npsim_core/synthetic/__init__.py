@@ -17,6 +17,7 @@ import os
 import shutil
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -185,8 +186,13 @@ def street_scene(width: int = 256, height: int = 128, seed: int = 0) -> Scene:
         except NpsimInputError:
             shutil.rmtree(folder, ignore_errors=True)  # corrupt cache entry: regenerate
     scene = make_street_scene(width, height, seed)
-    root.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=root))
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=root))
+    except OSError as exc:  # read-only or full cache location: still give the caller the scene
+        warnings.warn(f"npsim: cannot write the scene cache in {root} ({exc}); set NPSIM_CACHE to a writable "
+                      "folder to avoid regenerating", RuntimeWarning, stacklevel=2)
+        return scene
     try:
         save_scene(scene, tmp)
         try:
