@@ -329,3 +329,14 @@ def test_street_scene_unwritable_cache_still_returns_a_scene(tmp_path, monkeypat
     with pytest.warns(RuntimeWarning, match="NPSIM_CACHE"):
         s = street_scene(24, 12, seed=0)
     assert s.image.shape == (12, 24, 3)
+
+
+def test_bad_seed_and_size_rejected(tmp_path, capsys):
+    from npsim_core.errors import NpsimInputError
+
+    with pytest.raises(NpsimInputError, match="seed"):
+        make_street_scene(32, 16, seed=-1)
+    with pytest.raises(NpsimInputError, match="size"):
+        make_street_scene(0, 16)
+    assert cli_main(["sample", "--size", "32x16", "--seed", "-3", "-o", str(tmp_path / "x")]) == 2
+    assert "seed" in capsys.readouterr().err

@@ -55,9 +55,16 @@ def _check_size(width: int, height: int) -> tuple[int, int]:
 
 def street_ground_truth(width: int, height: int, seed: int = 0, *, include_lights: bool = True
                         ) -> tuple[StreetLayout, Intrinsics, CameraPose, GroundTruth]:
-    """Layout and exact GT buffers; ``include_lights=False`` casts without light panes (their host surfaces)."""
+    """Layout, camera and exact GT buffers (no render, no prediction).
+
+    ``include_lights=False`` casts without the light panes, i.e. the host surfaces
+    under them; the returned ``GroundTruth.prim`` then indexes
+    ``layout.prims.subset(layout.prims.light == 0)``, not ``layout.prims``.
+    """
     width, height = _check_size(width, height)
-    layout = build_street(seed)
+    if int(seed) != seed or seed < 0:
+        raise NpsimInputError(f"synthetic scene seed must be a non-negative integer, got {seed!r}")
+    layout = build_street(int(seed))
     intr = Intrinsics.cityscapes(width, height)
     pose = CameraPose(CAMERA_HEIGHT, CAMERA_PITCH)
     prims = layout.prims if include_lights else layout.prims.subset(layout.prims.light == 0)
@@ -146,9 +153,8 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     points_w = backproject(gt.depth, intr) @ pose.R_cw.astype(np.float32) + pose.center.astype(np.float32)
     tex = albedo_factor(points_w, labels, lights.instance_map, seed)
     t1 = time.perf_counter()
-    linear = render_day(prims, intr, pose, spp=spp, seed=seed, sun=layout.sun, albedo=albedo, normals=gt.normals,
-                        prim=gt.prim,
-                        glass_mask=glass.astype(np.float32), texture=tex)
+    linear = render_day(prims, intr, pose, spp=spp, seed=seed, sun=layout.sun, albedo=albedo,
+                        normals=gt.normals, prim=gt.prim, glass_mask=glass.astype(np.float32), texture=tex)
     albedo = np.clip(albedo * tex[..., None], 0.0, 1.0)
     t2 = time.perf_counter()
     depth, normals = simulate_prediction(gt.depth, gt.normals, params, seed)
@@ -158,7 +164,8 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
                  depth_gt=gt.depth, normals_gt=gt.normals, lights=lights, albedo=albedo, roughness=roughness,
                  camera_height=pose.height, camera_pitch=pose.pitch,
                  provenance={"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
-                             "seed": int(seed), "spp": int(spp), "renderer": "mitsuba scalar_rgb direct (sun) + sky ambient (numpy)",
+                             "seed": int(seed), "spp": int(spp),
+                             "renderer": "mitsuba scalar_rgb direct (sun) + sky ambient (numpy)",
                              "prediction": params.as_dict(), "layout": layout.info,
                              "timing_s": {"ground_truth": round(t1 - t0, 3), "render": round(t2 - t1, 3),
                                           "prediction": round(t3 - t2, 3)}})
