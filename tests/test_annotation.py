@@ -355,3 +355,22 @@ def test_sparse_rle_equals_dense():
         mask = rng.random((h, w)) > rng.random()
         idx = np.flatnonzero(mask.ravel(order="F"))
         assert rle_from_indices(idx, h * w) == rle_encode(mask)
+
+
+def test_undo_stack_clean_marker():
+    ann = LightAnnotation.empty(8, 8)
+    st = UndoStack(ann)
+    assert st.is_clean
+    st.push(paint(ann, [1, 2], 1001))
+    st.mark_clean()  # saved here
+    st.push(paint(ann, [3], 1001))
+    assert not st.is_clean
+    st.undo()
+    assert st.is_clean  # back at the saved state
+    st.undo()
+    assert not st.is_clean
+    st.push(paint(ann, [5], 1001))  # a new branch: the saved state can never come back
+    assert not st.is_clean and not st.can_redo
+    st.undo()
+    assert not st.is_clean
+    assert st.push(None).rect is None and len(st) == 0  # no-op commands are not recorded

@@ -291,6 +291,7 @@ def test_failed_save_keeps_previous_files(qtbot, tmp_path, monkeypatch):
     monkeypatch.setattr(A, "_write_bytes", fail_after_temp)
     key(qtbot, win, Qt.Key.Key_S, CTRL)
     assert "previous files kept" in win.statusBar().currentMessage()
+    assert A.find_recovery(folder, "facade") is not None  # the edits are in the recovery file
     assert "*" in win.windowTitle()  # still unsaved
     assert {k: p.read_bytes() for k, p in paths.items()} == before
     assert not [p for p in folder.iterdir() if ".tmp-" in p.name]

@@ -77,7 +77,7 @@ class AnnotationEditor(QWidget):
         panel = QWidget()
         pl = QVBoxLayout(panel)
         pl.setContentsMargins(4, 4, 4, 4)
-        pl.setSpacing(6)
+        pl.setSpacing(4)
 
         tools = QGroupBox("Tools")
         tl = QGridLayout(tools)
@@ -176,7 +176,7 @@ class AnnotationEditor(QWidget):
         for w in (self.sp_method, self.sp_size, self.sp_compact, apply_sp):
             sp_row.addWidget(w)
         opts.addRow("Superpixels", sp_row)
-        opts.addRow("", self.sp_status)
+        bl.insertWidget(bl.count() - 1, self.sp_status)  # next to the zoom read-out
 
         pal = QGroupBox("Classes")
         pal_l = QVBoxLayout(pal)
@@ -189,7 +189,7 @@ class AnnotationEditor(QWidget):
         inst = QGroupBox("Instances")
         il = QVBoxLayout(inst)
         self.instance_list = InstanceList()
-        self.instance_list.setMinimumHeight(160)
+        self.instance_list.setMinimumHeight(110)
         self.instance_list.selectionEdited.connect(self._on_list_selection)
         il.addWidget(self.instance_list)
         row = QHBoxLayout()
@@ -327,7 +327,7 @@ class AnnotationEditor(QWidget):
         if not ids:
             return
         s.begin_stroke("delete")
-        for i in ids:  # groups first would be removed anyway when their lights go
+        for i in ids:  # lights first (lower ids); a group they empty is already gone when its turn comes
             if i in s.ann.groups or i in s.ann.instance_ids():
                 s.apply(delete_instance(s.ann, i))
         s.end_stroke()

@@ -42,7 +42,7 @@ class EditorWindow(QMainWindow):
         self.progress = QLabel("")
         self.statusBar().addPermanentWidget(self.progress)
         self._build_menus()
-        self.resize(1280, 940)
+        self.resize(1280, 980)
         if items:
             self.set_items(items)
 
@@ -167,7 +167,8 @@ class EditorWindow(QMainWindow):
             return False
         s = self.editor.session
         if s.is_dirty and not s.readonly_reason:
-            self.save()
+            if not self.save():
+                return False  # stay: the edits are not on disk (the recovery file still is)
         elif s.is_dirty and not self.maybe_save("leave this image"):
             return False
         return self.open_index(j)
@@ -180,6 +181,7 @@ class EditorWindow(QMainWindow):
 
     # ----------------------------------------------------------------- saving
     def save(self) -> bool:
+        """Save the current image's annotation; False (and a message) when it could not be written."""
         s = self.editor.session
         if s.readonly_reason:
             QMessageBox.warning(self, "Not saved", f"Not saving: {s.readonly_reason}") if self.answers is None \
@@ -188,6 +190,7 @@ class EditorWindow(QMainWindow):
         try:
             paths = s.save()
         except (OSError, NpsimInputError) as exc:
+            self.autosave()  # keep the edits in the recovery file at least
             self.statusBar().showMessage(f"save failed, previous files kept: {exc}")
             if self.answers is None:
                 QMessageBox.critical(self, "Save failed", f"{exc}\n\nThe previous files are unchanged.")
