@@ -23,8 +23,10 @@ from a quadtree of square cells on the pixel grid:
   covers are triangulated as in the full grid (:func:`~.grid.quad_faces`).
   So every shared edge is shared exactly -- no cracks and no T-junctions.
 * Budget: the tolerance is found by bisection on a face-count estimate from
-  the error pyramid, then the mesh is built once (and once more with a
-  corrected target if the estimate was more than 10 % off).
+  the error pyramid, then the mesh is built (and rebuilt, at most three more
+  times, with a corrected target while it exceeds the budget by > 5 %). A
+  budget below what the pixel-resolution borders need cannot be met: the
+  result is then the coarsest mesh (tolerance 1).
 """
 
 from __future__ import annotations
@@ -236,7 +238,7 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
         # Faces of quads that never merge (mixed keys, borders): roughly constant.
         fixed = 0
         target = float(params.budget)
-        for attempt in range(2):
+        for attempt in range(4):
             lo, hi = 1e-7, 1.0
             if _estimate_faces(pyrs, hi, fixed) > target:
                 tau = hi
@@ -251,8 +253,8 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
             bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr)
             fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr)
             n = len(bg_faces) + len(fg_faces)
-            if attempt == 0 and n > 1.1 * params.budget:
-                target *= params.budget / n
+            if attempt < 3 and n > 1.05 * params.budget and tau < 1.0:
+                target *= params.budget / n      # the estimate was off: correct the target and rebuild
                 continue
             break
     else:
