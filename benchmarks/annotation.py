@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     if lights_region is not None:
         rgba = np.zeros((H, W, 4), np.uint8)
         t, _ = timed(lambda: lights_region(ann.instance_map, rgba, None, {big}), 3)
-        print(f"| overlay: whole light layer (selection change) | {1000 * t:.1f} | - | - |")
+        print(f"| overlay: whole light layer (on load) | {1000 * t:.1f} | - | - |")
         r = (W // 2 - 40, H // 2 - 40, W // 2 + 40, H // 2 + 40)
         t, _ = timed(lambda: lights_region(ann.instance_map, rgba, r, {big}), 10)
         print(f"| overlay: 80x80 stroke region | {1000 * t:.2f} | - | - |")
