@@ -341,6 +341,9 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
         near_u = cv2.dilate(U.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         touched = np.unique(obj[near_u & fg])
         in_r = np.isin(obj, touched[touched > 0])
+        # Objects U does not touch stay welded into the background sheet: renumber the others.
+        obj, obj_class = object_map(labels, meshable & in_r, fg_lut, instance_ids)
+        fg = obj > 0
     bg_known = survive & ~in_r
     target = meshable & ~bg_known
     bg_depth = np.where(bg_known, depth, np.nan).astype(np.float64)

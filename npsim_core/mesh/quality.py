@@ -73,10 +73,10 @@ def _raster_part(verts, faces, intr, zbuf, fbuf, pbuf, part_idx, chunk=1 << 20):
     for s in range(0, len(faces), chunk):
         f = faces[s:s + chunk]
         p0, p1, p2 = uv[f[:, 0]], uv[f[:, 1]], uv[f[:, 2]]
-        umin = np.ceil(np.minimum(np.minimum(p0[:, 0], p1[:, 0]), p2[:, 0]) - 1e-6)
-        umax = np.floor(np.maximum(np.maximum(p0[:, 0], p1[:, 0]), p2[:, 0]) + 1e-6)
-        vmin = np.ceil(np.minimum(np.minimum(p0[:, 1], p1[:, 1]), p2[:, 1]) - 1e-6)
-        vmax = np.floor(np.maximum(np.maximum(p0[:, 1], p1[:, 1]), p2[:, 1]) + 1e-6)
+        umin = np.ceil(np.minimum(np.minimum(p0[:, 0], p1[:, 0]), p2[:, 0]) - 1e-3)
+        umax = np.floor(np.maximum(np.maximum(p0[:, 0], p1[:, 0]), p2[:, 0]) + 1e-3)
+        vmin = np.ceil(np.minimum(np.minimum(p0[:, 1], p1[:, 1]), p2[:, 1]) - 1e-3)
+        vmax = np.floor(np.maximum(np.maximum(p0[:, 1], p1[:, 1]), p2[:, 1]) + 1e-3)
         umin, vmin = np.maximum(umin, 0), np.maximum(vmin, 0)
         umax, vmax = np.minimum(umax, W - 1), np.minimum(vmax, H - 1)
         nu = (umax - umin + 1).clip(0).astype(np.int64)
