@@ -1,0 +1,416 @@
+"""The NPSim main window: annotation canvas with view modes, parameter panel,
+3D mesh viewer, night render preview, loss curve and a log strip.
+
+Everything computed comes from :class:`npsim_core.workflow.Workflow` in worker
+threads (:mod:`npsim_gui.workers`); this module only presents and edits.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
+                               QProgressDialog, QVBoxLayout, QWidget)
+
+from npsim_core.errors import NpsimInputError
+from npsim_core.io import depth_to_rgb, normals_to_rgb
+from npsim_core.labels import cityscapes
+from npsim_core.scene import Scene
+from npsim_core.workflow import VIEW_MODES, Workflow, WorkflowParams, view_image
+
+from .editor.editor import AnnotationEditor
+from .params_panel import ParameterPanel
+from .render_panel import RenderPanel
+from .viewer3d import MeshViewer
+from .widgets import LogStrip, LossPlot
+from .workers import JobChannel
+
+ORG, APP = "NPSim", "NPSim"
+
+
+class MainWindow(QMainWindow):
+    """Main application window for one scene at a time."""
+
+    def __init__(self, scene: Scene | None = None, *, with_3d: bool = True):
+        super().__init__()
+        self.setWindowTitle("NPSim")
+        self.resize(1680, 1020)
+        self.workflow: Workflow | None = None
+        self.params = WorkflowParams()
+        self.results = None
+        self.light_override: dict[int, bool] | None = None
+        self._t_change = 0.0
+        self.last_latency: dict[str, float] = {}
+        self.pipeline_jobs = JobChannel("pipeline", debounce_ms=150, parent=self)
+        self.render_jobs = JobChannel("render", debounce_ms=100, parent=self)
+        self.export_jobs = JobChannel("export", parent=self)
+        self._build_ui(with_3d)
+        self._build_menus()
+        self._connect()
+        self._restore_layout()
+        if scene is not None:
+            self.set_scene(scene)
+
+    # ----------------------------------------------------------------- layout
+    def _build_ui(self, with_3d: bool) -> None:
+        central = QWidget()
+        lay = QVBoxLayout(central)
+        lay.setContentsMargins(2, 2, 2, 2)
+        bar = QHBoxLayout()
+        bar.addWidget(QLabel("View:"))
+        self.view_mode = QComboBox()
+        self.view_mode.addItems(VIEW_MODES)
+        bar.addWidget(self.view_mode)
+        self.busy_label = QLabel("")
+        bar.addStretch(1)
+        bar.addWidget(self.busy_label)
+        lay.addLayout(bar)
+        self.editor = AnnotationEditor(self)
+        lay.addWidget(self.editor, 1)
+        self.setCentralWidget(central)
+
+        self.params_panel = ParameterPanel()
+        self.params_dock = self._dock("Parameters", self.params_panel, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.viewer = MeshViewer() if with_3d else None
+        if self.viewer is not None:
+            self.viewer_dock = self._dock("3D mesh", self.viewer, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.render_panel = RenderPanel()
+        self.render_dock = self._dock("Night preview", self.render_panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        bottom = QWidget()
+        bl = QHBoxLayout(bottom)
+        bl.setContentsMargins(0, 0, 0, 0)
+        self.loss_plot = LossPlot()
+        self.log = LogStrip()
+        bl.addWidget(self.loss_plot, 1)
+        bl.addWidget(self.log, 1)
+        self.log_dock = self._dock("Loss and log", bottom, Qt.DockWidgetArea.BottomDockWidgetArea)
+
+    def _dock(self, title: str, widget: QWidget, area) -> QDockWidget:
+        d = QDockWidget(title, self)
+        d.setObjectName(title.replace(" ", "_"))
+        d.setWidget(widget)
+        self.addDockWidget(area, d)
+        return d
+
+    def _build_menus(self) -> None:
+        m = self.menuBar().addMenu("&File")
+        self.act_open_scene = self._action(m, "Open scene folder…", "Ctrl+O", self.open_scene_dialog)
+        self.act_open_project = self._action(m, "Open project…", "Ctrl+Shift+O", self.open_project_dialog)
+        self.act_save_project = self._action(m, "Save project…", "Ctrl+S", self.save_project_dialog)
+        self.act_save_ann = self._action(m, "Save annotation", "Ctrl+Shift+S", self.save_annotation)
+        m.addSeparator()
+        self.act_export = self._action(m, "Export…", "Ctrl+E", self.export_dialog)
+        m.addSeparator()
+        self._action(m, "Quit", "Ctrl+Q", self.close)
+        r = self.menuBar().addMenu("&Run")
+        self._action(r, "Recompute", "F5", self.recompute)
+        self._action(r, "Render night preview", "F6", self.request_render)
+        v = self.menuBar().addMenu("&View")
+        for d in (self.params_dock, self.render_dock, self.log_dock) + ((self.viewer_dock,) if self.viewer else ()):
+            v.addAction(d.toggleViewAction())
+        h = self.menuBar().addMenu("&Help")
+        self._action(h, "Annotation shortcuts", "F1", self.editor.show_shortcuts)
+
+    def _action(self, menu, text: str, shortcut: str, fn) -> QAction:
+        a = QAction(text, self)
+        a.setShortcut(QKeySequence(shortcut))
+        a.triggered.connect(fn)
+        menu.addAction(a)
+        return a
+
+    def _connect(self) -> None:
+        self.params_panel.changed.connect(self.on_param_changed)
+        self.params_panel.presetChosen.connect(self.on_preset)
+        self.params_panel.resetRequested.connect(self.on_reset)
+        self.view_mode.currentTextChanged.connect(lambda _t: self.refresh_view())
+        self.pipeline_jobs.finished.connect(self.on_pipeline_done)
+        self.pipeline_jobs.failed.connect(self.on_error)
+        self.pipeline_jobs.progress.connect(self.on_pipeline_progress)
+        self.pipeline_jobs.busy.connect(lambda b: self._set_busy("computing…" if b else ""))
+        self.render_jobs.finished.connect(self.on_render_done)
+        self.render_jobs.failed.connect(self.on_error)
+        self.render_jobs.progress.connect(self.on_render_progress)
+        self.render_panel.seedChanged.connect(lambda s: self.on_param_changed("night", "seed", int(s)))
+        self.render_panel.lightsToggled.connect(self.on_lights_toggled)
+        self.render_panel.renderRequested.connect(self.request_render)
+        self.editor.dirtyChanged.connect(self._update_title)
+        self.editor.session.changed.connect(lambda *_: self._annotation_edited())
+
+    def _set_busy(self, text: str) -> None:
+        self.busy_label.setText(text)
+
+    # ----------------------------------------------------------------- scene
+    def set_scene(self, scene: Scene, params: WorkflowParams | None = None) -> None:
+        """Show ``scene`` and start computing its pipeline."""
+        self.pipeline_jobs.cancel()
+        self.render_jobs.cancel()
+        self.workflow = Workflow(scene)
+        if params is not None:
+            self.params = params
+        self.results = None
+        self.light_override = None
+        folder = scene.provenance.get("folder")
+        self.editor.load(scene.image, scene.labels, scene.lights, folder=folder, stem=scene.name)
+        self.render_panel.set_day(scene.image)
+        self.params_panel.set_values(self.params.gui_values())
+        self.render_panel.seed.blockSignals(True)
+        self.render_panel.seed.setValue(self.params.night.seed)
+        self.render_panel.seed.blockSignals(False)
+        self._update_title()
+        self.log.log(f"scene {scene.name}: {scene.width}x{scene.height}"
+                     + (" (with ground truth)" if scene.depth_gt is not None else ""))
+        if folder:
+            QSettings(ORG, APP).setValue("last_scene", folder)
+        self.recompute()
+
+    def _update_title(self, *_a) -> None:
+        name = self.workflow.scene.name if self.workflow else "no scene"
+        dirty = " *" if self.editor.session.is_dirty() else ""
+        self.setWindowTitle(f"NPSim — {name}{dirty}")
+
+    # ----------------------------------------------------------------- parameters
+    def on_param_changed(self, section: str, field: str, value) -> None:
+        try:
+            self.params = self.params.with_value(section, field, value)
+        except NpsimInputError as exc:
+            self.on_error(str(exc), "")
+            return
+        self._t_change = time.perf_counter()
+        self.recompute()
+
+    def on_preset(self, name: str) -> None:
+        self.params = self.params.with_preset(name)
+        self.params_panel.set_values(self.params.gui_values())
+        self._t_change = time.perf_counter()
+        self.recompute()
+
+    def on_reset(self) -> None:
+        seed = self.params.night.seed
+        self.params = WorkflowParams().with_value("night", "seed", seed)
+        self.params_panel.set_values(self.params.gui_values())
+        self._t_change = time.perf_counter()
+        self.recompute()
+
+    def _annotation_edited(self) -> None:
+        if self.workflow is not None:
+            self.workflow.set_annotation(self.editor.session.ann)
+            self.recompute()
+
+    def recompute(self) -> None:
+        """Run the pipeline up to the mesh in a worker (stale runs are cancelled)."""
+        if self.workflow is None:
+            return
+        wf, params = self.workflow, self.params
+        t0 = self._t_change or time.perf_counter()
+
+        def job(cancel: threading.Event, progress):
+            res = wf.compute(params, until="mesh", cancel=cancel, progress=progress)
+            return res, t0
+        self.pipeline_jobs.submit(job)
+
+    def on_pipeline_progress(self, info) -> None:
+        if isinstance(info, dict) and "history" in info:
+            self.loss_plot.set_history(info["history"])
+        elif isinstance(info, dict) and "stage" in info:
+            self._set_busy(f"computing {info['stage']}…")
+
+    def on_pipeline_done(self, payload) -> None:
+        res, t0 = payload
+        self.results = res
+        lat = time.perf_counter() - t0
+        self.last_latency["pipeline"] = lat
+        self.log.log("recomputed " + ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items()
+                                               if k in res.recomputed) + f" — change→view {lat:.2f} s")
+        if res.refine is not None:
+            self.loss_plot.set_history(res.refine_history())
+        self.refresh_view()
+        if self.viewer is not None and res.mesh is not None:
+            fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error())) if v is not None}
+            self.viewer.set_mesh(res.mesh, self.workflow.scene.image, fy=res.intrinsics.fy, removed=res.removed,
+                                 fields=fields)
+        self.request_render()
+
+    def refresh_view(self) -> None:
+        if self.workflow is None:
+            return
+        mode = self.view_mode.currentText()
+        img = view_image(self.workflow.scene, self.results, mode)
+        self.editor.set_base_image(img)
+
+    # ----------------------------------------------------------------- night
+    def on_lights_toggled(self, state: dict) -> None:
+        self.light_override = dict(state)
+        self.request_render()
+
+    def request_render(self) -> None:
+        if self.workflow is None or self.results is None or self.results.mesh is None:
+            return
+        wf, params, res, override = self.workflow, self.params, self.results, self.light_override
+        t0 = self._t_change or time.perf_counter()
+
+        def job(cancel: threading.Event, progress):
+            last = None
+            for frame in wf.night_preview(res, params, light_override=override, cancel=cancel):
+                progress(frame)
+                last = frame
+            return last, t0
+        self.render_panel.status.setText("rendering…")
+        self.render_jobs.submit(job)
+
+    def on_render_progress(self, frame) -> None:
+        if frame is None:
+            return
+        self.render_panel.set_night(frame.image, f"{frame.spp} spp · {frame.elapsed:.2f} s · {frame.variant}")
+        if frame.active is not None and self.light_override is None:
+            self._fill_lights(frame.active)
+
+    def on_render_done(self, payload) -> None:
+        frame, t0 = payload
+        if frame is None:
+            return
+        self.last_latency["render"] = time.perf_counter() - t0
+        self._t_change = 0.0
+        self.on_render_progress(frame)
+        self.log.log(f"night preview {frame.spp} spp in {frame.elapsed:.2f} s ({frame.variant}); "
+                     f"{len(frame.active.on_ids()) if frame.active else 0} lights on")
+
+    def _fill_lights(self, active) -> None:
+        ann = self.workflow.annotation
+        if ann is None:
+            return
+        grouped = {m for g in ann.groups.values() for m in g.members}
+        groups = {gid: list(g.members) for gid, g in ann.groups.items()}
+        singles = [i for i in ann.instance_ids() if i not in grouped]
+        state = {i: s.on for i, s in active.states.items()}
+        self.render_panel.set_lights(groups, singles, state)
+
+    # ----------------------------------------------------------------- files
+    def open_scene_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Open scene folder")
+        if folder:
+            self.open_scene(folder)
+
+    def open_scene(self, path: str | Path) -> None:
+        from npsim_core.workflow import load_any_scene
+
+        try:
+            self.set_scene(load_any_scene(path))
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(str(exc), "")
+
+    def open_project_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Open project folder")
+        if folder:
+            self.open_project(folder)
+
+    def open_project(self, folder: str | Path) -> None:
+        from npsim_core.workflow import load_project
+
+        try:
+            scene, params = load_project(folder)
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(str(exc), "")
+            return
+        self.set_scene(scene, params)
+
+    def save_project_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Save project into folder")
+        if folder:
+            self.save_project(folder)
+
+    def save_project(self, folder: str | Path) -> None:
+        from npsim_core.workflow import save_project
+
+        if self.workflow is None:
+            return
+        try:
+            save_project(folder, self.workflow.scene.with_(lights=self.editor.session.ann), self.params, self.results)
+            self.log.log(f"project saved to {folder}")
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(str(exc), "")
+
+    def save_annotation(self) -> None:
+        try:
+            paths = self.editor.session.save()
+            self.log.log(f"annotation saved: {paths}")
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(str(exc), "")
+
+    def export_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Export into folder")
+        if folder:
+            self.export(folder)
+
+    def export(self, folder: str | Path, *, nights: int = 1, show_progress: bool = True) -> None:
+        """Write masks, depth, normals, meshes and nights to ``folder`` in a worker, with progress."""
+        from npsim_core.workflow import export_scene
+
+        if self.workflow is None:
+            return
+        wf, params = self.workflow, self.params
+        dlg = None
+        if show_progress:
+            dlg = QProgressDialog("Exporting…", "Cancel", 0, 100, self)
+            dlg.setWindowModality(Qt.WindowModality.WindowModal)
+            dlg.setMinimumDuration(0)
+            dlg.canceled.connect(self.export_jobs.cancel)
+        self._export_dialog = dlg
+
+        def job(cancel, progress):
+            return export_scene(wf, params, folder, nights=nights, cancel=cancel,
+                                progress=lambda f, text: progress((f, text)))
+
+        def on_progress(info):
+            if dlg is not None:
+                dlg.setValue(int(info[0] * 100))
+                dlg.setLabelText(info[1])
+
+        def on_done(written):
+            if dlg is not None:
+                dlg.setValue(100)
+            self.log.log(f"exported {len(written)} files to {folder}")
+            self.last_export = written
+
+        self.export_jobs.progress.connect(on_progress)
+        self.export_jobs.finished.connect(on_done)
+        self.export_jobs.failed.connect(self.on_error)
+        self.export_jobs.submit(job)
+
+    # ----------------------------------------------------------------- errors & lifetime
+    def on_error(self, message: str, tb: str) -> None:
+        self._set_busy("")
+        self.log.log(f"error: {message}")
+        self.statusBar().showMessage(message, 10000)
+        self.last_error = message
+
+    def _restore_layout(self) -> None:
+        s = QSettings(ORG, APP)
+        geo, state = s.value("geometry"), s.value("state")
+        if geo is not None:
+            self.restoreGeometry(geo)
+        if state is not None:
+            self.restoreState(state)
+
+    def closeEvent(self, event) -> None:  # noqa: N802
+        if self.editor.session.is_dirty():
+            try:
+                self.editor.session.autosave()
+            except Exception:  # autosave is best effort at close; the user is asked below
+                pass
+            if not getattr(self, "confirm_close", lambda: True)():
+                event.ignore()
+                return
+        s = QSettings(ORG, APP)
+        s.setValue("geometry", self.saveGeometry())
+        s.setValue("state", self.saveState())
+        self.pipeline_jobs.cancel()
+        self.render_jobs.cancel()
+        if self.viewer is not None:
+            self.viewer.close_viewer()
+        super().closeEvent(event)
