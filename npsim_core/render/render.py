@@ -28,13 +28,13 @@ CancelCheck = Callable[[], bool] | threading.Event | None
 @dataclass(frozen=True)
 class PreviewParams:
     """Progressive preview: ``passes`` passes of ``spp_per_pass`` at ``scale`` of the full resolution,
-    path length ``max_depth`` (3 = direct light + one bounce; cheaper than the final's 4)."""
+    path length ``max_depth`` (2 = direct light only: ~40 % cheaper than the final's one bounce)."""
 
     scale: float = 0.25
     spp_per_pass: int = 4
     passes: int = 4
     seed: int = 0
-    max_depth: int = 3
+    max_depth: int = 2
 
 
 @dataclass(frozen=True)
@@ -64,10 +64,11 @@ def _size(built: BuiltScene, scale: float) -> tuple[int, int]:
 
 def render_linear(built: BuiltScene, *, spp: int, seed: int = 0, scale: float = 1.0,
                   width: int | None = None, height: int | None = None, pixel_centres: bool = False,
-                  max_depth: int | None = None) -> np.ndarray:
+                  max_depth: int | None = None, crop: tuple[int, int, int, int] | None = None) -> np.ndarray:
     """One render of ``spp`` samples per pixel -> (H, W, 3) float32 linear RGB.
 
-    ``max_depth`` overrides the scene's path length for this render only.
+    ``max_depth`` overrides the scene's path length for this render only;
+    ``crop = (x, y, w, h)`` renders only that window of the film (result h x w).
     """
     import mitsuba as mi
 
@@ -76,7 +77,7 @@ def render_linear(built: BuiltScene, *, spp: int, seed: int = 0, scale: float = 
     w, h = (width, height) if width and height else _size(built, scale)
     with thread_env_scope(mi, built.thread_env):
         kw = {} if max_depth is None else {"integrator": built.integrator(int(max_depth))}
-        img = mi.render(built.scene, sensor=built.sensor(w, h, pixel_centres=pixel_centres), spp=int(spp),
+        img = mi.render(built.scene, sensor=built.sensor(w, h, pixel_centres=pixel_centres, crop=crop), spp=int(spp),
                         seed=int(seed), **kw)
         return np.array(img, dtype=np.float32)[..., :3]
 

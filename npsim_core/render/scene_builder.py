@@ -59,6 +59,8 @@ from .variant import set_variant
 #: emitter distribution (Mitsuba refuses an all-zero one). Changing it through
 #: ``params.update()`` rebuilds Mitsuba's emitter distribution (measured).
 OFF_WEIGHT = 1e-6
+#: d0² (m²) of the emitter-sampling distance heuristic ``power / (d² + d0²)`` (BuiltScene.apply_lights).
+NEAR_D0_M2 = 25.0
 
 
 @dataclass(frozen=True)
@@ -68,25 +70,28 @@ class BuildParams:
     ego_headlights : the ego vehicle's two low beams (can also be toggled later).
     sky : dim constant night sky (False = black world).
     throw_spots : lamp heads / car lamps also get a spot lighting the scene.
-    max_depth : path length of the final render's path tracer (2 = direct light only, 3 = one bounce).
+    max_depth : path length of the final render's path tracer (2 = direct light only, 3 = one
+        bounce -- the default: at night nearly all light is direct or one bounce from a lamp pool).
     camera_height, camera_pitch : metres / radians, place the ego lamps and the street-light aim.
     """
 
     ego_headlights: bool = True
     sky: bool = True
     throw_spots: bool = True
-    max_depth: int = 4
+    max_depth: int = 3
     camera_height: float = 1.22
     camera_pitch: float = 0.038
 
 
 def camera_dict(intr: Intrinsics, width: int | None = None, height: int | None = None, *,
-                pixel_centres: bool = False) -> dict:
+                pixel_centres: bool = False, crop: tuple[int, int, int, int] | None = None) -> dict:
     """Mitsuba ``perspective`` sensor reproducing ``intr`` (module docstring), film ``width`` x ``height``.
 
     ``pixel_centres`` samples each pixel at its centre (stratified, no jitter) --
     for 1-spp label renders; the camera is nudged by 0.01 px so those rays do not
     pass exactly through grid vertices (where a ray can slip between triangles).
+    ``crop = (x, y, w, h)`` renders only that window of the film (pixels of the
+    ``width`` x ``height`` film), e.g. for high-spp reference patches.
     """
     import mitsuba as mi
 
@@ -96,14 +101,17 @@ def camera_dict(intr: Intrinsics, width: int | None = None, height: int | None =
     sampler = ({"type": "stratified", "sample_count": 1, "jitter": False} if pixel_centres
                else {"type": "independent", "sample_count": 1})
     nudge = 0.01 if pixel_centres else 0.0
+    film = {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
+            "pixel_format": "rgb", "component_format": "float32"}
+    if crop is not None:
+        cx0, cy0, cw, ch = (int(v) for v in crop)
+        film.update(crop_offset_x=cx0, crop_offset_y=cy0, crop_width=cw, crop_height=ch)
     return {"type": "perspective", "fov": fov, "fov_axis": "x",
             "principal_point_offset_x": (W / 2.0 - intr.cx - 0.5 + nudge) / W,
             "principal_point_offset_y": (H / 2.0 - intr.cy - 0.5 + nudge) / H,
             "near_clip": 0.01, "far_clip": 1e5,
             "to_world": mi.ScalarTransform4f().rotate([0, 0, 1], 180.0),
-            "sampler": sampler,
-            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
-                     "pixel_format": "rgb", "component_format": "float32"}}
+            "sampler": sampler, "film": film}
 
 
 def _y_scale(intr: Intrinsics) -> float:
@@ -219,6 +227,8 @@ class BuiltScene:
     area_keys: dict[int, str] = field(default_factory=dict)
     #: light id -> emitting area (m²), for power-proportional emitter sampling.
     area_m2: dict[int, float] = field(default_factory=dict)
+    #: light id -> distance (m) of the light's centroid from the camera (emitter sampling heuristic).
+    distance_m: dict[int, float] = field(default_factory=dict)
     #: light id -> (spot key prefix, intensity per unit radiance (W/sr per radiance)).
     spot_keys: dict[int, tuple[str, float]] = field(default_factory=dict)
     #: solid angle (sr) of the throw spots' and of the ego spots' cones.
@@ -243,13 +253,15 @@ class BuiltScene:
             self._params = mi.traverse(self.scene)
         return self._params
 
-    def sensor(self, width: int, height: int, *, pixel_centres: bool = False):
-        """A sensor of the scene's camera with a ``width`` x ``height`` film (cached)."""
+    def sensor(self, width: int, height: int, *, pixel_centres: bool = False,
+               crop: tuple[int, int, int, int] | None = None):
+        """A sensor of the scene's camera with a ``width`` x ``height`` film (cached), optionally cropped."""
         import mitsuba as mi
 
-        key = (int(width), int(height), pixel_centres)
+        key = (int(width), int(height), pixel_centres, None if crop is None else tuple(int(v) for v in crop))
         if key not in self._sensors:
-            self._sensors[key] = mi.load_dict(camera_dict(self.intrinsics, width, height, pixel_centres=pixel_centres))
+            self._sensors[key] = mi.load_dict(camera_dict(self.intrinsics, width, height, pixel_centres=pixel_centres,
+                                                          crop=crop))
         return self._sensors[key]
 
     def integrator(self, max_depth: int):
@@ -266,26 +278,32 @@ class BuiltScene:
         t0 = time.perf_counter()
         p = self.params
         # Emitters are picked for next-event estimation in proportion to their power
-        # (area light: pi * L * A; spot: I * cone solid angle), so a street lamp is not
-        # sampled as rarely as one of fifty dim windows.
+        # (area light: pi * L * A; spot: I * cone solid angle) over (d^2 + d0^2), d = distance
+        # from the camera: a street lamp is not sampled as rarely as one of fifty dim windows,
+        # and lamps near the camera, which light most of the pixels, get more samples
+        # (Mitsuba has no spatial light tree; any weights keep the estimate unbiased).
         for lid, key in self.area_keys.items():
             st = active.lights.get(lid)
             on = st is not None and st.on
             rad = list(st.radiance) if on else [0.0, 0.0, 0.0]
             p[f"{key}.radiance.value"] = type(p[f"{key}.radiance.value"])(*rad)
-            p[f"{key}.sampling_weight"] = (max(math.pi * _lum(rad) * self.area_m2.get(lid, 1.0), OFF_WEIGHT)
-                                           if on else OFF_WEIGHT)
+            p[f"{key}.sampling_weight"] = (max(math.pi * _lum(rad) * self.area_m2.get(lid, 1.0)
+                                               * self._near(lid), OFF_WEIGHT) if on else OFF_WEIGHT)
         for lid, (key, gain) in self.spot_keys.items():
             st = active.lights.get(lid)
             on = st is not None and st.on
             inten = [gain * r for r in st.radiance] if on else [0.0, 0.0, 0.0]
             p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*inten)
-            p[f"{key}.sampling_weight"] = (max(_lum(inten) * self.spot_solid_angle, OFF_WEIGHT)
+            p[f"{key}.sampling_weight"] = (max(_lum(inten) * self.spot_solid_angle * self._near(lid), OFF_WEIGHT)
                                            if on else OFF_WEIGHT)
         self._set_ego(p, self._ego_on)
         p.update()
         self._active = active
         return time.perf_counter() - t0
+
+    def _near(self, lid: int) -> float:
+        d = self.distance_m.get(lid, 10.0)
+        return 1.0 / (d * d + NEAR_D0_M2)
 
     def set_ego_headlights(self, on: bool) -> None:
         """Switch the ego vehicle's headlights in place."""
@@ -298,7 +316,8 @@ class BuiltScene:
         for key in self.ego_keys:
             val = self.ego_intensity if on else np.zeros(3)
             p[f"{key}.intensity.value"] = type(p[f"{key}.intensity.value"])(*[float(x) for x in val])
-            p[f"{key}.sampling_weight"] = max(_lum(val) * self.ego_solid_angle, OFF_WEIGHT) if on else OFF_WEIGHT
+            p[f"{key}.sampling_weight"] = (max(_lum(val) * self.ego_solid_angle / NEAR_D0_M2, OFF_WEIGHT)
+                                           if on else OFF_WEIGHT)
 
 
 def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, table: LightTable,
@@ -390,6 +409,7 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
         built.area_keys[lid] = f"{name}.emitter"
         area, cen, n = _face_areas_centroid(geo, sel)
         built.area_m2[lid] = area
+        built.distance_m[lid] = float(np.linalg.norm(cen))
         spec = table.classes.get(lid // 1000)
         if params.throw_spots and spec is not None and spec.throw:
             if spec.class_id in (8, 9):  # street lights: aim at the ground below the lamp head
@@ -433,7 +453,9 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
         v = geo.vertices.astype(np.float64)
         mesh_area = float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
         scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)},
-                             "sampling_weight": max(math.pi * _lum(table.sky_radiance) * mesh_area, OFF_WEIGHT)}
+                             "sampling_weight": max(math.pi * _lum(table.sky_radiance) * mesh_area
+                                                    / (float(np.median(np.linalg.norm(v, axis=1))) ** 2 + NEAR_D0_M2),
+                                                    OFF_WEIGHT)}
     scene_dict.update(objects)
     built.scene = mi.load_dict(scene_dict)
     built.thread_env = capture_thread_env(mi)

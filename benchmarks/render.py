@@ -1,0 +1,164 @@
+"""Night-render benchmark: time and noise error of preview and final renders (issue 6).
+
+Usage::
+
+    python benchmarks/render.py [--quick] [--variants scalar_rgb,llvm_ad_rgb] [--out FILE.md]
+    npsim bench render [...]
+
+Scene: the synthetic street (ground-truth depth -> Worldsheet grid mesh), one
+fixed night (seed 1). For each Mitsuba variant and resolution it measures
+
+* ``build``   mesh -> Mitsuba scene (meshes, BSDFs, emitters) incl. the mesh itself,
+* ``toggle``  switching to another night's lights in place (geometry reused),
+* ``preview`` progressive preview, 4 passes x 4 spp, direct light only (max_depth 2),
+  *including* the scene build (the target: 512x256 at 16 spp <= 2 s),
+* ``final``   one-bounce path tracing (max_depth 3) at several spp,
+
+and the error against a high-spp reference of the same integrator: relative
+RMSE = RMSE / mean of the reference, on the linear image clipped to [0, 1] (the
+display range, so single fireflies on lamp heads do not dominate). For
+2048x1024 the reference is a 256x128 crop (centre of the street) rendered at
+high spp; errors there are measured on that crop. Wall times on a shared
+machine are noisy: the table also lists the process CPU time and the load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def _rel_rmse(img: np.ndarray, ref: np.ndarray) -> float:
+    a, b = np.clip(img, 0, 1), np.clip(ref, 0, 1)
+    return float(np.sqrt(np.mean((a - b) ** 2)) / max(float(b.mean()), 1e-12))
+
+
+def _timed(fn):
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t, time.process_time() - c
+
+
+def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp: int, crop_ref: bool,
+                     preview: bool, log) -> list[dict]:
+    from npsim_core.mesh.grid import grid_mesh
+    from npsim_core.render.lights import activate_lights, load_light_table
+    from npsim_core.render.materials import estimate_materials
+    from npsim_core.render.render import PreviewParams, render_linear, render_preview
+    from npsim_core.render.scene_builder import BuildParams, build_scene
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W, H)
+    table = load_light_table()
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
+                              light_classes=s.lights.class_map())
+    night = activate_lights(s.lights, table, 1, image=s.image)
+    other = activate_lights(s.lights, table, 2, image=s.image)
+    rows = []
+
+    def build():
+        mesh = grid_mesh(s.depth_gt, s.intrinsics, s.labels, s.lights.instance_map)
+        return build_scene(mesh, s.intrinsics, mats, table, s.lights, night, BuildParams(), variant=variant)
+
+    # Warm-up (imports, LLVM kernel compilation) so timings show steady state.
+    warm = build()
+    render_linear(warm, spp=1, max_depth=2, scale=0.25)
+    render_linear(warm, spp=1, scale=0.25)
+    del warm
+
+    built, t_build, c_build = _timed(build)
+    rows.append({"variant": variant, "size": f"{W}x{H}", "what": "build scene", "spp": "-",
+                 "time": t_build, "cpu": c_build, "err": None, "faces": built.n_faces})
+    log(f"  {variant} {W}x{H} build {t_build:.2f} s")
+    t_tog = built.apply_lights(other)
+    t_back = built.apply_lights(night)
+    rows.append({"variant": variant, "size": f"{W}x{H}", "what": "light toggle (in place)", "spp": "-",
+                 "time": min(t_tog, t_back), "cpu": None, "err": None})
+
+    crop = None
+    if crop_ref:
+        cw, ch = 256, 128
+        crop = ((W - cw) // 2, int(H * 0.45), cw, ch)
+    ref_d2 = ref_d3 = None
+    if preview:
+        ref_d2, t, _ = _timed(lambda: render_linear(built, spp=ref_spp, seed=999, max_depth=2, crop=crop))
+        log(f"  reference (direct) {ref_spp} spp {t:.1f} s")
+    ref_d3, t, _ = _timed(lambda: render_linear(built, spp=ref_spp, seed=998, crop=crop))
+    log(f"  reference (one bounce) {ref_spp} spp {t:.1f} s")
+
+    if preview:
+        def prev():
+            b = build()
+            last = None
+            for f in render_preview(b, PreviewParams(scale=1.0, spp_per_pass=4, passes=4, seed=5)):
+                last = f
+            return last.image
+
+        img, t, c = _timed(prev)
+        err = _rel_rmse(img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]], ref_d2)
+        rows.append({"variant": variant, "size": f"{W}x{H}", "what": "preview 4x4 spp incl. build", "spp": 16,
+                     "time": t, "cpu": c, "err": err})
+        log(f"  preview {t:.2f} s err {err:.3f}")
+    for spp in final_spp:
+        img, t, c = _timed(lambda: render_linear(built, spp=spp, seed=spp, crop=None))
+        part = img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
+        err = _rel_rmse(part, ref_d3)
+        rows.append({"variant": variant, "size": f"{W}x{H}", "what": "final (render only)", "spp": spp,
+                     "time": t, "cpu": c, "err": err})
+        log(f"  final {spp} spp {t:.2f} s err {err:.3f}")
+    return rows
+
+
+def format_table(rows: list[dict]) -> str:
+    lines = ["| variant | size | what | spp | time s | cpu s | rel. RMSE |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        cpu = "-" if r["cpu"] is None else f"{r['cpu']:.1f}"
+        err = "-" if r["err"] is None else f"{r['err']:.3f}"
+        lines.append(f"| {r['variant']} | {r['size']} | {r['what']} | {r['spp']} | {r['time']:.2f} | {cpu} | {err} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="npsim bench render", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="512x256 only")
+    ap.add_argument("--variants", default=None, help="comma list (default: scalar_rgb plus llvm_ad_rgb if usable)")
+    ap.add_argument("--out", default=None, help="also write the table (markdown) to this file")
+    args = ap.parse_args(argv)
+
+    from npsim_core.render.variant import choose_variant
+
+    if args.variants:
+        variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    else:
+        variants = ["scalar_rgb"]
+        ch = choose_variant()
+        if ch.name == "llvm_ad_rgb":
+            variants.append("llvm_ad_rgb")
+        print(f"llvm_ad_rgb: {ch.reason}", file=sys.stderr)
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    load0 = os.getloadavg()
+    rows: list[dict] = []
+    for v in variants:
+        rows += bench_resolution(512, 256, v, [4, 16, 64], 1024, False, True, log)
+        if not args.quick:
+            rows += bench_resolution(2048, 1024, v, [16, 64], 1024, True, False, log)
+    load1 = os.getloadavg()
+    table = format_table(rows)
+    head = (f"Mitsuba render benchmark ({time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} cores, "
+            f"load average {load0[0]:.1f} at start, {load1[0]:.1f} at end)")
+    print(head)
+    print(table)
+    if args.out:
+        Path(args.out).write_text(head + "\n\n" + table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
