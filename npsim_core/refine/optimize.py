@@ -1,0 +1,507 @@
+"""Normal-guided depth refinement (SPEC §2.3, thesis eqs. 3.4-3.9).
+
+Minimises ``L = λ1 L_normal + λ2 L_continuity + λ3 L_depth`` over the depth map.
+
+With ``P(p) = d(p) r(p)``, ``r = K^-1 (u, v, 1)``, forward tangents
+``T_u(p) = P(p+x) − P(p)``, ``T_v(p) = P(p+y) − P(p)`` and the current normal
+``n̂(p) = normalize(T_v × T_u)`` (SPEC §0, toward the camera):
+
+* ``L_normal = Σ_{p∈Ω_n} ‖n̂(p) − N(p)‖² / |Ω_n|``, Ω_n = pixels whose depth, right
+  and lower neighbours' depth and normal N are valid (the last row/column has no
+  forward tangent pair and is excluded).
+* ``L_continuity = Σ_p (1 − U_p) [m_u (T_u·N)² + m_v (T_v·N)²] / n_c``, m_u / m_v
+  = the forward pair and N are valid, n_c = number of pixels with m_u or m_v
+  (uncertain pixels count in n_c, as in the thesis's 1/n). Linear residuals:
+  this term is quadratic in depth.
+* ``L_depth = Σ_{p valid} (d − d_est)² / |valid|``.
+
+Pixels with invalid depth (NaN, inf, <= 0) or invalid normals (non-finite or
+length < 1e-6) are excluded from every term and returned unchanged (NaN).
+Normals are renormalised; normals facing away from the camera (N·r > 0) are
+flipped, the usual sign-convention slip of a network (counted in the message).
+
+Loss variants (``RefineParams.loss``):
+
+``'thesis'``
+    The formulas above, in metres (L_continuity in m², L_depth in m²).
+``'scale_aware'``
+    Continuity residual divided by the pixel footprint ``s = d_est / sqrt(fx fy)``
+    (so it measures the tangent's angle to the normal plane, unitless, still
+    quadratic in d) and the depth residual by d_est (relative error). Near and
+    far pixels then weigh alike and λ's mean the same at every resolution.
+
+Optimisers (``RefineParams.optimizer``):
+
+``'adam_faithful'``
+    torch Adam on the raw depth, lr 1e-4, 1000 steps (thesis). Adam moves each
+    pixel by at most about lr per step, so the whole run changes depth by at
+    most ~0.1 m (reported as ``RefineResult.max_change_m``).
+``'fast'``
+    L-BFGS (torch, strong-Wolfe line search) on a diagonally preconditioned
+    variable ``d = d_est + s ⊙ x`` with s the pixel footprint: the normal term's
+    curvature in d scales like (f/d)², so in x every pixel is equally well
+    conditioned whatever its distance. Stops when the loss's relative decrease
+    over 5 iterations is below ``tol`` or after ``steps`` iterations.
+
+Both keep the best iterate, stop on a non-finite loss or a blow-up (loss above
+``divergence_factor`` x the initial loss), check ``cancel`` every step (raising
+:class:`~npsim_core.errors.NpsimCancelled`) and call ``progress(step, total,
+losses)`` every step.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import torch
+
+from ..camera import Intrinsics, valid_depth_mask
+from ..errors import NpsimCancelled, NpsimInputError
+from ._inputs import as_depth, as_mask, as_normals, check_positive
+
+#: The two λ = (λ1 normal, λ2 continuity, λ3 depth) sets the thesis states.
+PRESETS: dict[str, tuple[float, float, float]] = {
+    "appendix_b": (1.0, 5.0, 1.0),      # appendix B grid search result (default)
+    "section_3_4_3": (1.0, 1.0, 5.0),   # as printed in §3.4.3
+}
+
+_DEFAULT_STEPS = {"adam_faithful": 1000, "fast": 300}
+_DEFAULT_LR = {"adam_faithful": 1e-4, "fast": 1.0}
+
+
+@dataclass(frozen=True)
+class RefineParams:
+    """Parameters of the normal-guided refinement.
+
+    Attributes
+    ----------
+    lambdas : (float, float, float) or preset name
+        (λ1 normal, λ2 continuity, λ3 depth); a name from :data:`PRESETS` is
+        resolved on construction. Default: 'appendix_b' = (1, 5, 1).
+    optimizer : {'fast', 'adam_faithful'}
+    steps : int or None
+        Iteration budget; None = 1000 for Adam (thesis), 300 for 'fast' (an upper bound; it stops on convergence).
+    lr : float or None
+        Learning rate; None = 1e-4 for Adam (thesis), 1.0 for L-BFGS (its natural step).
+    loss : {'thesis', 'scale_aware'}
+        Loss variant (module docstring).
+    dtype : {'float32', 'float64'}
+    tol : float
+        'fast' convergence: relative loss decrease over 5 iterations below tol.
+    divergence_factor : float
+        A loss above this multiple of the initial loss counts as divergence.
+    history_size : int
+        L-BFGS memory.
+    threads : int
+        torch intra-op threads during the run (restored after); 0 = leave torch's setting.
+        Default 1: on this 2-core machine shared with other jobs, 2 OpenMP threads
+        made each step 30-100x slower (every op's barrier waits for a descheduled
+        thread), while one thread loses at most 2x on an idle machine.
+    """
+
+    lambdas: Any = "appendix_b"
+    optimizer: str = "fast"
+    steps: int | None = None
+    lr: float | None = None
+    loss: str = "thesis"
+    dtype: str = "float32"
+    tol: float = 1e-6
+    divergence_factor: float = 1e3
+    history_size: int = 10
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        lam = self.lambdas
+        if isinstance(lam, str):
+            if lam not in PRESETS:
+                raise NpsimInputError(f"unknown λ preset {lam!r}; choose one of {sorted(PRESETS)}")
+            lam = PRESETS[lam]
+        try:
+            lam = tuple(float(x) for x in lam)
+        except TypeError:
+            raise NpsimInputError(f"lambdas must be 3 numbers or a preset name, got {self.lambdas!r}") from None
+        if len(lam) != 3 or not all(math.isfinite(x) and x >= 0 for x in lam):
+            raise NpsimInputError(f"lambdas must be 3 finite numbers >= 0, got {self.lambdas!r}")
+        object.__setattr__(self, "lambdas", lam)
+        if self.optimizer not in _DEFAULT_STEPS:
+            raise NpsimInputError(f"optimizer must be one of {sorted(_DEFAULT_STEPS)}, got {self.optimizer!r}")
+        if self.loss not in ("thesis", "scale_aware"):
+            raise NpsimInputError(f"loss must be 'thesis' or 'scale_aware', got {self.loss!r}")
+        if self.dtype not in ("float32", "float64"):
+            raise NpsimInputError(f"dtype must be 'float32' or 'float64', got {self.dtype!r}")
+        if self.steps is not None and int(self.steps) < 0:
+            raise NpsimInputError(f"steps must be >= 0, got {self.steps}")
+        if self.lr is not None:
+            check_positive(self.lr, "RefineParams.lr")
+        check_positive(self.tol, "RefineParams.tol", allow_zero=True)
+        check_positive(self.divergence_factor, "RefineParams.divergence_factor")
+        if int(self.threads) < 0:
+            raise NpsimInputError(f"threads must be >= 0, got {self.threads}")
+        if int(self.history_size) < 1:
+            raise NpsimInputError(f"history_size must be >= 1, got {self.history_size}")
+
+    @classmethod
+    def preset(cls, name: str, **kwargs) -> "RefineParams":
+        """Parameters with the λ's of a named preset (see :data:`PRESETS`)."""
+        return cls(lambdas=name, **kwargs)
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.steps) if self.steps is not None else _DEFAULT_STEPS[self.optimizer]
+
+    @property
+    def learning_rate(self) -> float:
+        return float(self.lr) if self.lr is not None else _DEFAULT_LR[self.optimizer]
+
+
+@dataclass
+class RefineResult:
+    """Output of :func:`refine_depth`.
+
+    Attributes
+    ----------
+    depth : (H, W) float32
+        Refined depth in metres (best iterate); NaN where the input was invalid.
+    history : dict of 1-D float64 arrays
+        Per iterate k = 0..steps: 'total', 'normal', 'continuity', 'depth' (unweighted
+        terms; total is weighted) and 'time_s' (seconds since the optimisation began).
+    timings : dict
+        'setup_s', 'optimize_s', 'total_s' (seconds).
+    converged, diverged : bool
+    message : str
+        Human-readable summary (why it stopped, flipped normals, ...).
+    steps : int
+        Iterations run.
+    best_step : int
+        Iterate whose depth is returned.
+    max_change_m : float
+        max |refined − initial| over valid pixels (m).
+    """
+
+    depth: np.ndarray
+    history: dict[str, np.ndarray]
+    timings: dict[str, float]
+    converged: bool
+    diverged: bool
+    message: str
+    steps: int = 0
+    best_step: int = 0
+    max_change_m: float = 0.0
+
+    @property
+    def final_loss(self) -> float:
+        return float(self.history["total"][self.best_step]) if len(self.history["total"]) else float("nan")
+
+
+def _is_cancelled(cancel) -> bool:
+    if cancel is None:
+        return False
+    if isinstance(cancel, threading.Event) or hasattr(cancel, "is_set"):
+        return bool(cancel.is_set())
+    return bool(cancel())
+
+
+class RefinementProblem:
+    """The loss of SPEC §2.3 on fixed inputs, as torch tensors (built once, evaluated many times).
+
+    ``terms(d)`` returns the three unweighted terms for a full HxW depth tensor;
+    ``total(d)`` their λ-weighted sum. Invalid pixels hold placeholder depth 1 and
+    are masked out of every term (masking by selection, so no NaN ever enters).
+    """
+
+    def __init__(self, depth: np.ndarray, normals: np.ndarray, intr: Intrinsics, uncertain: np.ndarray,
+                 params: RefineParams, anchor: np.ndarray | None = None):
+        self.params = params
+        dt = torch.float64 if params.dtype == "float64" else torch.float32
+        self.dtype = dt
+        H, W = depth.shape
+        self.shape = (H, W)
+        vd = valid_depth_mask(depth)
+        anchor = depth if anchor is None else anchor
+        va = valid_depth_mask(anchor)
+        vd &= va
+        n = normals.astype(np.float64)
+        finite = np.isfinite(n).all(axis=-1)
+        n = np.where(finite[..., None], n, 0.0)
+        length = np.linalg.norm(n, axis=-1)
+        vn = finite & (length > 1e-6)
+        n = np.where(vn[..., None], n / np.maximum(length, 1e-12)[..., None], 0.0)
+        rays = intr.pixel_rays(np.float64)
+        away = vn & (np.einsum("ijk,ijk->ij", n, rays) > 0)
+        n[away] *= -1.0
+        self.n_flipped = int(away.sum())
+        self.valid = vd
+        d0 = np.where(vd, depth, 1.0).astype(np.float64)
+        da = np.where(vd, anchor, 1.0).astype(np.float64)
+        keep = 1.0 - uncertain.astype(np.float64)
+        t = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(dt)  # noqa: E731
+        self.d_init = t(d0)
+        self.d_est = t(da)
+        self.rays = t(rays)
+        self.N = t(n)
+        # Normal term mask on the (H-1, W-1) grid of forward tangent pairs.
+        mn = vd[:-1, :-1] & vd[:-1, 1:] & vd[1:, :-1] & vn[:-1, :-1]
+        self.m_n = t(mn)
+        self.n_n = max(1.0, float(mn.sum()))
+        # Continuity: residual_u(p) = d(p+x) a_u(p) − d(p) b(p), a_u = r(p+x)·N(p), b = r(p)·N(p).
+        b = np.einsum("ijk,ijk->ij", rays, n)
+        a_u = np.einsum("ijk,ijk->ij", rays[:, 1:], n[:, :-1])
+        a_v = np.einsum("ijk,ijk->ij", rays[1:, :], n[:-1, :])
+        mu = vd[:, :-1] & vd[:, 1:] & vn[:, :-1]
+        mv = vd[:-1, :] & vd[1:, :] & vn[:-1, :]
+        any_c = np.zeros((H, W), bool)
+        any_c[:, :-1] |= mu
+        any_c[:-1, :] |= mv
+        self.n_c = max(1.0, float(any_c.sum()))
+        self.n_d = max(1.0, float(vd.sum()))
+        f = math.sqrt(intr.fx * intr.fy)
+        if params.loss == "scale_aware":
+            inv_s = f / da  # 1 / pixel footprint
+            wu = mu * keep[:, :-1] * inv_s[:, :-1] ** 2
+            wv = mv * keep[:-1, :] * inv_s[:-1, :] ** 2
+            wd = vd / (da * da)
+        else:
+            wu = mu * keep[:, :-1]
+            wv = mv * keep[:-1, :]
+            wd = vd.astype(np.float64)
+        self.a_u, self.a_v, self.b = t(a_u), t(a_v), t(b)
+        self.w_u, self.w_v, self.w_d = t(wu), t(wv), t(wd)
+        # Preconditioner for the fast optimiser: pixel footprint in metres (1 where invalid: inert).
+        self.scale = t(np.where(vd, da / f, 1.0))
+        self.lambdas = tuple(float(x) for x in params.lambdas)
+
+    def terms(self, d: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        P = d[..., None] * self.rays
+        Tu = P[:, 1:] - P[:, :-1]
+        Tv = P[1:, :] - P[:-1, :]
+        a, c = Tv[:, :-1], Tu[:-1, :]
+        nx = a[..., 1] * c[..., 2] - a[..., 2] * c[..., 1]
+        ny = a[..., 2] * c[..., 0] - a[..., 0] * c[..., 2]
+        nz = a[..., 0] * c[..., 1] - a[..., 1] * c[..., 0]
+        norm = torch.sqrt(nx * nx + ny * ny + nz * nz).clamp_min(1e-30)
+        N = self.N[:-1, :-1]
+        e = (nx / norm - N[..., 0]) ** 2 + (ny / norm - N[..., 1]) ** 2 + (nz / norm - N[..., 2]) ** 2
+        l_normal = (e * self.m_n).sum() / self.n_n
+        ru = d[:, 1:] * self.a_u - d[:, :-1] * self.b[:, :-1]
+        rv = d[1:, :] * self.a_v - d[:-1, :] * self.b[:-1, :]
+        l_cont = ((ru * ru * self.w_u).sum() + (rv * rv * self.w_v).sum()) / self.n_c
+        r = d - self.d_est
+        l_depth = (r * r * self.w_d).sum() / self.n_d
+        return l_normal, l_cont, l_depth
+
+    def total(self, d: torch.Tensor):
+        ln, lc, ld = self.terms(d)
+        l1, l2, l3 = self.lambdas
+        return l1 * ln + l2 * lc + l3 * ld, (ln, lc, ld)
+
+
+def _validate(depth, normals, intrinsics, uncertain):
+    d = as_depth(depth)
+    if not isinstance(intrinsics, Intrinsics):
+        raise NpsimInputError(f"intrinsics must be an Intrinsics, got {type(intrinsics).__name__}")
+    if d.shape != (intrinsics.height, intrinsics.width):
+        raise NpsimInputError(f"depth has shape {d.shape} but the intrinsics are for "
+                              f"{intrinsics.height}x{intrinsics.width} (HxW); use Intrinsics.resized()")
+    n = as_normals(normals, d.shape)
+    u = np.zeros(d.shape, bool) if uncertain is None else as_mask(uncertain, d.shape, "uncertain map")
+    return d, n, u
+
+
+def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params: RefineParams | None = None, *,
+                 anchor=None, progress: Callable[[int, int, dict], None] | None = None,
+                 cancel=None) -> RefineResult:
+    """Normal-guided depth refinement.
+
+    Parameters
+    ----------
+    depth : (H, W) real
+        Initial depth in metres (the filtered depth in the pipeline); also the
+        anchor d_est of L_depth unless ``anchor`` is given. Invalid = NaN/inf/<=0.
+    normals : (H, W, 3) float
+        Estimated unit normals N (camera frame, toward the camera).
+    intrinsics : Intrinsics
+        Camera of this image size.
+    uncertain : (H, W) bool, optional
+        Uncertain map U (no continuity penalty where True). None = all False.
+    params : RefineParams
+    anchor : (H, W) real, optional
+        d_est of L_depth when it differs from the initial depth.
+    progress : callable(step, total, losses), optional
+        Called after every iterate with a dict of 'total', 'normal', 'continuity', 'depth'.
+    cancel : threading.Event or callable returning bool, optional
+        Checked every step; when set, raises NpsimCancelled.
+
+    Returns
+    -------
+    RefineResult
+    """
+    t_start = time.perf_counter()
+    params = params if params is not None else RefineParams()
+    if not isinstance(params, RefineParams):
+        raise NpsimInputError(f"params must be RefineParams, got {type(params).__name__}")
+    d, n, u = _validate(depth, normals, intrinsics, uncertain)
+    a = None if anchor is None else as_depth(anchor, "anchor")
+    if a is not None and a.shape != d.shape:
+        raise NpsimInputError(f"anchor has shape {a.shape}, depth {d.shape}; pass matching arrays")
+    prob = RefinementProblem(d, n, intrinsics, u, params, anchor=a)
+    t_setup = time.perf_counter()
+    if params.optimizer == "adam_faithful":
+        run = _run_adam
+    else:
+        run = _run_lbfgs
+    prev_threads = torch.get_num_threads()
+    if params.threads:
+        torch.set_num_threads(int(params.threads))
+    try:
+        best, hist, info = run(prob, params, progress, cancel)
+    finally:
+        if params.threads:
+            torch.set_num_threads(prev_threads)
+    t_end = time.perf_counter()
+    out = np.full(d.shape, np.nan, np.float32)
+    valid = prob.valid
+    best_np = best.detach().cpu().numpy()
+    ok = valid & np.isfinite(best_np) & (best_np > 0)
+    out[ok] = best_np[ok].astype(np.float32)
+    bad = valid & ~ok
+    if bad.any():  # a non-positive or non-finite refined value would be silently invalid: keep the input there
+        out[bad] = d[bad]
+    change = float(np.max(np.abs(out[valid].astype(np.float64) - d[valid]))) if valid.any() else 0.0
+    msgs = [info["message"]]
+    if prob.n_flipped:
+        msgs.append(f"{prob.n_flipped} normals faced away from the camera and were flipped")
+    if bad.any():
+        msgs.append(f"{int(bad.sum())} pixels left non-positive by the optimiser kept their input depth")
+    history = {k: np.asarray(v, np.float64) for k, v in hist.items()}
+    return RefineResult(depth=out, history=history,
+                        timings={"setup_s": t_setup - t_start, "optimize_s": t_end - t_setup,
+                                 "total_s": t_end - t_start},
+                        converged=info["converged"], diverged=info["diverged"], message="; ".join(msgs),
+                        steps=info["steps"], best_step=info["best_step"], max_change_m=change)
+
+
+class _Tracker:
+    """History, best iterate, divergence and cancellation shared by both optimisers."""
+
+    def __init__(self, params: RefineParams, total_steps: int, progress, cancel):
+        self.hist: dict[str, list] = {k: [] for k in ("total", "normal", "continuity", "depth", "time_s")}
+        self.t0 = time.perf_counter()
+        self.best_loss = math.inf
+        self.best_d: torch.Tensor | None = None
+        self.best_step = 0
+        self.initial: float | None = None
+        self.params = params
+        self.total_steps = total_steps
+        self.progress = progress
+        self.cancel = cancel
+
+    def record(self, step: int, loss: torch.Tensor, terms, d: torch.Tensor) -> str | None:
+        """Log iterate ``step`` (depth ``d``); returns a divergence reason or None."""
+        lv = float(loss.detach())
+        vals = [float(x.detach()) for x in terms]
+        self.hist["total"].append(lv)
+        self.hist["normal"].append(vals[0])
+        self.hist["continuity"].append(vals[1])
+        self.hist["depth"].append(vals[2])
+        self.hist["time_s"].append(time.perf_counter() - self.t0)
+        if self.progress is not None:
+            self.progress(step, self.total_steps, {"total": lv, "normal": vals[0], "continuity": vals[1],
+                                                   "depth": vals[2]})
+        if not math.isfinite(lv) or not torch.isfinite(d).all():
+            return f"loss became non-finite at step {step}"
+        if self.initial is None:
+            self.initial = lv
+        if lv < self.best_loss:
+            self.best_loss = lv
+            self.best_d = d.detach().clone()
+            self.best_step = step
+        if lv > self.params.divergence_factor * max(self.initial, 1e-30) and lv > 1e-12:
+            return f"loss blew up to {lv:.3g} (initial {self.initial:.3g}) at step {step}"
+        return None
+
+    def check_cancel(self) -> None:
+        if _is_cancelled(self.cancel):
+            raise NpsimCancelled("depth refinement cancelled")
+
+
+def _run_adam(prob: RefinementProblem, params: RefineParams, progress, cancel):
+    steps = params.n_steps
+    tr = _Tracker(params, steps, progress, cancel)
+    d = prob.d_init.clone().requires_grad_(True)
+    opt = torch.optim.Adam([d], lr=params.learning_rate)
+    reason = None
+    k = 0
+    for k in range(steps + 1):
+        tr.check_cancel()
+        opt.zero_grad(set_to_none=True)
+        loss, terms = prob.total(d)
+        reason = tr.record(k, loss, terms, d.detach())
+        if reason or k == steps:
+            break
+        loss.backward()
+        opt.step()
+    info = {"converged": False, "diverged": reason is not None, "steps": k, "best_step": tr.best_step,
+            "message": (f"diverged: {reason}; kept the best iterate (step {tr.best_step})" if reason
+                        else f"Adam ran {k} steps (lr {params.learning_rate:g})")}
+    best = tr.best_d if tr.best_d is not None else prob.d_init
+    return best, tr.hist, info
+
+
+def _run_lbfgs(prob: RefinementProblem, params: RefineParams, progress, cancel):
+    steps = params.n_steps
+    tr = _Tracker(params, steps, progress, cancel)
+    x = torch.zeros_like(prob.d_init, requires_grad=True)
+    base, scale = prob.d_init, prob.scale
+    opt = torch.optim.LBFGS([x], lr=params.learning_rate, max_iter=1, max_eval=50, tolerance_grad=0.0,
+                            tolerance_change=0.0, history_size=int(params.history_size),
+                            line_search_fn="strong_wolfe")
+    state = {"calls": 0, "k": 0, "reason": None}
+
+    def closure():
+        opt.zero_grad(set_to_none=True)
+        d = base + scale * x
+        loss, terms = prob.total(d)
+        if state["calls"] == 0:  # the first evaluation of a step is at the current iterate: log it
+            state["reason"] = tr.record(state["k"], loss, terms, d.detach())
+        state["calls"] += 1
+        if torch.isfinite(loss):
+            loss.backward()
+        else:  # the line search sees a non-finite value and backs off; no NaN gradient
+            x.grad = torch.zeros_like(x)
+        return loss
+
+    converged = False
+    k = 0
+    while True:
+        tr.check_cancel()
+        state["calls"] = 0
+        state["k"] = k
+        if k == steps:
+            with torch.no_grad():
+                d = base + scale * x
+                loss, terms = prob.total(d)
+            state["reason"] = tr.record(k, loss, terms, d)
+            break
+        opt.step(closure)
+        if state["reason"]:
+            break
+        tot = tr.hist["total"]
+        if len(tot) > 5 and tot[-6] - tot[-1] <= params.tol * max(abs(tot[-6]), 1e-30):
+            converged = True
+            break
+        k += 1
+    reason = state["reason"]
+    info = {"converged": converged, "diverged": reason is not None, "steps": k, "best_step": tr.best_step}
+    if reason:
+        info["message"] = f"diverged: {reason}; kept the best iterate (step {tr.best_step})"
+    elif converged:
+        info["message"] = f"L-BFGS converged after {k} iterations"
+    else:
+        info["message"] = f"L-BFGS stopped at the {steps}-iteration budget"
+    best = tr.best_d if tr.best_d is not None else base
+    return best, tr.hist, info
