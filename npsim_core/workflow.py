@@ -398,7 +398,8 @@ class Workflow:
         if mp.postprocess and mp.stride == 1:
             pp = replace(params.postprocess, far_limit=mp.far_limit)
             res = postprocess_mesh(depth, intr, self.scene.labels, up["uncertain"], light_ids=light_ids, params=pp)
-            return {"mesh": res.mesh, "removed": getattr(res, "removed", None), "counts": res.counts}
+            removed = removed_faces(depth, intr, self.scene.labels, up["uncertain"])
+            return {"mesh": res.mesh, "removed": removed, "counts": res.counts}
         d = np.where(depth <= mp.far_limit, depth, np.nan).astype(np.float32)
         mesh = grid_mesh(d, intr, self.scene.labels, light_ids, stride=mp.stride)
         return {"mesh": mesh, "removed": None, "counts": {"faces": mesh.n_faces}}
@@ -512,3 +513,223 @@ class NightFrame:
     elapsed: float
     variant: str
     active: Any = None
+
+
+# --------------------------------------------------------------------------- uncertain-face deletion, for display
+def removed_faces(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, uncertain: np.ndarray) -> MeshPart:
+    """The grid faces that uncertain-face deletion removes (any vertex in U), as one part."""
+    from .mesh.grid import grid_mesh
+
+    full = grid_mesh(depth, intrinsics, labels).parts
+    parts = [p for p in full if p.n_faces]
+    if not parts:
+        return MeshPart("removed", np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64), np.zeros((0, 2), np.float32),
+                        np.zeros((0, 2), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
+    p = parts[0]
+    px = np.rint(p.pixel).astype(np.intp)
+    in_u = uncertain[px[:, 1], px[:, 0]]
+    keep = in_u[p.faces].any(axis=1)
+    return MeshPart("removed", p.vertices, p.faces[keep], p.uv, p.pixel, p.label, p.light_id)
+
+
+# --------------------------------------------------------------------------- views
+def view_image(scene: Scene, results: WorkflowResults | None, mode: str) -> np.ndarray:
+    """An HxWx3 uint8 picture of ``mode`` (one of :data:`VIEW_MODES`) for the canvas."""
+    from .io import depth_to_rgb, normals_to_rgb
+    from .labels import cityscapes
+    from .metrics import angular_error_deg
+
+    r = results
+    black = np.zeros_like(scene.image)
+    if mode == "RGB":
+        return scene.image
+    if mode == "labels":
+        return cityscapes().colorize(scene.labels)
+    vmax = None
+    if scene.depth is not None and np.isfinite(scene.depth).any():
+        vmax = float(np.nanpercentile(scene.depth, 99))
+    if mode == "predicted depth":
+        d = r.depth_in if r is not None else scene.depth
+        return depth_to_rgb(d, vmax) if d is not None else black
+    if r is None:
+        return black
+    if mode == "refined depth":
+        return depth_to_rgb(r.depth, vmax) if r.depth is not None else black
+    if mode == "normals (predicted)":
+        return normals_to_rgb(r.normals_in) if r.normals_in is not None else black
+    if mode == "normals (refined)":
+        return normals_to_rgb(normals_from_depth(r.depth, r.intrinsics)) if r.depth is not None else black
+    if mode == "uncertain map":
+        if r.uncertain is None:
+            return black
+        out = (scene.image * 0.35).astype(np.uint8)
+        out[r.uncertain] = (255, 60, 60)
+        return out
+    if mode == "depth error vs GT":
+        e = r.depth_error()
+        return _heat(e, 0.25) if e is not None else black
+    if mode == "normal error vs GT":
+        if scene.normals_gt is None or r.depth is None:
+            return black
+        return _heat(angular_error_deg(normals_from_depth(r.depth, r.intrinsics), scene.normals_gt), 45.0)
+    raise NpsimInputError(f"unknown view mode {mode!r}; choose one of {VIEW_MODES}")
+
+
+def _heat(values: np.ndarray, vmax: float) -> np.ndarray:
+    import cv2
+
+    v = np.nan_to_num(np.clip(values / vmax, 0, 1), nan=0.0)
+    img = cv2.cvtColor(cv2.applyColorMap((v * 255).astype(np.uint8), cv2.COLORMAP_INFERNO), cv2.COLOR_BGR2RGB)
+    img[~np.isfinite(values)] = 0
+    return img
+
+
+# --------------------------------------------------------------------------- files
+def load_any_scene(path: str | Path, *, hfov_deg: float | None = None) -> Scene:
+    """A scene folder, a project folder, or one image of a dataset (labels found by the dataset readers)."""
+    path = Path(path)
+    if not path.exists():
+        raise NpsimInputError(f"{path}: not found; give a scene folder (see 'npsim sample') or an image")
+    if path.is_dir():
+        if (path / "project.json").exists():
+            return load_project(path)[0]
+        from .scene import load_scene
+
+        return load_scene(path)
+    from .datasets import open_dataset
+
+    for src in open_dataset(path.parent, hfov_deg=hfov_deg):
+        if Path(src.image_path).resolve() == path.resolve():
+            return src.load()
+    raise NpsimInputError(f"{path}: no labels found for this image; put <stem>_labelIds.png beside it or use a "
+                          "Cityscapes/ACDC folder layout")
+
+
+PROJECT_VERSION = 1
+
+
+def save_project(folder: str | Path, scene: Scene, params: WorkflowParams,
+                 results: WorkflowResults | None = None) -> Path:
+    """A project folder: the scene (with its current annotation), ``project.json`` with the
+    parameters, and the cached stage results as ``.npy`` arrays (plain JSON and arrays, no pickle)."""
+    from .io import write_json, write_npy
+    from .scene import save_scene
+
+    folder = Path(folder)
+    save_scene(scene, folder / "scene")
+    cached = {}
+    if results is not None:
+        for name, arr in (("filtered_depth", results.filtered), ("uncertain", results.uncertain),
+                          ("refined_depth", results.depth if results.refine is not None else None)):
+            if arr is not None:
+                write_npy(folder / "cache" / f"{name}.npy", np.asarray(arr))
+                cached[name] = f"cache/{name}.npy"
+    write_json(folder / "project.json", {"format": "npsim-project", "version": PROJECT_VERSION, "scene": "scene",
+                                         "params": params.to_json(), "cache": cached})
+    return folder
+
+
+def load_project(folder: str | Path) -> tuple[Scene, WorkflowParams]:
+    """Read a project folder written by :func:`save_project`."""
+    from .io import read_json
+    from .scene import load_scene
+
+    folder = Path(folder)
+    doc = read_json(folder / "project.json")
+    if doc.get("format") != "npsim-project":
+        raise NpsimInputError(f"{folder / 'project.json'}: not an NPSim project file")
+    if int(doc.get("version", 0)) > PROJECT_VERSION:
+        raise NpsimInputError(f"{folder / 'project.json'}: written by a newer NPSim (version {doc['version']}); "
+                              "update NPSim to open it")
+    scene = load_scene(folder / doc.get("scene", "scene"))
+    return scene, WorkflowParams.from_json(doc.get("params", {}), str(folder / "project.json"))
+
+
+EXPORT_KINDS = ("masks", "depth", "normals", "mesh", "nights")
+
+
+def export_scene(wf: Workflow, params: WorkflowParams, folder: str | Path, *, nights: int = 1,
+                 kinds: tuple[str, ...] = EXPORT_KINDS, mesh_formats: tuple[str, ...] = ("ply", "glb"),
+                 cancel: threading.Event | None = None,
+                 progress: Callable[[float, str], None] | None = None) -> list[Path]:
+    """Write masks, depth, normals, meshes and ``nights`` night images of ``wf``'s scene to ``folder``.
+
+    Every file is written atomically; returns the written paths (also listed in
+    ``<name>_export.json``). ``progress(fraction, text)`` reports as it goes.
+    """
+    from .annotation import save_annotation
+    from .io import depth_to_rgb, normals_to_rgb, write_depth_png, write_image, write_json, write_npy, write_normals_png
+
+    bad = [k for k in kinds if k not in EXPORT_KINDS]
+    if bad:
+        raise NpsimInputError(f"unknown export kinds {bad}; choose from {EXPORT_KINDS}")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    s = wf.scene
+    n = s.name
+    written: list[Path] = []
+    steps = 2 + ("nights" in kinds) * max(nights, 0)
+    done = [0]
+
+    def step(text: str) -> None:
+        _check_cancel(cancel)
+        if progress is not None:
+            progress(done[0] / steps, text)
+        done[0] += 1
+
+    step("computing depth refinement and mesh")
+    res = wf.compute(params, until="mesh", cancel=cancel)
+    step("writing masks, depth, normals, mesh")
+    if "masks" in kinds:
+        p = folder / f"{n}_labelIds.png"
+        write_image(p, s.labels)
+        written.append(p)
+        p = folder / f"{n}_uncertain.png"
+        write_image(p, res.uncertain.astype(np.uint8) * 255)
+        written.append(p)
+        if wf.annotation is not None:
+            written += list(save_annotation(wf.annotation, folder, n).values())
+    if "depth" in kinds:
+        for tag, d in (("input", res.depth_in), ("refined", res.depth)):
+            written.append(folder / f"{n}_depth_{tag}.npy")
+            write_npy(written[-1], d.astype(np.float32))
+            written.append(folder / f"{n}_depth_{tag}.png")
+            write_depth_png(written[-1], d)
+            written.append(folder / f"{n}_depth_{tag}_vis.png")
+            write_image(written[-1], depth_to_rgb(d))
+    if "normals" in kinds:
+        nr = normals_from_depth(res.depth, res.intrinsics)
+        written.append(folder / f"{n}_normals_refined.npy")
+        write_npy(written[-1], nr)
+        written.append(folder / f"{n}_normals_refined.png")
+        write_normals_png(written[-1], nr)
+        written.append(folder / f"{n}_normals_refined_vis.png")
+        write_image(written[-1], normals_to_rgb(nr))
+    if "mesh" in kinds:
+        from .mesh.export import export_mesh
+
+        out = export_mesh(res.mesh, folder, stem=f"{n}_mesh", formats=mesh_formats, image=s.image)
+        written += list(out.values()) if isinstance(out, dict) else list(out)
+    nights_info = []
+    if "nights" in kinds:
+        for k in range(nights):
+            step(f"rendering night {k + 1}/{nights}")
+            seed = params.night.seed + k
+            frame = wf.night_final(res, params, seed=seed, cancel=cancel)
+            stem = f"{n}_night_{k}"
+            for path, write, data in ((folder / f"{stem}.png", write_image, frame.image),
+                                      (folder / f"{stem}_linear.npy", write_npy, frame.linear),
+                                      (folder / f"{stem}_labelIds.png", write_image, s.labels)):
+                write(path, data)
+                written.append(path)
+            written.append(folder / f"{stem}_lights.json")
+            write_json(written[-1], frame.active.to_json())
+            nights_info.append({"night": k, "seed": seed, "spp": frame.spp, "variant": frame.variant,
+                                "seconds": round(frame.elapsed, 3)})
+    manifest = folder / f"{n}_export.json"
+    write_json(manifest, {"scene": n, "params": params.to_json(), "timings": res.timings, "nights": nights_info,
+                          "files": [p.name for p in written]})
+    written.append(manifest)
+    if progress is not None:
+        progress(1.0, f"exported {len(written)} files")
+    return written

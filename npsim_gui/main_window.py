@@ -76,6 +76,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
 
         self.params_panel = ParameterPanel()
+        self.params_panel.setMinimumWidth(380)
         self.params_dock = self._dock("Parameters", self.params_panel, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.viewer = MeshViewer() if with_3d else None
         if self.viewer is not None:
@@ -171,7 +172,7 @@ class MainWindow(QMainWindow):
 
     def _update_title(self, *_a) -> None:
         name = self.workflow.scene.name if self.workflow else "no scene"
-        dirty = " *" if self.editor.session.is_dirty() else ""
+        dirty = " *" if self.editor.session.is_dirty else ""
         self.setWindowTitle(f"NPSim — {name}{dirty}")
 
     # ----------------------------------------------------------------- parameters
@@ -278,7 +279,7 @@ class MainWindow(QMainWindow):
         self._t_change = 0.0
         self.on_render_progress(frame)
         self.log.log(f"night preview {frame.spp} spp in {frame.elapsed:.2f} s ({frame.variant}); "
-                     f"{len(frame.active.on_ids()) if frame.active else 0} lights on")
+                     f"{len(frame.active.on_ids) if frame.active else 0} lights on")
 
     def _fill_lights(self, active) -> None:
         ann = self.workflow.annotation
@@ -287,7 +288,10 @@ class MainWindow(QMainWindow):
         grouped = {m for g in ann.groups.values() for m in g.members}
         groups = {gid: list(g.members) for gid, g in ann.groups.items()}
         singles = [i for i in ann.instance_ids() if i not in grouped]
-        state = {i: s.on for i, s in active.states.items()}
+        state = {i: st.on for i, st in active.lights.items()}
+        if state == getattr(self, '_filled_state', None):
+            return
+        self._filled_state = state
         self.render_panel.set_lights(groups, singles, state)
 
     # ----------------------------------------------------------------- files
@@ -398,7 +402,7 @@ class MainWindow(QMainWindow):
             self.restoreState(state)
 
     def closeEvent(self, event) -> None:  # noqa: N802
-        if self.editor.session.is_dirty():
+        if self.editor.session.is_dirty:
             try:
                 self.editor.session.autosave()
             except Exception:  # autosave is best effort at close; the user is asked below

@@ -59,7 +59,7 @@ class MeshViewer(QWidget):
         self.show_removed = QCheckBox("removed faces")
         self.show_lights = QCheckBox("emitters")
         for cb in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
-            cb.setChecked(cb is not self.show_lights)
+            cb.setChecked(cb in (self.show_bg, self.show_fg))
             cb.toggled.connect(self._redraw)
         self.mode.currentTextChanged.connect(self._redraw)
         self.reset_btn = QPushButton("Input view")

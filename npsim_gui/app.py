@@ -1,0 +1,60 @@
+"""``npsim gui``: start the desktop app (on the built-in synthetic scene by default)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+
+def has_display() -> bool:
+    """True when Qt can open windows here (an X or Wayland display, or an explicit Qt platform)."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+                or os.environ.get("QT_QPA_PLATFORM"))
+
+
+def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), screenshot: str | None = None,
+         quit_after: float | None = None) -> int:
+    """Open the main window on ``path`` (scene folder, project folder or dataset image) or the sample scene.
+
+    ``screenshot``/``quit_after`` (seconds) support unattended runs: after the first
+    render the window is grabbed to a PNG and the app exits.
+    """
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication
+
+    from npsim_core.errors import NpsimInputError
+    from npsim_core.workflow import load_any_scene, load_project
+
+    from .main_window import MainWindow
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("NPSim")
+    params = None
+    try:
+        if path is None:
+            from npsim_core.synthetic import street_scene
+
+            scene = street_scene(*sample_size)
+        elif (Path(path) / "project.json").exists():
+            scene, params = load_project(path)
+        else:
+            scene = load_any_scene(path)
+    except NpsimInputError as exc:
+        print(f"npsim gui: error: {exc}", file=sys.stderr)
+        return 2
+    win = MainWindow()
+    win.show()
+    win.set_scene(scene, params)
+    if screenshot or quit_after:
+        def finish() -> None:
+            if screenshot:
+                win.grab().save(screenshot)
+                print(f"npsim gui: screenshot -> {screenshot}", file=sys.stderr)
+            win.confirm_close = lambda: True
+            win.close()
+            app.quit()
+        if screenshot:
+            win.render_jobs.finished.connect(lambda *_: QTimer.singleShot(500, finish))
+        QTimer.singleShot(int((quit_after or 600) * 1000), finish)
+    return app.exec()
