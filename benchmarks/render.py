@@ -14,11 +14,12 @@ fixed night (seed 1). For each Mitsuba variant and resolution it measures
   *including* the scene build (the target: 512x256 at 16 spp <= 2 s),
 * ``final``   one-bounce path tracing (max_depth 3) at several spp,
 
-and the error against a high-spp reference of the same integrator: relative
-RMSE = RMSE / mean of the reference, on the linear image clipped to [0, 1] (the
-display range, so single fireflies on lamp heads do not dominate). For
-2048x1024 the reference is a 256x128 crop (centre of the street) rendered at
-high spp; errors there are measured on that crop. Wall times on a shared
+and the error against a high-spp (``--ref-spp``, default 256) one-bounce
+reference: RMSE in 8-bit sRGB levels (0..255) of the noise-free picture at
+exposure 0. The preview's error includes its bias (no indirect bounce); the
+reference's own noise inflates errors by ~sqrt(1 + spp/ref_spp). For 2048x1024
+the reference is a 256x128 crop (centre of the street), and errors are measured
+on that crop. Wall times on a shared
 machine are noisy: the table also lists the process CPU time and the load.
 """
 
@@ -35,9 +36,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def _rel_rmse(img: np.ndarray, ref: np.ndarray) -> float:
-    a, b = np.clip(img, 0, 1), np.clip(ref, 0, 1)
-    return float(np.sqrt(np.mean((a - b) ** 2)) / max(float(b.mean()), 1e-12))
+def _srgb_rmse(img: np.ndarray, ref: np.ndarray) -> float:
+    """RMSE in 8-bit sRGB levels (exposure 0, no camera noise) -- what the night picture shows."""
+    from npsim_core.render.camera_post import linear_to_srgb
+
+    return float(np.sqrt(np.mean((linear_to_srgb(img) * 255.0 - linear_to_srgb(ref) * 255.0) ** 2)))
 
 
 def _timed(fn):
@@ -86,11 +89,7 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
     if crop_ref:
         cw, ch = 256, 128
         crop = ((W - cw) // 2, int(H * 0.45), cw, ch)
-    ref_d2 = ref_d3 = None
-    if preview:
-        ref_d2, t, _ = _timed(lambda: render_linear(built, spp=ref_spp, seed=999, max_depth=2, crop=crop))
-        log(f"  reference (direct) {ref_spp} spp {t:.1f} s")
-    ref_d3, t, _ = _timed(lambda: render_linear(built, spp=ref_spp, seed=998, crop=crop))
+    ref, t, _ = _timed(lambda: render_linear(built, spp=ref_spp, seed=998, crop=crop))
     log(f"  reference (one bounce) {ref_spp} spp {t:.1f} s")
 
     if preview:
@@ -102,22 +101,62 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
             return last.image
 
         img, t, c = _timed(prev)
-        err = _rel_rmse(img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]], ref_d2)
+        err = _srgb_rmse(img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]], ref)
         rows.append({"variant": variant, "size": f"{W}x{H}", "what": "preview 4x4 spp incl. build", "spp": 16,
                      "time": t, "cpu": c, "err": err})
         log(f"  preview {t:.2f} s err {err:.3f}")
     for spp in final_spp:
         img, t, c = _timed(lambda: render_linear(built, spp=spp, seed=spp, crop=None))
         part = img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
-        err = _rel_rmse(part, ref_d3)
+        err = _srgb_rmse(part, ref)
         rows.append({"variant": variant, "size": f"{W}x{H}", "what": "final (render only)", "spp": spp,
                      "time": t, "cpu": c, "err": err})
         log(f"  final {spp} spp {t:.2f} s err {err:.3f}")
     return rows
 
 
+def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 128, seeds=(0, 1, 2)) -> None:
+    """Day image + three nights of the synthetic street side by side (docs/img/night_triptych.png).
+
+    Uses the same path as ``npsim night``: the scene's *estimated* depth through the best
+    available mesh pipeline, default light table, camera post-processing at ISO 1600.
+    """
+    import cv2
+
+    from npsim_core.commands.night import build_night_mesh
+    from npsim_core.io import write_image
+    from npsim_core.render.camera_post import CameraParams, apply_camera
+    from npsim_core.render.lights import activate_lights, load_light_table
+    from npsim_core.render.materials import estimate_materials
+    from npsim_core.render.render import render_final
+    from npsim_core.render.scene_builder import BuildParams, build_scene
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W, H)
+    mesh, src = build_night_mesh(s)
+    table = load_light_table()
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
+                              light_classes=s.lights.class_map())
+    built = build_scene(mesh, s.intrinsics, mats, table, s.lights, None,
+                        BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch))
+    tiles = [s.image]
+    for seed in seeds:
+        built.apply_lights(activate_lights(s.lights, table, seed, image=s.image))
+        lin = render_final(built, spp=spp, seed=seed)
+        srgb, _ = apply_camera(lin, CameraParams(seed=seed))
+        tiles.append(srgb)
+        write_image(Path(path).with_name(f"night_{seed}.png"), srgb)
+    gap = np.full((H, 4, 3), 255, np.uint8)
+    row = np.concatenate(sum(([t, gap] for t in tiles), [])[:-1], axis=1)
+    labels = ["day (input)"] + [f"night seed {k}" for k in seeds]
+    for i, text in enumerate(labels):
+        cv2.putText(row, text, (i * (W + 4) + 6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    write_image(path, row)
+    print(f"wrote {path} (mesh: {src}, variant {built.variant}, {spp} spp)", file=sys.stderr)
+
+
 def format_table(rows: list[dict]) -> str:
-    lines = ["| variant | size | what | spp | time s | cpu s | rel. RMSE |", "|---|---|---|---|---|---|---|"]
+    lines = ["| variant | size | what | spp | time s | cpu s | RMSE (sRGB levels) |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         cpu = "-" if r["cpu"] is None else f"{r['cpu']:.1f}"
         err = "-" if r["err"] is None else f"{r['err']:.3f}"
@@ -130,7 +169,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="512x256 only")
     ap.add_argument("--variants", default=None, help="comma list (default: scalar_rgb plus llvm_ad_rgb if usable)")
     ap.add_argument("--out", default=None, help="also write the table (markdown) to this file")
+    ap.add_argument("--ref-spp", type=int, default=256, help="spp of the reference renders (default 256)")
+    ap.add_argument("--triptych", default=None, metavar="PNG",
+                    help="only write the day + three nights picture to PNG (e.g. docs/img/night_triptych.png)")
     args = ap.parse_args(argv)
+    if args.triptych:
+        make_triptych(args.triptych)
+        return 0
 
     from npsim_core.render.variant import choose_variant
 
@@ -146,9 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     load0 = os.getloadavg()
     rows: list[dict] = []
     for v in variants:
-        rows += bench_resolution(512, 256, v, [4, 16, 64], 1024, False, True, log)
+        rows += bench_resolution(512, 256, v, [4, 16, 64], args.ref_spp, False, True, log)
         if not args.quick:
-            rows += bench_resolution(2048, 1024, v, [16, 64], 1024, True, False, log)
+            rows += bench_resolution(2048, 1024, v, [16, 64], args.ref_spp, True, False, log)
     load1 = os.getloadavg()
     table = format_table(rows)
     head = (f"Mitsuba render benchmark ({time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} cores, "
