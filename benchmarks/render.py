@@ -133,11 +133,11 @@ def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 128, seeds=(
     from npsim_core.synthetic import street_scene
 
     s = street_scene(W, H)
-    mesh, src = build_night_mesh(s)
+    mesh, intr, src = build_night_mesh(s)
     table = load_light_table()
     mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
                               light_classes=s.lights.class_map())
-    built = build_scene(mesh, s.intrinsics, mats, table, s.lights, None,
+    built = build_scene(mesh, intr, mats, table, s.lights, None,
                         BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch))
     tiles = [s.image]
     for seed in seeds:

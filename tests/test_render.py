@@ -223,7 +223,7 @@ def test_night_cli(tmp_path):
     s = street_scene(64, 32)
     save_scene(s, tmp_path / "scene")
     rc = main(["night", str(tmp_path / "scene"), "-o", str(tmp_path / "out"), "--variants", "2", "--seed", "5",
-               "--spp", "2", "--variant", "scalar_rgb"])
+               "--spp", "2", "--variant", "scalar_rgb", "--mesh", "grid"])
     assert rc == 0
     for k in range(2):
         stem = tmp_path / "out" / f"{s.name}_night_{k}"

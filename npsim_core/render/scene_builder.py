@@ -165,15 +165,18 @@ def _gather(mesh: SceneMesh, y_scale: float) -> _Geometry:
 
 
 def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "object":
-    """A ``mi.Mesh`` of the selected faces with compacted vertices."""
+    """A ``mi.Mesh`` of the selected faces (mask or index array) with compacted vertices."""
     faces = geo.faces[face_sel]
-    used, inv = np.unique(faces.ravel(), return_inverse=True)
-    m = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), has_vertex_normals=False,
+    # O(V + F) compaction (no sort): keep used vertices, renumber by running count.
+    used = np.zeros(len(geo.vertices), dtype=bool)
+    used[faces.ravel()] = True
+    remap = np.cumsum(used, dtype=np.int64) - 1
+    m = mi.Mesh(name, vertex_count=int(used.sum()), face_count=len(faces), has_vertex_normals=False,
                 has_vertex_texcoords=True, props=props)
     p = mi.traverse(m)
     FT, UT = type(p["vertex_positions"]), type(p["faces"])
     p["vertex_positions"] = FT(np.ascontiguousarray(geo.vertices[used]).ravel())
-    p["faces"] = UT(inv.astype(np.uint32).ravel())
+    p["faces"] = UT(remap[faces].astype(np.uint32).ravel())
     p["vertex_texcoords"] = FT(np.ascontiguousarray(geo.uv[used]).ravel())
     p.update()
     return m
@@ -182,8 +185,8 @@ def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "obj
 def _face_areas_centroid(geo: _Geometry, sel: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Total area (m²), area-weighted centroid and mean unit normal of the selected faces."""
     f = geo.faces[sel]
-    v = geo.vertices.astype(np.float64)
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    v = geo.vertices
+    a, b, c = (v[f[:, k]].astype(np.float64) for k in range(3))
     cr = np.cross(b - a, c - a)
     area = 0.5 * np.linalg.norm(cr, axis=1)
     tot = float(area.sum())
@@ -397,8 +400,12 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     R = _level_to_camera(pitch)
     down = R @ np.array([0.0, 1.0, 0.0])
     down[1] *= ys
-    for lid in light_ids:
-        sel = geo.face_light == lid
+    # Faces of each light via one sort instead of a full scan per light.
+    lit_faces = np.nonzero(geo.face_light)[0]
+    lit_faces = lit_faces[np.argsort(geo.face_light[lit_faces], kind="stable")]
+    bounds = np.searchsorted(geo.face_light[lit_faces], light_ids + [np.iinfo(np.int32).max])
+    for j, lid in enumerate(light_ids):
+        sel = lit_faces[bounds[j]:bounds[j + 1]]
         props = mi.Properties()
         kind = KINDS[int(np.bincount(kind_of_face[sel]).argmax())]
         props["bsdf"] = bsdf(kind)
