@@ -231,80 +231,54 @@ def _check_cancel(cancel) -> None:
         raise NpsimCancelled("workflow cancelled")
 
 
-
-# --------------------------------------------------------------------------- stage engine
+# --------------------------------------------------------------------------- stages beyond npsim_core.pipeline's
 @dataclass(frozen=True)
-class Stage:
-    """A named stage: ``fn(params, upstream_outputs, ctx)``; its cache key covers
-    ``sections`` of the parameters, the keys of ``deps`` and ``extra_key()``."""
-
-    name: str
-    fn: Callable
-    deps: tuple[str, ...] = ()
-    sections: tuple[str, ...] = ()
-    extra_key: Callable[[], Any] | None = None
+class MeshStageParams:
+    mesh: MeshParams = MeshParams()
+    postprocess: PostprocessParams = PostprocessParams()
 
 
-@dataclass
-class StageContext:
-    cancel: threading.Event | None
-    progress: Callable[[dict], None] | None
+def _stage_refine_with_history(inputs: dict, params: RefineParams, ctx) -> RefineResult:
+    """Normal-guided refinement that also reports its loss curves while it runs (for the GUI)."""
+    from .refine.optimize import refine_depth
+
+    scene = inputs["scene"]
+    hist: dict[str, list[float]] = {"total": [], "normal": [], "continuity": [], "depth": []}
+    last = [0.0]
+
+    def on_step(step: int, total: int, losses: dict) -> None:
+        for k in hist:
+            if k in losses:
+                hist[k].append(float(losses[k]))
+        now = time.perf_counter()
+        if now - last[0] > 0.1 or step == total:
+            last[0] = now
+            ctx.progress(step / max(total, 1), {"stage": "refine", "step": step, "of": total,
+                                                "history": {k: list(v) for k, v in hist.items()}})
+
+    return refine_depth(inputs["filter"], scene.normals, scene.intrinsics, inputs["uncertain"], params,
+                        progress=on_step, cancel=ctx.cancel_flag)
 
 
-@dataclass
-class PipelineRun:
-    outputs: dict[str, Any]
-    keys: dict[str, str]
-    timings: dict[str, float]
-    recomputed: list[str]
+def _stage_mesh(inputs: dict, params: MeshStageParams, ctx) -> dict:
+    """Worldsheet grid of the refined depth + post-processing kernel; light ids per vertex."""
+    from .mesh.grid import grid_mesh
+    from .mesh.postprocess import postprocess_mesh
 
+    scene, ann = inputs["scene"], inputs["annotation"]
+    depth = inputs["refine"].depth
+    intr = scene.intrinsics
+    light_ids = ann.instance_map if ann is not None else None
+    mp = params.mesh
+    if mp.postprocess and mp.stride == 1:
+        pp = replace(params.postprocess, far_limit=mp.far_limit)
+        res = postprocess_mesh(depth, intr, scene.labels, inputs["uncertain"], light_ids=light_ids, params=pp)
+        removed = removed_faces(depth, intr, scene.labels, inputs["uncertain"])
+        return {"mesh": res.mesh, "removed": removed, "counts": res.counts}
+    d = np.where(depth <= mp.far_limit, depth, np.nan).astype(np.float32)
+    mesh = grid_mesh(d, intr, scene.labels, light_ids, stride=mp.stride)
+    return {"mesh": mesh, "removed": None, "counts": {"faces": mesh.n_faces}}
 
-class Pipeline:
-    """Runs stages in order, reusing a stage's cached output while its key is unchanged."""
-
-    def __init__(self, stages: list[Stage]):
-        self.stages = list(stages)
-        self._cache: dict[str, tuple[str, Any, float]] = {}
-
-    def key(self, stage: Stage, params: Any, keys: dict[str, str]) -> str:
-        import hashlib
-
-        parts = [stage.name] + [repr(getattr(params, s)) for s in stage.sections] + [keys[d] for d in stage.deps]
-        if stage.extra_key is not None:
-            parts.append(repr(stage.extra_key()))
-        return hashlib.sha1("\x1f".join(parts).encode()).hexdigest()[:16]
-
-    def run(self, params: Any, until: str, *, cancel: threading.Event | None = None,
-            progress: Callable[[dict], None] | None = None) -> PipelineRun:
-        outputs: dict[str, Any] = {}
-        keys: dict[str, str] = {}
-        timings: dict[str, float] = {}
-        recomputed: list[str] = []
-        ctx = StageContext(cancel, progress)
-        for st in self.stages:
-            _check_cancel(cancel)
-            k = self.key(st, params, keys)
-            keys[st.name] = k
-            hit = self._cache.get(st.name)
-            if hit is not None and hit[0] == k:
-                outputs[st.name] = hit[1]
-                timings[st.name] = hit[2]
-            else:
-                if progress is not None:
-                    progress({"stage": st.name})
-                t0 = time.perf_counter()
-                out = st.fn(params, {d: outputs[d] for d in st.deps}, ctx)
-                dt = time.perf_counter() - t0
-                self._cache[st.name] = (k, out, dt)
-                outputs[st.name] = out
-                timings[st.name] = dt
-                recomputed.append(st.name)
-            if st.name == until:
-                break
-        return PipelineRun(outputs, keys, timings, recomputed)
-
-    def clear(self) -> None:
-        self._cache.clear()
 
 
 class Workflow:
@@ -314,112 +288,87 @@ class Workflow:
     serialises callers; a cancelled run leaves completed stages cached).
     """
 
-    STAGES = ("input", "filter", "uncertain", "refine", "mesh")
+    STAGES = ("filter", "uncertain", "refine", "mesh")
 
     def __init__(self, scene: Scene):
+        from .pipeline import Pipeline, _stage_filter, _stage_uncertain
+
         self.scene = scene
         self.annotation = scene.lights
         self._annotation_version = 0
         self._lock = threading.Lock()
-        self.pipeline = Pipeline([
-            Stage("input", self._stage_input, deps=(), sections=("camera",)),
-            Stage("filter", self._stage_filter, deps=("input",), sections=("filter",)),
-            Stage("uncertain", self._stage_uncertain, deps=("filter",), sections=("uncertainty",)),
-            Stage("refine", self._stage_refine, deps=("input", "filter", "uncertain"), sections=("refine",)),
-            Stage("mesh", self._stage_mesh, deps=("input", "uncertain", "refine"),
-                  sections=("mesh", "postprocess"), extra_key=lambda: self._annotation_version),
-        ])
+        self._inputs: dict[float, Scene] = {}
+        self.pipeline = Pipeline(cache_size=4)
+        self.pipeline.add_source("scene", scene, key="unset")
+        self.pipeline.add_source("annotation", self.annotation, key="ann-0")
+        self.pipeline.add_stage("filter", _stage_filter, ("scene",), FilterParams())
+        self.pipeline.add_stage("uncertain", _stage_uncertain, ("scene", "filter"), UncertaintyParams())
+        self.pipeline.add_stage("refine", _stage_refine_with_history, ("scene", "filter", "uncertain"), RefineParams())
+        self.pipeline.add_stage("mesh", _stage_mesh, ("scene", "annotation", "uncertain", "refine"),
+                                MeshStageParams())
         self._night: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ annotation edits
     def set_annotation(self, ann) -> None:
         """Use an edited light annotation (invalidates the mesh and the night scene)."""
-        self.annotation = ann
-        self._annotation_version += 1
+        with self._lock:
+            self.annotation = ann
+            self._annotation_version += 1
+            self.pipeline.add_source("annotation", ann, key=f"ann-{self._annotation_version}")
 
-    # ------------------------------------------------------------------ stages
+    # ------------------------------------------------------------------ inputs
     def intrinsics(self, params: WorkflowParams) -> Intrinsics:
         if params.camera.hfov_deg and params.camera.hfov_deg > 0:
             return Intrinsics.from_fov(self.scene.width, self.scene.height, params.camera.hfov_deg)
         return self.scene.intrinsics
 
-    def _stage_input(self, params: WorkflowParams, up: dict, ctx) -> dict:
-        s = self.scene
-        intr = self.intrinsics(params)
-        if s.depth is not None:
-            depth = s.depth
-            normals = s.normals if s.normals is not None else normals_from_depth(depth, intr)
-            source = "scene"
-        else:
-            from .geometry import estimate_geometry
+    def input_scene(self, params: WorkflowParams) -> Scene:
+        """The scene the refinement reads: its intrinsics (or the FOV override) and its estimated
+        depth and normals -- or the semantic pop-up prior's when the scene has none (cached per FOV)."""
+        hfov = float(params.camera.hfov_deg or 0.0)
+        if hfov not in self._inputs:
+            s = self.scene
+            intr = self.intrinsics(params)
+            s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
+            if s.depth is None:
+                from .geometry import estimate_geometry
 
-            est = estimate_geometry(s.with_(intrinsics=intr), "popup")
-            depth, normals, source = est.depth, est.normals, "popup prior"
-        return {"depth": depth.astype(np.float32), "normals": normals.astype(np.float32), "intrinsics": intr,
-                "source": source}
-
-    def _stage_filter(self, params: WorkflowParams, up: dict, ctx) -> np.ndarray:
-        from .refine.bilateral import cross_bilateral
-
-        return cross_bilateral(up["input"]["depth"], self.scene.image, self.scene.labels, params.filter)
-
-    def _stage_uncertain(self, params: WorkflowParams, up: dict, ctx) -> np.ndarray:
-        from .refine.uncertainty import uncertain_map
-
-        return uncertain_map(up["filter"], self.scene.labels, params.uncertainty)
-
-    def _stage_refine(self, params: WorkflowParams, up: dict, ctx) -> RefineResult:
-        from .refine.optimize import refine_depth
-
-        progress = ctx.progress
-        hist: dict[str, list[float]] = {"total": [], "normal": [], "continuity": [], "depth": []}
-        last = [0.0]
-
-        def on_step(step: int, total: int, losses: dict) -> None:
-            for k in hist:
-                if k in losses:
-                    hist[k].append(float(losses[k]))
-            now = time.perf_counter()
-            if progress is not None and (now - last[0] > 0.1 or step == total):
-                last[0] = now
-                progress({"stage": "refine", "step": step, "of": total, "history": {k: list(v) for k, v in hist.items()}})
-
-        return refine_depth(up["filter"], up["input"]["normals"], up["input"]["intrinsics"], up["uncertain"],
-                            params.refine, anchor=up["input"]["depth"], progress=on_step, cancel=ctx.cancel)
-
-    def _stage_mesh(self, params: WorkflowParams, up: dict, ctx) -> dict:
-        from .mesh.grid import grid_mesh
-        from .mesh.postprocess import postprocess_mesh
-
-        depth = up["refine"].depth
-        intr = up["input"]["intrinsics"]
-        light_ids = self.annotation.instance_map if self.annotation is not None else None
-        mp = params.mesh
-        if mp.postprocess and mp.stride == 1:
-            pp = replace(params.postprocess, far_limit=mp.far_limit)
-            res = postprocess_mesh(depth, intr, self.scene.labels, up["uncertain"], light_ids=light_ids, params=pp)
-            removed = removed_faces(depth, intr, self.scene.labels, up["uncertain"])
-            return {"mesh": res.mesh, "removed": removed, "counts": res.counts}
-        d = np.where(depth <= mp.far_limit, depth, np.nan).astype(np.float32)
-        mesh = grid_mesh(d, intr, self.scene.labels, light_ids, stride=mp.stride)
-        return {"mesh": mesh, "removed": None, "counts": {"faces": mesh.n_faces}}
+                s = estimate_geometry(s, "popup").apply(s)
+            elif s.normals is None:
+                s = s.with_(normals=normals_from_depth(s.depth, intr))
+            self._inputs = {hfov: s}
+        return self._inputs[hfov]
 
     # ------------------------------------------------------------------ running
     def compute(self, params: WorkflowParams, until: str = "mesh", *, cancel: threading.Event | None = None,
                 progress: ProgressFn = None) -> WorkflowResults:
-        """Run (or reuse) every stage up to ``until``; returns the results and what was recomputed."""
+        """Run (or reuse) every stage up to ``until``; returns the results and what was recomputed.
+
+        ``progress`` receives dicts: ``{"stage": name}`` when a stage starts and, during
+        refinement, ``{"stage": "refine", "step", "of", "history"}`` (loss curves so far).
+        """
         if until not in self.STAGES:
             raise NpsimInputError(f"unknown stage {until!r}; stages are {self.STAGES}")
         with self._lock:
-            run = self.pipeline.run(params, until=until, cancel=cancel, progress=progress)
-        out = run.outputs
-        inp = out.get("input", {})
+            scene_in = self.input_scene(params)
+            self.pipeline.add_source("scene", scene_in, key=f"{self.scene.name}-{id(scene_in)}")
+            stage_params = {"filter": params.filter, "uncertain": params.uncertainty, "refine": params.refine,
+                            "mesh": MeshStageParams(params.mesh, params.postprocess)}
+            stage_params = {k: v for k, v in stage_params.items() if k in self.STAGES[:self.STAGES.index(until) + 1]}
+
+            def on_progress(stage: str, fraction: float, info: Any) -> None:
+                if progress is None:
+                    return
+                progress(info if isinstance(info, dict) else {"stage": stage, "fraction": fraction, "text": info})
+
+            run = self.pipeline.run(until=until, params=stage_params, cancel=cancel, progress=on_progress)
+        out = run.results
         mesh = out.get("mesh") or {}
-        return WorkflowResults(intrinsics=inp.get("intrinsics", self.scene.intrinsics), depth_in=inp.get("depth"),
-                               normals_in=inp.get("normals"), filtered=out.get("filter"),
-                               uncertain=out.get("uncertain"), refine=out.get("refine"), mesh=mesh.get("mesh"),
-                               removed=mesh.get("removed"), mesh_key=run.keys.get("mesh", ""), scene=self.scene,
-                               timings=dict(run.timings), recomputed=list(run.recomputed))
+        return WorkflowResults(intrinsics=scene_in.intrinsics, depth_in=scene_in.depth, normals_in=scene_in.normals,
+                               filtered=out.get("filter"), uncertain=out.get("uncertain"), refine=out.get("refine"),
+                               mesh=mesh.get("mesh"), removed=mesh.get("removed"), mesh_key=run.keys.get("mesh", ""),
+                               scene=self.scene, timings={k: v for k, v in run.timings.items()},
+                               recomputed=list(run.recomputed))
 
     # ------------------------------------------------------------------ night
     def night_scene(self, results: WorkflowResults, params: WorkflowParams):

@@ -51,7 +51,7 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
             if screenshot:
                 win.grab().save(screenshot)
                 print(f"npsim gui: screenshot -> {screenshot}", file=sys.stderr)
-            win.confirm_close = lambda: True
+            win.confirm_close = lambda: True  # unattended: never block on a dialog
             win.close()
             app.quit()
         if screenshot:

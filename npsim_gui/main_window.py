@@ -142,6 +142,11 @@ class MainWindow(QMainWindow):
         self.render_panel.renderRequested.connect(self.request_render)
         self.editor.dirtyChanged.connect(self._update_title)
         self.editor.session.changed.connect(lambda *_: self._annotation_edited())
+        self.autosave_timer = QTimer(self)
+        self.autosave_timer.setSingleShot(True)
+        self.autosave_timer.setInterval(2000)
+        self.autosave_timer.timeout.connect(self._autosave)
+        self.editor.session.changed.connect(lambda *_: self.autosave_timer.start())
 
     def _set_busy(self, text: str) -> None:
         self.busy_label.setText(text)
@@ -401,13 +406,41 @@ class MainWindow(QMainWindow):
         if state is not None:
             self.restoreState(state)
 
+    def ask(self, title: str, text: str, buttons: list[str]) -> str:
+        """Modal question; returns the chosen button's text (tests replace this method)."""
+        box = QMessageBox(QMessageBox.Icon.Question, title, text, parent=self)
+        for b in buttons:
+            box.addButton(b, QMessageBox.ButtonRole.AcceptRole)
+        box.exec()
+        clicked = box.clickedButton()
+        return clicked.text() if clicked is not None else buttons[-1]
+
+    def confirm_close(self) -> bool:
+        """Save / Discard / Cancel when the annotation has unsaved edits. True = go ahead."""
+        s = self.editor.session
+        if not s.is_dirty:
+            return True
+        choice = self.ask("Unsaved annotation", "Save your light annotation before closing?",
+                          ["Save", "Discard", "Cancel"])
+        if choice == "Save":
+            self.save_annotation()
+            return not s.is_dirty
+        if choice == "Discard":
+            s.discard_recovery()
+            return True
+        return False
+
+    def _autosave(self) -> None:
+        try:
+            if self.editor.session.is_dirty:
+                self.editor.session.autosave()
+        except Exception as exc:  # never lose the session over a failing autosave; say so
+            self.log.log(f"autosave failed: {exc}")
+
     def closeEvent(self, event) -> None:  # noqa: N802
         if self.editor.session.is_dirty:
-            try:
-                self.editor.session.autosave()
-            except Exception:  # autosave is best effort at close; the user is asked below
-                pass
-            if not getattr(self, "confirm_close", lambda: True)():
+            self._autosave()  # nothing is lost even if the dialog is answered wrongly
+            if not self.confirm_close():
                 event.ignore()
                 return
         s = QSettings(ORG, APP)
@@ -415,6 +448,7 @@ class MainWindow(QMainWindow):
         s.setValue("state", self.saveState())
         self.pipeline_jobs.cancel()
         self.render_jobs.cancel()
+        self.export_jobs.cancel()
         if self.viewer is not None:
             self.viewer.close_viewer()
         super().closeEvent(event)
