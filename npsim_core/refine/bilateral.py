@@ -68,7 +68,7 @@ class FilterParams:
         Fast filter only: clusters M read back per pixel (nearest to its colour).
     downsample : int
         Fast filter only: spatial grid step s of the colour term in pixels;
-        0 = automatic (about σs/2, at least 1).
+        0 = automatic (about σs/2, at least 1, at most min(H, W)/32).
     """
 
     mu: float = 5.0
@@ -261,7 +261,8 @@ def _colour_term_fast(dz: np.ndarray, valid: np.ndarray, rgb: np.ndarray, params
     lut[used] = np.argsort(dist, axis=1)[:, :M]
     near = lut[code]  # (H, W, M)
     # 3. Splat into the (cluster, y/s, x/s) grid, stored as a zero-padded atlas of K tiles.
-    s = int(params.downsample) or max(1, int(round(sig_s / 2.0)))
+    # Auto step: ~σs/2, but at least 32 grid cells across the short side (small images: full resolution).
+    s = int(params.downsample) or max(1, min(int(round(sig_s / 2.0)), min(H, W) // 32))
     hl, wl = -(-H // s), -(-W // s)
     sig_low = math.sqrt(max(sig_s ** 2 - s * s / 4.0, (0.5 * sig_s) ** 2))  # splat box + tent compensation
     r_low = max(1, int(math.ceil(3.0 * sig_s / s - 1e-9)))

@@ -420,7 +420,8 @@ class _Tracker:
             self.best_loss = lv
             self.best_d = d.detach().clone()
             self.best_step = step
-        if lv > self.params.divergence_factor * max(self.initial, 1e-30) and lv > 1e-12:
+        # A floor keeps a near-zero initial loss (a fixed point) from calling every wiggle a blow-up.
+        if lv > self.params.divergence_factor * max(self.initial, 1e-6):
             return f"loss blew up to {lv:.3g} (initial {self.initial:.3g}) at step {step}"
         return None
 
