@@ -157,28 +157,38 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
     e = P[:-1, :-1] - P[1:, 1:]
     dad = np.einsum("ijk,ijk->ij", e, e)
     del e
-    use_bc = dbc <= dad
-    a, b = index[:-1, :-1], index[:-1, 1:]
-    c, d = index[1:, :-1], index[1:, 1:]
+    use_bc = (dbc <= dad).ravel()
+    # Corner indices are gathered from the contiguous flat index by node position:
+    # quad q = (i, j) has its top-left node at i*w + j = q + i.
+    h, w = index.shape
+    # int32 halves the memory traffic of the gathers (indices of images up to 2^31 pixels).
+    small = index.size < 2**31 and (len(index) == 0 or int(index.max()) < 2**31)
+    flat = np.ascontiguousarray(index, dtype=np.int32 if small else np.int64).ravel()
     out = []
-    m = full & use_bc
-    fa, fb, fc, fd = a[m], b[m], c[m], d[m]
-    q = np.empty((len(fa), 2, 3), dtype=np.int64)
-    q[:, 0, 0], q[:, 0, 1], q[:, 0, 2] = fa, fc, fb
-    q[:, 1, 0], q[:, 1, 1], q[:, 1, 2] = fb, fc, fd
-    out.append(q.reshape(-1, 3))
-    m = full & ~use_bc
-    fa, fb, fc, fd = a[m], b[m], c[m], d[m]
-    q = np.empty((len(fa), 2, 3), dtype=np.int64)
-    q[:, 0, 0], q[:, 0, 1], q[:, 0, 2] = fa, fc, fd
-    q[:, 1, 0], q[:, 1, 1], q[:, 1, 2] = fa, fd, fb
-    out.append(q.reshape(-1, 3))
+    qf = np.flatnonzero(full.ravel()).astype(flat.dtype)
+    if len(qf):
+        p = qf + qf // (w - 1)
+        A, B, C, D = flat[p], flat[p + 1], flat[p + w], flat[p + w + 1]
+        bcq = use_bc[qf]
+        q = np.empty((len(qf), 2, 3), dtype=flat.dtype)
+        # Diagonal b-c: (a, c, b), (b, c, d); diagonal a-d: (a, c, d), (a, d, b).
+        q[:, 0, 0] = A
+        q[:, 0, 1] = C
+        q[:, 0, 2] = np.where(bcq, B, D)
+        q[:, 1, 0] = np.where(bcq, B, A)
+        q[:, 1, 1] = np.where(bcq, C, D)
+        q[:, 1, 2] = np.where(bcq, D, B)
+        out.append(q.reshape(-1, 3))
     part = ~full
-    for t, (x, y, z) in ((t1, (a, c, b)), (t2, (b, c, d)), (t3, (a, c, d)), (t4, (a, d, b))):
-        m = part & t
-        if m.any():
-            out.append(np.stack([x[m], y[m], z[m]], 1).astype(np.int64))
-    return np.concatenate(out, axis=0)
+    for t, corners in ((t1, (0, 2, 1)), (t2, (1, 2, 3)), (t3, (0, 2, 3)), (t4, (0, 3, 1))):
+        qs = np.flatnonzero((part & t).ravel()).astype(flat.dtype)
+        if len(qs):
+            p = qs + qs // (w - 1)
+            off = (0, 1, w, w + 1)
+            out.append(np.stack([flat[p + off[k]] for k in corners], 1))
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(out, axis=0).astype(np.int64, copy=False)
 
 
 def grid_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, light_ids: np.ndarray | None = None,

@@ -108,6 +108,11 @@ class _Pyramid:
                 e[cand] = np.maximum(self._cell_error(iz, s, nr, nc, cand), cmax[cand])
             self.err.append(e)
             self.levels = k
+        self.perr = [self._parent_err(k) for k in range(self.levels + 1)]
+        # Leaves at tau: e <= tau < parent e; as parent e >= e, their number is
+        # #{e <= tau} - #{parent e <= tau}, read from sorted arrays in O(log n).
+        self._se = [np.sort(e, axis=None) for e in self.err]
+        self._spe = [np.sort(e, axis=None) for e in self.perr]
 
     @staticmethod
     def _cell_error(iz: np.ndarray, s: int, nr: int, nc: int, cand: np.ndarray) -> np.ndarray:
@@ -126,7 +131,7 @@ class _Pyramid:
             rel = np.abs(nodes / interp - 1.0)
         return rel.reshape(len(ci), -1).max(1)
 
-    def parent_err(self, k: int) -> np.ndarray:
+    def _parent_err(self, k: int) -> np.ndarray:
         """Error of each level-k cell's parent (inf where it has none or k is the top level)."""
         e = self.err[k]
         out = np.full(e.shape, np.inf)
@@ -137,14 +142,18 @@ class _Pyramid:
         return out
 
     def leaves(self, tau: float) -> list[np.ndarray]:
-        return [(self.err[k] <= tau) & (self.parent_err(k) > tau) for k in range(self.levels + 1)]
+        return [(self.err[k] <= tau) & (self.perr[k] > tau) for k in range(self.levels + 1)]
+
+    def leaf_counts(self, tau: float) -> list[int]:
+        return [int(np.searchsorted(se, tau, "right") - np.searchsorted(spe, tau, "right"))
+                for se, spe in zip(self._se, self._spe)]
 
 
 def _estimate_faces(pyrs: list[_Pyramid], tau: float, fixed: int) -> float:
     n = float(fixed)
     for p in pyrs:
-        for k, leaf in enumerate(p.leaves(tau)):
-            n += leaf.sum() * (2.0 if k == 0 else 2.6)        # T-junction fans cost a little more
+        for k, c in enumerate(p.leaf_counts(tau)):
+            n += c * (2.0 if k == 0 else 2.6)        # T-junction fans cost a little more
     return n
 
 
