@@ -248,3 +248,31 @@ def test_bad_inputs(street):
     bad.vertices[0] = np.nan
     with pytest.raises(NpsimInputError):
         build_scene(dataclasses.replace(mesh, parts=[bad]), s.intrinsics, mats, table, variant=SCALAR)
+
+
+def test_visible_background_vertices_get_their_own_texture():
+    """Completed-but-visible background vertices (post-processing) must show their own pixel, hidden ones not."""
+    from npsim_core.mesh.types import MeshPart, SceneMesh
+    from npsim_core.render.scene_builder import _visible_background_repair
+
+    H, W = 4, 4
+    vv, uu = np.mgrid[0:H, 0:W]
+    pix = np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float32)
+    verts = np.concatenate([pix, np.ones((H * W, 1), np.float32)], 1)
+    wrong_uv = np.tile(np.array([[0.5 / W, 1 - 0.5 / H]], np.float32), (H * W, 1))  # all point at pixel (0, 0)
+    bg = MeshPart("background", verts, np.array([[0, 4, 1]]), wrong_uv, pix, np.full(H * W, 11, np.uint8),
+                  np.zeros(H * W, np.int32))
+    fg_pix = pix[pix[:, 0] == 3]
+    fg = MeshPart("car_1", np.concatenate([fg_pix, np.ones((len(fg_pix), 1), np.float32)], 1),
+                  np.array([[0, 1, 2]]), np.zeros((len(fg_pix), 2), np.float32), fg_pix,
+                  np.full(len(fg_pix), 26, np.uint8), np.zeros(len(fg_pix), np.int32), foreground=True)
+    labels = np.full((H, W), 7, np.uint8)
+    labels[:, 3] = 26
+    lights = np.zeros((H, W), np.int32)
+    lights[1, 1] = 1005
+    (uv, lab, lid), _ = _visible_background_repair(SceneMesh([bg, fg], W, H), labels, lights)
+    own = np.stack([(pix[:, 0] + 0.5) / W, 1 - (pix[:, 1] + 0.5) / H], 1)
+    vis = pix[:, 0] < 3
+    assert np.allclose(uv[vis], own[vis]) and np.allclose(uv[~vis], wrong_uv[~vis])
+    assert (lab[vis] == 7).all() and (lab[~vis] == 11).all()
+    assert lid[1 * W + 1] == 1005 and lid.sum() == 1005

@@ -61,12 +61,15 @@ class Materials:
 
     albedo : (H, W, 3) float32 linear RGB; roughness : (H, W) float32 in [0, 1];
     kind_lut : (256,) int index into :data:`KINDS` per labelId; source : 'scene' or 'fallback'.
+    labels : (H, W) uint8 labelIds the maps were made for (the builder uses them to repair
+        texture coordinates of visible vertices, see ``scene_builder``).
     """
 
     albedo: np.ndarray
     roughness: np.ndarray
     kind_lut: np.ndarray
     source: str
+    labels: np.ndarray | None = None
 
 
 def kind_lut() -> np.ndarray:
@@ -101,7 +104,8 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
             roughness = np.where(np.isin(light_classes, GLASS_LIGHT_CLASSES), _ROUGHNESS["glass"], roughness)
         source += "+prior roughness"
     return Materials(np.ascontiguousarray(albedo, dtype=np.float32),
-                     np.ascontiguousarray(roughness, dtype=np.float32).reshape(H, W), kl, source)
+                     np.ascontiguousarray(roughness, dtype=np.float32).reshape(H, W), kl, source,
+                     np.asarray(labels, dtype=np.uint8))
 
 
 def fallback_albedo(image: np.ndarray, labels: np.ndarray, params: MaterialParams = MaterialParams()) -> np.ndarray:

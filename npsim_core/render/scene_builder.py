@@ -39,6 +39,7 @@ Design
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -48,7 +49,7 @@ import numpy as np
 from ..annotation import LightAnnotation
 from ..camera import Intrinsics
 from ..errors import NpsimInputError
-from ..mesh.types import SceneMesh
+from ..mesh.types import MeshPart, SceneMesh
 from .lights import ActiveLights, LightTable, cct_to_chromaticity
 from .materials import GLASS_LIGHT_CLASSES, KINDS, Materials
 from .variant import set_variant
@@ -140,22 +141,58 @@ def _face_light_majority(light_id: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return pick.astype(np.int32)
 
 
-def _gather(mesh: SceneMesh, y_scale: float) -> _Geometry:
+def _visible_background_repair(mesh: SceneMesh, labels: np.ndarray, light_ids: np.ndarray | None):
+    """Per part: (uv, label, light_id) with *visible* background vertices restored to their own pixel.
+
+    The post-processing kernel gives completed background vertices the uv/label of a
+    row neighbour and light id 0 -- right for vertices hidden behind an object, but it
+    also does so for completed vertices in the uncertain region U that nothing covers,
+    which are *visible*: there the texture, label and light would be a neighbour's
+    and the night would no longer fit the day labels. A background vertex is visible
+    when no foreground part has a vertex on its pixel; such vertices get their own
+    pixel's uv, label and light id back. (No-op for a plain grid mesh.)
+    """
+    H, W = labels.shape
+    covered = np.zeros(H * W, dtype=bool)
+    for p in mesh.parts:
+        if p.foreground and p.n_vertices:
+            px = np.rint(p.pixel).astype(np.int64)
+            covered[px[:, 1] * W + px[:, 0]] = True
+    out = []
+    for p in mesh.parts:
+        uv, lab, lid = p.uv, p.label, p.light_id
+        if not p.foreground and p.n_vertices:
+            px = np.rint(p.pixel).astype(np.int64)
+            flat = px[:, 1] * W + px[:, 0]
+            vis = ~covered[flat]
+            own_uv = np.stack([(px[:, 0] + 0.5) / W, 1.0 - (px[:, 1] + 0.5) / H], 1).astype(np.float32)
+            uv = np.where(vis[:, None], own_uv, uv)
+            lab = np.where(vis, labels.ravel()[flat], lab).astype(np.uint8)
+            if light_ids is not None:
+                lid = np.where(vis, np.asarray(light_ids).ravel()[flat], lid).astype(np.int32)
+        out.append((uv, lab, lid))
+    return out
+
+
+def _gather(mesh: SceneMesh, y_scale: float, labels: np.ndarray | None = None,
+            light_ids: np.ndarray | None = None) -> _Geometry:
     vs, uvs, fs, fl, fli = [], [], [], [], []
     off = 0
-    for p in mesh.parts:
+    repaired = (_visible_background_repair(mesh, labels, light_ids) if labels is not None
+                else [(p.uv, p.label, p.light_id) for p in mesh.parts])
+    for p, (puv, plab, plid) in zip(mesh.parts, repaired):
         if p.n_faces == 0:
             continue
         v = np.asarray(p.vertices, dtype=np.float32)
         if not np.isfinite(v).all():
             raise NpsimInputError(f"mesh part {p.name!r} has non-finite vertices; remove invalid pixels before meshing")
         vs.append(v)
-        uv = np.asarray(p.uv, dtype=np.float32).copy()
+        uv = np.asarray(puv, dtype=np.float32).copy()
         uv[:, 1] = 1.0 - uv[:, 1]
         uvs.append(uv)
         fs.append(np.asarray(p.faces, dtype=np.int64) + off)
-        fl.append(p.face_label())
-        fli.append(_face_light_majority(p.light_id, p.faces))
+        fl.append(MeshPart.face_label(dataclasses.replace(p, label=plab)))
+        fli.append(_face_light_majority(plid, p.faces))
         off += p.n_vertices
     if not fs:
         raise NpsimInputError("the scene mesh has no faces (all sky or invalid depth?); check the depth map")
@@ -342,7 +379,7 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     _check(mesh, intrinsics)
     mi = set_variant(variant)
     ys = _y_scale(intrinsics)
-    geo = _gather(mesh, ys)
+    geo = _gather(mesh, ys, materials.labels, annotation.instance_map if annotation is not None else None)
     F = len(geo.faces)
 
     bitmap = mi.Bitmap(np.ascontiguousarray(materials.albedo, dtype=np.float32))
@@ -492,7 +529,7 @@ def build_label_scene(mesh: SceneMesh, intrinsics: Intrinsics, labels: np.ndarra
     if lab.shape != (intrinsics.height, intrinsics.width):
         raise NpsimInputError(f"labels are {lab.shape}, expected {(intrinsics.height, intrinsics.width)}")
     mi = set_variant(variant)
-    geo = _gather(mesh, _y_scale(intrinsics))
+    geo = _gather(mesh, _y_scale(intrinsics), lab)
     codes = np.zeros(lab.shape + (3,), np.float32)
     codes[..., 0] = lab.astype(np.float32) + 1.0
     tex = {"type": "bitmap", "bitmap": mi.Bitmap(codes), "raw": True, "filter_type": "nearest", "wrap_mode": "clamp"}
