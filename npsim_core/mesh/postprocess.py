@@ -417,7 +417,7 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
 
     # Triangulate.
     t = time.perf_counter()
-    parts = layers.parts(intrinsics, *layers.full_faces(intrinsics))
+    parts = layers.full_parts(intrinsics)
     tm["triangulate"] = time.perf_counter() - t
     tm["total"] = time.perf_counter() - t0
     counts = {"uncertain_pixels": int(U.sum()), "deleted_vertices": int((usable & U).sum()),
@@ -491,6 +491,31 @@ class SheetLayers:
             pts = rays * np.where(ok, d, 0.0)[..., None]
             out.append(quad_faces(np.where(ok, flat, -1), pts, group))
         return out[0], out[1]
+
+    def full_parts(self, intr: Intrinsics) -> list[MeshPart]:
+        """Full-resolution parts. Fast path for the big background sheet: compact vertex
+        numbering on the grid (no index remapping); its isolated pixels (no face) stay as
+        unreferenced vertices. Objects go through :meth:`parts`."""
+        H, W = self.shape
+        rays = intr.pixel_rays(np.float32)
+        d = self.background_depth
+        ok = np.isfinite(d)
+        n = int(ok.sum())
+        index = np.full((H, W), -1, dtype=np.int32 if n < 2**31 else np.int64)
+        index[ok] = np.arange(n, dtype=index.dtype)
+        pts = rays * np.where(ok, d, 0.0)[..., None]
+        faces = quad_faces(index, pts)
+        src = self.background_source[ok]
+        sv, su = np.divmod(src, W)
+        vv, uu = np.nonzero(ok)
+        bg = MeshPart(name="background", vertices=pts[ok], faces=faces, uv=pixel_uv(su, sv, W, H),
+                      pixel=np.stack([uu, vv], 1).astype(np.float32), label=self.labels.ravel()[src].astype(np.uint8),
+                      light_id=self.background_light[ok].astype(np.int32), foreground=False)
+        fd = self.foreground_depth
+        okf = np.isfinite(fd)
+        flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
+        fg_faces = quad_faces(np.where(okf, flat, -1), rays * np.where(okf, fd, 0.0)[..., None], self.objects)
+        return [bg] + self.parts(intr, np.zeros((0, 3), dtype=np.int64), fg_faces)[1:]
 
     def parts(self, intr: Intrinsics, bg_faces: np.ndarray, fg_faces: np.ndarray) -> list[MeshPart]:
         """Mesh parts from faces given as flat pixel indices into the background / foreground layers.
