@@ -67,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
             win.params_panel.sliders[(section, field)].spin.setValue(v)  # as typed by the user
             wait(lambda: win.results is not before_res)
             t_view = time.perf_counter() - t0
+            frames.clear()  # frames of a render started before the new results are stale
             wait(lambda: len(frames) > 0)
             t_frame = frames[0] - t0
             wait(lambda: not win.render_jobs.is_busy)
