@@ -204,16 +204,21 @@ def _gather(mesh: SceneMesh, y_scale: float, labels: np.ndarray | None = None,
 def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "object":
     """A ``mi.Mesh`` of the selected faces (mask or index array) with compacted vertices."""
     faces = geo.faces[face_sel]
-    # O(V + F) compaction (no sort): keep used vertices, renumber by running count.
-    used = np.zeros(len(geo.vertices), dtype=bool)
-    used[faces.ravel()] = True
-    remap = np.cumsum(used, dtype=np.int64) - 1
-    m = mi.Mesh(name, vertex_count=int(used.sum()), face_count=len(faces), has_vertex_normals=False,
+    if faces.size * 8 < len(geo.vertices):
+        # small subset (one light): sorting its few indices beats touching every vertex
+        used, local = np.unique(faces.ravel(), return_inverse=True)
+    else:
+        # O(V + F) compaction (no sort): keep used vertices, renumber by running count.
+        mask = np.zeros(len(geo.vertices), dtype=bool)
+        mask[faces.ravel()] = True
+        remap = np.cumsum(mask, dtype=np.int64) - 1
+        used, local = np.flatnonzero(mask), remap[faces]
+    m = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), has_vertex_normals=False,
                 has_vertex_texcoords=True, props=props)
     p = mi.traverse(m)
     FT, UT = type(p["vertex_positions"]), type(p["faces"])
     p["vertex_positions"] = FT(np.ascontiguousarray(geo.vertices[used]).ravel())
-    p["faces"] = UT(remap[faces].astype(np.uint32).ravel())
+    p["faces"] = UT(np.asarray(local, dtype=np.uint32).ravel())
     p["vertex_texcoords"] = FT(np.ascontiguousarray(geo.uv[used]).ravel())
     p.update()
     return m
@@ -501,7 +506,9 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
                                                     / (float(np.median(np.linalg.norm(v, axis=1))) ** 2 + NEAR_D0_M2),
                                                     OFF_WEIGHT)}
     scene_dict.update(objects)
+    t_load = time.perf_counter()
     built.scene = mi.load_dict(scene_dict)
+    t_load = time.perf_counter() - t_load
     built.thread_env = capture_thread_env(mi)
     if active is not None:
         built.apply_lights(active)
@@ -510,7 +517,7 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     built.build_seconds = time.perf_counter() - t0
     built.info = {"variant": built.variant, "faces": F, "shapes": len(objects), "lights": len(light_ids),
                   "throw_spots": len(built.spot_keys), "ego_headlights": params.ego_headlights,
-                  "y_scale": ys, "materials": materials.source}
+                  "y_scale": ys, "materials": materials.source, "scene_load_s": t_load}
     return built
 
 
