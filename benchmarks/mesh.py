@@ -6,8 +6,8 @@
 Table 1 (per size, synthetic street scene): ``raw`` (Worldsheet grid of the
 predicted depth), ``filtered`` (grid of the cross-bilateral-filtered depth) and
 ``npsim`` (filtered -> U -> [normal-guided refinement with --refine] -> post-processing kernel).
-Columns: faces; stretched faces (visible faces with longest edge > 4x the
-slant-corrected pixel footprint, GT normals -- see npsim_core/mesh/quality.py);
+Columns: faces; stretched faces (visible faces with longest edge > k times the
+slant-corrected pixel footprint with k = 0.05 f, GT normals -- see npsim_core/mesh/quality.py);
 holes (boundary loops away from image border and sky); reprojection: fraction
 of non-sky pixels whose ray-cast mesh depth is within 1 % of the depth the mesh
 came from, and within 1 % of the ground-truth depth; face-normal error against
@@ -140,10 +140,10 @@ def _render_child(src: Path, out_dir: Path) -> None:
         pl.set_background("white")
         pl.add_mesh(mesh, scalars="rgb", rgb=True, show_edges=False, lighting=True)
         # Camera frame is OpenCV (y down): look from beside and above the camera toward the street.
-        pl.camera.position = (-6.0, -4.0, -3.0)
-        pl.camera.focal_point = (0.5, 0.3, 16.0)
+        pl.camera.position = (-7.0, -3.5, 2.0)
+        pl.camera.focal_point = (0.0, 0.0, 18.0)
         pl.camera.up = (0.0, -1.0, 0.0)
-        pl.camera.view_angle = 55
+        pl.camera.view_angle = 60
         pl.add_text(ply.stem, font_size=14, color="black")
         pl.screenshot(str(out_dir / f"mesh_{ply.stem}.png"))
         pl.close()
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     from npsim_core.mesh.pipeline import PipelineParams, depth_stages
     from npsim_core.synthetic import street_scene
 
-    fractions = [float(x) for x in args.fractions.split(",") if x]
+    fractions = [float(x) for x in args.fractions.split(",") if x.strip()]
     print(f"# mesh benchmark ({_load()}, {os.cpu_count()} cores)")
     for k, size in enumerate(args.sizes.split(",")):
         W, H = _size(size)
@@ -184,13 +184,15 @@ def main(argv: list[str] | None = None) -> int:
         print("|---|---|---|---|---|---|---|---|---|---|")
         rows, vs = variants_table(scene, stages, refine)
         print("\n".join(rows), flush=True)
+        if args.render and k == 0:
+            render_variants(vs, scene.labels.shape, Path(args.render))
+            print(f"\nrendered {', '.join(f'mesh_{n}.png' for n in vs)} to {args.render}")
+        if not fractions:
+            continue
         print(f"\nReduction of the npsim mesh ({vs['npsim'].mesh.n_faces:,} faces) at {W}x{H}, {_load()}:\n")
         print("| method | budget | faces | build time | ≤1 % of full mesh depth | mean depth error | holes |")
         print("|---|---|---|---|---|---|---|")
         print("\n".join(reduction_table(scene, vs["npsim"], fractions, not args.no_pymeshlab)), flush=True)
-        if args.render and k == 0:
-            render_variants(vs, scene.labels.shape, Path(args.render))
-            print(f"\nrendered {', '.join(f'mesh_{n}.png' for n in vs)} to {args.render}")
     return 0
 
 

@@ -18,7 +18,12 @@ Definitions used by the benchmark:
   footprint ``z/f``. Surfaces seen at a grazing angle (far road) legitimately
   have longer edges, so when reference normals are given the footprint is
   divided by ``max(|n_ref . r|, 1/max_slant)`` (r the unit view ray at the
-  face's pixel). Default ``k = 4``, ``max_slant = 50``.
+  face's pixel). Default ``k = 0.05 f`` (``max_slant = 50``): an edge longer
+  than 5 % of its depth on a head-on surface, i.e. a depth jump of more than
+  ~5 % between neighbouring pixels. Tying k to f makes the test independent of
+  the image size; a fixed k (say 4) would count ordinary per-pixel depth noise
+  of a network prediction (0.5 % relative noise is already ~16 footprints at
+  f = 2262) as spurious faces, while object/background jumps are tens of %.
 * **hole** -- a boundary loop (connected set of boundary edges) of a part
   that runs somewhere away from the image border and from "open" pixels (sky,
   excluded labels, beyond the far limit, and foreground pixels whose row run
@@ -186,7 +191,7 @@ def normal_error(mesh: SceneMesh | MeshPart, raster: Raster, ref_normals: np.nda
             "pixels": int(ok.sum())}
 
 
-def stretched_faces(part: MeshPart, intr: Intrinsics, k: float = 4.0, ref_normals: np.ndarray | None = None,
+def stretched_faces(part: MeshPart, intr: Intrinsics, k: float | None = None, ref_normals: np.ndarray | None = None,
                     max_slant: float = 50.0, seen_depth: np.ndarray | None = None) -> np.ndarray:
     """Boolean (F,) mask of stretched faces (see module doc for the definition).
 
@@ -212,6 +217,7 @@ def stretched_faces(part: MeshPart, intr: Intrinsics, k: float = 4.0, ref_normal
         cosang = np.abs(np.einsum("ij,ij->i", n, r))
         cosang = np.where(np.isfinite(cosang), cosang, 1.0)
         foot = foot / np.maximum(cosang, 1.0 / max_slant)
+    k = 0.05 * min(intr.fx, intr.fy) if k is None else k
     out = e > k * foot
     if seen_depth is not None:
         c = v[f].mean(1)
@@ -310,7 +316,7 @@ class MeshQuality:
 
 
 def mesh_quality(mesh: SceneMesh, intr: Intrinsics, depth: np.ndarray, labels: np.ndarray,
-                 ref_normals: np.ndarray | None = None, *, k: float = 4.0, exclude=None,
+                 ref_normals: np.ndarray | None = None, *, k: float | None = None, exclude=None,
                  far_limit: float | None = None, raster: Raster | None = None) -> MeshQuality:
     """All measures at once. ``depth`` is the depth the mesh came from (reprojection reference);
     ``ref_normals`` (e.g. ground truth) are used for the normal error and the slant-aware stretch test."""
