@@ -160,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
             "camera": {"exposure_ev": cam.exposure_ev, "iso": cam.iso, "beta1": cam.betas()[0],
                        "beta2": cam.betas()[1], "white_balance": list(cam.white_balance),
                        "motion_blur_px": cam.motion_blur_px},
+            "lights_without_faces": sorted(set(active.lights) - set(built.area_keys)),
             "toggle_seconds": toggle_s, "render_seconds": time.perf_counter() - t1})
         _log(f"night {k + 1}/{args.variants}: {len(active.on_ids)}/{len(active.lights)} lights on, "
              f"{time.perf_counter() - t1:.1f} s -> {out / (stem + '.png')}")
