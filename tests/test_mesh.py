@@ -290,6 +290,23 @@ def test_postprocess_adjacent_mode_and_params():
         postprocess_mesh(d, intr, lab, U[:, :10])
 
 
+def test_vegetation_is_an_occluder_by_default():
+    d, lab, intr = toy_scene(car=False, pole=False)
+    d[8:20, 60:80], lab[8:20, 60:80] = 10.0, 21       # a tree crown in front of the façade
+    U = hand_uncertain(d, lab)
+    r = postprocess_mesh(d, intr, lab, U)
+    assert [p.name for p in r.mesh.parts] == ["background", "vegetation_1"]
+    np.testing.assert_allclose(r.layers.background_depth[12:20, 60:80], 30.0, rtol=1e-5)   # rows < 11 are sky
+    assert_clean(r.mesh, intr, lab)
+    n = normals_from_depth(d, intr)
+    ras = rasterize(r.mesh, intr)
+    assert sum(stretched_faces(p, intr, None, n, seen_depth=ras.depth).sum() for p in r.mesh.parts) == 0
+    thesis = postprocess_mesh(d, intr, lab, U, params=PostprocessParams(occluders=()))
+    assert [p.name for p in thesis.mesh.parts] == ["background"]
+    ras = rasterize(thesis.mesh, intr)
+    assert stretched_faces(thesis.mesh.parts[0], intr, None, n, seen_depth=ras.depth).sum() > 0
+
+
 def test_instance_ids_split_objects():
     d, lab, intr = toy_scene(pole=False)
     inst = np.zeros(d.shape, np.int32)

@@ -9,7 +9,8 @@ array operations; the sheets are triangulated at the end with the same
    raw sheet (a face survives iff its three pixels are outside U).
 2. **Background completion** (Algorithm 1). The region to complete is
    R = U ∪ (foreground segments adjacent to U) ∪ (non-sky pixels with invalid
-   depth). In the default ``complete_behind="all"`` mode *every* foreground
+   depth). Foreground = the thesis's classes plus ``occluders`` (default
+   vegetation, see :class:`PostprocessParams`). In the default ``complete_behind="all"`` mode *every* foreground
    segment is in R, so every object becomes its own sheet as SPEC §4's result
    asks ("background sheet + foreground sheets"); ``"adjacent"`` is the thesis's
    literal rule, where objects untouched by U stay welded into the background
@@ -70,9 +71,15 @@ from ..labels import cityscapes
 from .grid import check_mesh_inputs, pixel_uv, quad_faces, usable_mask
 from .types import MeshPart, SceneMesh
 
-__all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map"]
+__all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map",
+           "default_occluders"]
 
 _N8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+
+
+def default_occluders() -> tuple[int, ...]:
+    """Background classes meshed as their own sheets by default: vegetation."""
+    return (cityscapes().by_name("vegetation").id,)
 
 
 @dataclass(frozen=True)
@@ -100,6 +107,14 @@ class PostprocessParams:
         Never meshed (None = sky).
     far_limit : float or None
         No vertex deeper than this (metres), also for completed vertices.
+    occluders : tuple of labelIds or None
+        Background classes treated like foreground objects for completion (own sheets,
+        ``foreground=True``, background completed behind them). None = vegetation
+        (:func:`default_occluders`): U only flags jumps that involve a foreground class,
+        so tree crowns in front of façades would otherwise stay bridged to the façade
+        inside the background sheet (measured at 2048x1024: stretched faces 5,202 ->
+        2,680, face-normal error 21.38 -> 21.22 deg, holes 0 either way). ``()`` = the
+        thesis's classes only.
     """
 
     complete_behind: str = "all"
@@ -109,6 +124,7 @@ class PostprocessParams:
     behind_margin: float = 0.01
     exclude: tuple[int, ...] | None = None
     far_limit: float | None = None
+    occluders: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.complete_behind not in ("all", "adjacent"):
@@ -319,6 +335,8 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     table = cityscapes()
     fg_lut = np.zeros(256, dtype=bool)
     fg_lut[list(table.foreground_ids)] = True
+    occluders = default_occluders() if params.occluders is None else tuple(params.occluders)
+    fg_lut[list(occluders)] = True
     exclude = params.exclude if params.exclude is not None else (table.sky_id,)
 
     valid = valid_depth_mask(depth)

@@ -230,11 +230,12 @@ def stretched_faces(part: MeshPart, intr: Intrinsics, k: float | None = None, re
 
 
 def open_mask(labels: np.ndarray, depth: np.ndarray | None = None, exclude=None,
-              far_limit: float | None = None) -> np.ndarray:
+              far_limit: float | None = None, occluders: tuple[int, ...] | None = None) -> np.ndarray:
     """Pixels where a mesh boundary is legitimate (besides the image border).
 
-    Excluded labels (sky), pixels beyond ``far_limit``, and foreground pixels
-    whose row run of foreground is bounded by such pixels or the border on both
+    Excluded labels (sky), pixels beyond ``far_limit``, and object pixels
+    (foreground classes and ``occluders``, default as the post-processing kernel)
+    whose row run of such pixels is bounded by open pixels or the border on both
     sides (the background hidden there is sky).
     """
     H, W = labels.shape
@@ -243,6 +244,10 @@ def open_mask(labels: np.ndarray, depth: np.ndarray | None = None, exclude=None,
         op |= np.nan_to_num(depth, nan=-1.0) > far_limit
     fg_lut = np.zeros(256, dtype=bool)
     fg_lut[list(cityscapes().foreground_ids)] = True
+    if occluders is None:
+        from .postprocess import default_occluders
+        occluders = default_occluders()
+    fg_lut[list(occluders)] = True
     fg = fg_lut[labels] & ~op
     idx = np.broadcast_to(np.arange(W), (H, W))
     left = np.maximum.accumulate(np.where(~fg, idx, -1), axis=1)
@@ -317,12 +322,13 @@ class MeshQuality:
 
 def mesh_quality(mesh: SceneMesh, intr: Intrinsics, depth: np.ndarray, labels: np.ndarray,
                  ref_normals: np.ndarray | None = None, *, k: float | None = None, exclude=None,
-                 far_limit: float | None = None, raster: Raster | None = None) -> MeshQuality:
+                 far_limit: float | None = None, raster: Raster | None = None,
+                 occluders: tuple[int, ...] | None = None) -> MeshQuality:
     """All measures at once. ``depth`` is the depth the mesh came from (reprojection reference);
     ``ref_normals`` (e.g. ground truth) are used for the normal error and the slant-aware stretch test."""
     raster = raster if raster is not None else rasterize(mesh, intr)
     rep = reprojection_error(raster, depth, labels, exclude, far_limit)
-    op = open_mask(labels, depth, exclude, far_limit)
+    op = open_mask(labels, depth, exclude, far_limit, occluders)
     stretched = sum(int(stretched_faces(p, intr, k, ref_normals, seen_depth=raster.depth).sum()) for p in mesh.parts)
     holes = sum(count_holes(p, intr, op) for p in mesh.parts)
     ne = normal_error(mesh, raster, ref_normals) if ref_normals is not None else None
