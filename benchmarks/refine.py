@@ -82,19 +82,19 @@ def scores(scene, depth):
     return dm, nm
 
 
-def bench_filter(scene, size_label, reference: bool):
+def bench_filter(scene, size_label, reference: bool, fp: FilterParams):
     rows = []
     d, img, lab = scene.depth, scene.image, scene.labels
     rng = float(np.nanmax(d) - np.nanmin(d))
     ref = None
     if reference:
         with PeakRSS() as m:
-            ref = cross_bilateral_reference(d, img, lab)
+            ref = cross_bilateral_reference(d, img, lab, fp)
         rows.append(["reference (exact, brute force)", f"{m.seconds:.2f}", "1x", "0", "0", f"{m.peak:.0f}"])
         t_ref = m.seconds
-    cross_bilateral(d, img, lab)  # warm-up (OpenCV/numpy first-call costs)
+    cross_bilateral(d, img, lab, fp)  # warm-up (OpenCV/numpy first-call costs)
     with PeakRSS() as m:
-        fast = cross_bilateral(d, img, lab)
+        fast = cross_bilateral(d, img, lab, fp)
     err = (f"{np.nanmean(np.abs(fast - ref)) / rng * 100:.3f}", f"{np.nanmean(np.abs(fast - ref)):.4f}") \
         if ref is not None else ("n/a", "n/a")
     rows.append([f"fast (K={FilterParams().clusters}, M={FilterParams().neighbours})", f"{m.seconds:.3f}",
@@ -115,7 +115,7 @@ def bench_filter(scene, size_label, reference: bool):
                      f"{t_ref / m.seconds:.0f}x" if ref is not None else "-", *err, f"{m.peak:.0f}"])
     except (ImportError, AttributeError) as exc:  # pragma: no cover
         rows.append([f"OpenCV peer unavailable: {exc}", "-", "-", "-", "-", "-"])
-    print(f"\n#### Cross-bilateral filter, {size_label} (depth range {rng:.1f} m)\n")
+    print(f"\n#### Cross-bilateral filter, {size_label} (depth range {rng:.1f} m, domain '{fp.domain}')\n")
     print(md_table(["method", "time (s)", "speed-up vs reference", "MAE vs reference (% of range)",
                     "MAE vs reference (m)", "peak RSS (MB)"], rows))
     return fast, t_fast
@@ -177,10 +177,10 @@ def _crop_intr(intr, w, h):
     return Intrinsics(intr.fx, intr.fy, intr.cx, intr.cy, w, h)
 
 
-def bench_kernel(scene, size_label, refine_params: RefineParams):
+def bench_kernel(scene, size_label, refine_params: RefineParams, fp: FilterParams):
     with PeakRSS() as m:
         t0 = time.perf_counter()
-        f = cross_bilateral(scene.depth, scene.image, scene.labels)
+        f = cross_bilateral(scene.depth, scene.image, scene.labels, fp)
         t1 = time.perf_counter()
         U = uncertain_map(f, scene.labels)
         t2 = time.perf_counter()
@@ -200,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="run the brute-force reference filter only up to this many pixels")
     ap.add_argument("--kernel-budget", type=int, default=10, help="fast iterations in the whole-kernel row")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--filter-domain", choices=("depth", "inverse"), default="depth",
+                    help="FilterParams.domain used by every row (default: the formula's 'depth')")
     args = ap.parse_args(argv)
     from npsim_core.synthetic import street_scene
 
@@ -212,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     for w, h in sizes:
         label = f"{w}x{h}"
         scene = street_scene(w, h, args.seed)
-        fast, _ = bench_filter(scene, label, reference=w * h <= args.reference_max_pixels)
+        fp = FilterParams(domain=args.filter_domain)
+        fast, _ = bench_filter(scene, label, reference=w * h <= args.reference_max_pixels, fp=fp)
         with PeakRSS() as m:
             U = uncertain_map(fast, scene.labels)
         with PeakRSS() as m_abs:
@@ -223,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
                         ["absolute, μ_v=1e-3 m² (thesis)", f"{m_abs.seconds:.3f}", f"{U_abs.mean():.3f}",
                          f"{m_abs.peak:.0f}"]]))
         bench_refine(scene, fast, U, label, budgets, args.adam_steps, w * h <= args.reference_max_pixels)
-        kernel_rows.append(bench_kernel(scene, label, RefineParams(steps=args.kernel_budget)))
+        kernel_rows.append(bench_kernel(scene, label, RefineParams(steps=args.kernel_budget), fp))
     print(f"\n#### Whole kernel (fast filter + variance filter + fast refinement, {args.kernel_budget} iterations)\n")
     print(md_table(["size", "filter (s)", "variance (s)", "refine (s)", "total (s)", "peak RSS (MB)", "AbsRel",
                     "normal RMSE (°)"], kernel_rows))

@@ -130,3 +130,21 @@ def test_bad_inputs_raise_clear_errors():
         cross_bilateral(d, img, lab, FilterParams(sigma_s=0))
     with pytest.raises(NpsimInputError, match="depth"):
         cross_bilateral(d.astype(complex), img, lab)
+
+
+def test_inverse_domain_is_exact_on_a_ground_plane_rows():
+    # depth of a ground plane: 1/d linear in the row -> averaging 1/d along rows is unbiased
+    H, W = 40, 30
+    v = np.arange(H, dtype=np.float64)[:, None] + 5.0
+    d = np.broadcast_to(100.0 / v, (H, W)).astype(np.float32)
+    img = np.full((H, W, 3), 90, np.uint8)
+    lab = np.full((H, W), 7, np.uint8)
+    p_inv = FilterParams(sigma_s=3.0, domain="inverse")
+    out_inv = cross_bilateral_reference(d, img, lab, p_inv)
+    inner = (slice(10, 30), slice(None))
+    np.testing.assert_allclose(out_inv[inner], d[inner], rtol=1e-5)
+    out_dep = cross_bilateral_reference(d, img, lab, FilterParams(sigma_s=3.0))
+    assert np.all(out_dep[inner] > d[inner])  # Jensen: averaging the convex depth biases it up
+    np.testing.assert_allclose(cross_bilateral(d, img, lab, p_inv), out_inv, rtol=1e-4)
+    with pytest.raises(NpsimInputError, match="domain"):
+        cross_bilateral(d, img, lab, FilterParams(domain="log"))
