@@ -205,7 +205,7 @@ def _row_runs(target: np.ndarray, known: np.ndarray):
     pixels just outside it (-1 / W at the image border).
     """
     H, W = target.shape
-    idx = np.broadcast_to(np.arange(W, dtype=np.int64), (H, W))
+    idx = np.broadcast_to(np.arange(W, dtype=np.int32), (H, W))
     left = np.maximum.accumulate(np.where(~target, idx, -1), axis=1)
     right = np.minimum.accumulate(np.where(~target, idx, W)[:, ::-1], axis=1)[:, ::-1]
     rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
@@ -221,8 +221,6 @@ def _fill_runs(target, known, depth, inverse: bool, allow_extend: bool):
     """
     H, W = target.shape
     left, right, lk, rk = _row_runs(target, known)
-    rows = np.broadcast_to(np.arange(H)[:, None], (H, W))
-    u = np.broadcast_to(np.arange(W)[None, :], (H, W))
     both = target & lk & rk
     only_l = target & lk & ~rk
     only_r = target & rk & ~lk
@@ -246,7 +244,6 @@ def _fill_runs(target, known, depth, inverse: bool, allow_extend: bool):
             out[r_, c_] = depth[r_, n]
             src[r_, c_] = r_ * W + n
         filled = both | only_l | only_r
-    del rows, u
     return filled, out, src
 
 
