@@ -173,9 +173,16 @@ def test_postprocess_separates_objects_and_completes_background():
     wall_rows = rows[(bg[rows][:, 0] == 30.0)]
     assert len(wall_rows) > 0
     np.testing.assert_allclose(bg[wall_rows][behind[wall_rows]], 30.0, rtol=1e-5)
-    # Hidden background is labelled from its row neighbours, never with the object's class.
+    # Hidden background is labelled from its row neighbours, never with the object's class;
+    # visible completed background (in U, not covered) keeps its own pixel's label and uv.
     bgp = r.mesh.part("background")
     assert not np.isin(bgp.label, [CAR, POLE]).any()
+    px = bgp.pixel.astype(int)
+    covered = np.isfinite(r.layers.foreground_depth)[px[:, 1], px[:, 0]]
+    vis = ~covered
+    np.testing.assert_array_equal(bgp.label[vis], lab[px[vis, 1], px[vis, 0]])
+    np.testing.assert_allclose(bgp.uv[vis, 0], (px[vis, 0] + 0.5) / lab.shape[1], atol=1e-6)
+    assert (bgp.label[covered] != lab[px[covered, 1], px[covered, 0]]).all()
     # Foreground sheets only hold their own class and sit at the object depth.
     for p in r.mesh.parts[1:]:
         assert p.foreground and len(np.unique(p.label)) == 1

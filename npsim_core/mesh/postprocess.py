@@ -26,10 +26,13 @@ array operations; the sheets are triangulated at the end with the same
    cross known background. An optional vertical pass then interpolates runs that
    the row pass could not reach but that have background above and below
    (e.g. a NaN island spanning a whole row segment between sky).
-   Completed background vertices take label and texture coordinates (uv) from
-   the nearer row neighbour, light id 0 (what is hidden cannot be annotated),
-   and are pushed behind the object in front of them by at least
+   Completed background vertices *hidden* behind an object vertex take label and
+   texture coordinates (uv) from the nearer row neighbour and light id 0 (what is
+   hidden cannot be annotated), and are pushed behind the object by at least
    ``behind_margin`` (relative) so the hidden sheet can never poke through.
+   Completed vertices nothing covers (background pixels in U, invalid-depth
+   islands) are visible and keep their own pixel's label, uv and light id, so the
+   mesh seen from the camera carries exactly the input labels.
 3. **Foreground completion.** Objects are connected components per foreground
    class (8-connected) or, where an instance map is given, its instances. In
    U ∩ object (and at the object's invalid-depth pixels) depth is filled by a
@@ -424,7 +427,13 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     bg_depth[~bgv] = np.nan
     fg_depth[~fgv] = np.nan
 
-    bg_light = np.where(filled, 0, light_ids).astype(np.int32)
+    # Only *hidden* completed background (an object vertex in front of it) takes its
+    # row neighbour's label/uv and light id 0; completed vertices nothing covers (background
+    # in U, invalid-depth islands) are visible and keep their own pixel's attributes.
+    hidden = filled & fgv
+    visible_fill = filled & ~fgv
+    bg_src = np.where(visible_fill, np.arange(H * W).reshape(H, W), bg_src)
+    bg_light = np.where(hidden, 0, light_ids).astype(np.int32)
     bg_src = np.where(bgv, bg_src, -1)
     layers = SheetLayers(background_depth=bg_depth.astype(np.float32), background_source=bg_src,
                          background_light=bg_light, foreground_depth=fg_depth.astype(np.float32), objects=obj,
@@ -454,9 +463,9 @@ class SheetLayers:
         Depth of the background vertex at each pixel, NaN where none.
     background_source : (H, W) int64
         Flat pixel index whose label and uv the background vertex takes (itself, or the
-        nearer row neighbour for completed vertices); -1 where none.
+        nearer row neighbour for hidden completed vertices); -1 where none.
     background_light : (H, W) int32
-        Light id of the background vertex (0 for completed, hidden vertices).
+        Light id of the background vertex (0 for hidden completed vertices).
     foreground_depth : (H, W) float32
         Depth of the foreground vertex at each pixel, NaN where none.
     objects : (H, W) int32
