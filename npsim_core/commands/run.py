@@ -117,14 +117,22 @@ def process_scene(scene, params, out: Path, nights: int, cmd: str) -> list[Path]
 
     wf = Workflow(scene)
     t0 = time.perf_counter()
+    stage = [""]
+
+    def on_stage(info: dict) -> None:
+        if info.get("stage") and info["stage"] != stage[0]:
+            stage[0] = info["stage"]
+            _log(cmd, f"{scene.name}: {stage[0]}…")
+
+    res = wf.compute(params, progress=on_stage)
+    _log(cmd, f"{scene.name}: stages " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items())
+         + f"; mesh {res.mesh.n_faces} faces")
 
     def progress(frac: float, text: str) -> None:
         _log(cmd, f"{scene.name}: {100 * frac:3.0f}% {text}")
 
     written = export_scene(wf, params, out, nights=nights, progress=progress)
-    res = wf.compute(params)
-    _log(cmd, f"{scene.name}: stages " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items())
-         + f"; {res.mesh.n_faces} faces; total {time.perf_counter() - t0:.1f} s")
+    _log(cmd, f"{scene.name}: total {time.perf_counter() - t0:.1f} s")
     summ = _summary(wf, res)
     if summ:
         _log(cmd, f"{scene.name}: {summ}")
