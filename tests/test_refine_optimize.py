@@ -216,5 +216,5 @@ def test_analytic_gradient_matches_autograd(loss):
     val.backward()
     assert float(val.detach()) == pytest.approx(float(ref.detach()), rel=1e-10)
     for a, b in zip(terms, ref_terms):
-        assert float(a) == pytest.approx(float(b), rel=1e-9, abs=1e-15)
+        assert float(a.detach()) == pytest.approx(float(b.detach()), rel=1e-9, abs=1e-15)
     np.testing.assert_allclose(d2.grad.numpy(), g_ref.numpy(), rtol=1e-7, atol=1e-12 * float(g_ref.abs().max()))

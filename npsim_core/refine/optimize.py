@@ -43,6 +43,8 @@ Optimisers (``RefineParams.optimizer``):
     conditioned whatever its distance. Stops when the loss's relative decrease
     over 5 iterations is below ``tol`` or after ``steps`` iterations.
 
+Both use the hand-derived gradient of :meth:`RefinementProblem.value_and_grad`
+(1.5x faster than autograd at 2048x1024; ``total_autograd`` is the reference).
 Both keep the best iterate, stop on a non-finite loss or a blow-up (loss above
 ``divergence_factor`` x the initial loss), check ``cancel`` every step (raising
 :class:`~npsim_core.errors.NpsimCancelled`) and call ``progress(step, total,
