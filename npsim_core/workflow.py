@@ -50,15 +50,19 @@ class CameraSetup:
 
 @dataclass(frozen=True)
 class MeshParams:
-    """Meshing: vertex ``stride`` (px), ``far_limit`` (m, no vertex deeper), ``postprocess`` on/off."""
+    """Meshing: vertex ``stride`` (px), ``far_limit`` (m, no vertex deeper), ``postprocess`` on/off,
+    ``face_budget`` (0 = keep every face; else the quadtree-reduced mesh of about that many faces)."""
 
     stride: int = 1
     far_limit: float = 300.0
     postprocess: bool = True
+    face_budget: int = 0
 
     def __post_init__(self) -> None:
         if int(self.stride) < 1:
             raise NpsimInputError(f"mesh stride must be >= 1 pixel, got {self.stride}")
+        if int(self.face_budget) < 0:
+            raise NpsimInputError(f"face budget must be >= 0 (0 = no reduction), got {self.face_budget}")
         if not self.far_limit > 0:
             raise NpsimInputError(f"far limit must be > 0 m, got {self.far_limit}")
 
@@ -194,6 +198,7 @@ class WorkflowResults:
     refine: RefineResult | None = None
     mesh: SceneMesh | None = None
     removed: MeshPart | None = None
+    layers: Any = None
     mesh_key: str = ""
     scene: Scene | None = None
     timings: dict[str, float] = field(default_factory=dict)
@@ -274,10 +279,15 @@ def _stage_mesh(inputs: dict, params: MeshStageParams, ctx) -> dict:
         pp = replace(params.postprocess, far_limit=mp.far_limit)
         res = postprocess_mesh(depth, intr, scene.labels, inputs["uncertain"], light_ids=light_ids, params=pp)
         removed = removed_faces(depth, intr, scene.labels, inputs["uncertain"])
-        return {"mesh": res.mesh, "removed": removed, "counts": res.counts}
+        mesh = res.mesh
+        if mp.face_budget and mesh.n_faces > mp.face_budget:
+            from .mesh.reduce import ReduceParams, reduce_mesh
+
+            mesh = reduce_mesh(res.layers, intr, ReduceParams(budget=int(mp.face_budget))).mesh
+        return {"mesh": mesh, "removed": removed, "counts": res.counts, "layers": res.layers}
     d = np.where(depth <= mp.far_limit, depth, np.nan).astype(np.float32)
     mesh = grid_mesh(d, intr, scene.labels, light_ids, stride=mp.stride)
-    return {"mesh": mesh, "removed": None, "counts": {"faces": mesh.n_faces}}
+    return {"mesh": mesh, "removed": None, "counts": {"faces": mesh.n_faces}, "layers": None}
 
 
 
@@ -307,6 +317,7 @@ class Workflow:
         self.pipeline.add_stage("mesh", _stage_mesh, ("scene", "annotation", "uncertain", "refine"),
                                 MeshStageParams())
         self._night: dict[str, Any] = {}
+        self._display: dict[str, Any] = {}
 
     # ------------------------------------------------------------------ annotation edits
     def set_annotation(self, ann) -> None:
@@ -366,9 +377,32 @@ class Workflow:
         mesh = out.get("mesh") or {}
         return WorkflowResults(intrinsics=scene_in.intrinsics, depth_in=scene_in.depth, normals_in=scene_in.normals,
                                filtered=out.get("filter"), uncertain=out.get("uncertain"), refine=out.get("refine"),
-                               mesh=mesh.get("mesh"), removed=mesh.get("removed"), mesh_key=run.keys.get("mesh", ""),
+                               mesh=mesh.get("mesh"), removed=mesh.get("removed"), layers=mesh.get("layers"),
+                               mesh_key=run.keys.get("mesh", ""),
                                scene=self.scene, timings={k: v for k, v in run.timings.items()},
                                recomputed=list(run.recomputed))
+
+    def display_mesh(self, results: WorkflowResults, max_faces: int = 150_000) -> SceneMesh:
+        """A lighter version of ``results.mesh`` for interactive 3D display (quadtree reduction to
+        about ``max_faces``, cached per mesh); the full mesh when it is small enough."""
+        mesh = results.mesh
+        if mesh is None or mesh.n_faces <= max_faces:
+            return mesh
+        key = (results.mesh_key, int(max_faces))
+        if self._display.get("key") != key:
+            if results.layers is not None:
+                from .mesh.reduce import ReduceParams, reduce_mesh
+
+                shown = reduce_mesh(results.layers, results.intrinsics, ReduceParams(budget=int(max_faces))).mesh
+            else:
+                from .mesh.grid import grid_mesh
+
+                stride = int(np.ceil(np.sqrt(mesh.n_faces / max_faces)))
+                ann = self.annotation
+                shown = grid_mesh(results.depth, results.intrinsics, self.scene.labels,
+                                  ann.instance_map if ann is not None else None, stride=stride)
+            self._display = {"key": key, "mesh": shown}
+        return self._display["mesh"]
 
     # ------------------------------------------------------------------ night
     def night_scene(self, results: WorkflowResults, params: WorkflowParams):

@@ -9,25 +9,22 @@ from __future__ import annotations
 
 import threading
 import time
-import traceback
+from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
                                QProgressDialog, QVBoxLayout, QWidget)
 
 from npsim_core.errors import NpsimInputError
-from npsim_core.io import depth_to_rgb, normals_to_rgb
-from npsim_core.labels import cityscapes
 from npsim_core.scene import Scene
 from npsim_core.workflow import VIEW_MODES, Workflow, WorkflowParams, view_image
 
 from .editor.editor import AnnotationEditor
 from .params_panel import ParameterPanel
 from .render_panel import RenderPanel
-from .viewer3d import MeshViewer
+from .viewer3d import MeshViewer, build_display
 from .widgets import LogStrip, LossPlot
 from .workers import JobChannel
 
@@ -47,9 +44,10 @@ class MainWindow(QMainWindow):
         self.light_override: dict[int, bool] | None = None
         self._t_change = 0.0
         self.last_latency: dict[str, float] = {}
-        self.pipeline_jobs = JobChannel("pipeline", debounce_ms=150, parent=self)
+        self.pipeline_jobs = JobChannel("pipeline", debounce_ms=60, parent=self)
         self.render_jobs = JobChannel("render", debounce_ms=100, parent=self)
         self.export_jobs = JobChannel("export", parent=self)
+        self.view_jobs = JobChannel("view", parent=self)
         self._build_ui(with_3d)
         self._build_menus()
         self._connect()
@@ -134,6 +132,8 @@ class MainWindow(QMainWindow):
         self.pipeline_jobs.failed.connect(self.on_error)
         self.pipeline_jobs.progress.connect(self.on_pipeline_progress)
         self.pipeline_jobs.busy.connect(lambda b: self._set_busy("computing…" if b else ""))
+        self.view_jobs.finished.connect(self._on_view)
+        self.view_jobs.failed.connect(self.on_error)
         self.render_jobs.finished.connect(self.on_render_done)
         self.render_jobs.failed.connect(self.on_error)
         self.render_jobs.progress.connect(self.on_render_progress)
@@ -208,46 +208,90 @@ class MainWindow(QMainWindow):
             self.workflow.set_annotation(self.editor.session.ann)
             self.recompute()
 
+    #: Wall-clock budget of the quick refinement shown first after a change (s); the full
+    #: refinement follows in the same worker and replaces it when done.
+    LIVE_REFINE_BUDGET_S = 0.15
+
     def recompute(self) -> None:
-        """Run the pipeline up to the mesh in a worker (stale runs are cancelled)."""
+        """Run the pipeline up to the mesh in a worker (stale runs are cancelled).
+
+        Two phases: a quick refinement with a time budget (shown at once), then the full
+        refinement (shown when done), so a slider answers in well under a second.
+        """
         if self.workflow is None:
             return
         wf, params = self.workflow, self.params
         t0 = self._t_change or time.perf_counter()
+        live = None
+        if params.refine.optimizer == "fast" and params.refine.max_time_s is None:
+            live = replace(params, refine=replace(params.refine, max_time_s=self.LIVE_REFINE_BUDGET_S))
+
+        mode = self.view_mode.currentText()
+        with_3d = self.viewer is not None
 
         def job(cancel: threading.Event, progress):
+            # everything heavy happens here, off the GUI thread: stages, view images, 3D geometry
+            if live is not None:
+                quick = wf.compute(live, until="refine", cancel=cancel, progress=progress)
+                if "refine" in quick.recomputed:
+                    progress({"live_results": quick, "t0": t0, "view": view_image(wf.scene, quick, mode),
+                              "mode": mode})
             res = wf.compute(params, until="mesh", cancel=cancel, progress=progress)
-            return res, t0
+            display = None
+            if with_3d and res.mesh is not None:
+                fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error()))
+                          if v is not None}
+                display = build_display(wf.display_mesh(res), wf.scene.image, removed=res.removed, fields=fields,
+                                        fy=res.intrinsics.fy)
+            return res, t0, display, view_image(wf.scene, res, mode), mode
         self.pipeline_jobs.submit(job)
 
     def on_pipeline_progress(self, info) -> None:
-        if isinstance(info, dict) and "history" in info:
+        if isinstance(info, dict) and "live_results" in info:
+            self._show_results(info["live_results"], info["t0"], final=False, view=(info["mode"], info["view"]))
+        elif isinstance(info, dict) and "history" in info:
             self.loss_plot.set_history(info["history"])
         elif isinstance(info, dict) and "stage" in info:
             self._set_busy(f"computing {info['stage']}…")
 
     def on_pipeline_done(self, payload) -> None:
-        res, t0 = payload
+        res, t0, display, view, mode = payload
+        self._show_results(res, t0, final=True, display=display, view=(mode, view))
+
+    def _show_results(self, res, t0: float, *, final: bool, display=None, view=None) -> None:
         self.results = res
+        self.results_final = final
         lat = time.perf_counter() - t0
-        self.last_latency["pipeline"] = lat
-        self.log.log("recomputed " + ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items()
-                                               if k in res.recomputed) + f" — change→view {lat:.2f} s")
+        self.last_latency["pipeline" if final else "pipeline_live"] = lat
+        what = "recomputed" if final else f"quick preview ({self.LIVE_REFINE_BUDGET_S:g} s refinement budget)"
+        self.log.log(f"{what}: " + ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items()
+                                             if k in res.recomputed) + f" — change→view {lat:.2f} s")
         if res.refine is not None:
             self.loss_plot.set_history(res.refine_history())
-        self.refresh_view()
-        if self.viewer is not None and res.mesh is not None:
-            fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error())) if v is not None}
-            self.viewer.set_mesh(res.mesh, self.workflow.scene.image, fy=res.intrinsics.fy, removed=res.removed,
-                                 fields=fields)
+        if view is not None and view[0] == self.view_mode.currentText():
+            self.editor.set_base_image(view[1])
+        else:
+            self.refresh_view()
+        if not final:
+            return  # the quick result updates the 2D views; the mesh and the night follow the full one
+        if self.viewer is not None and display is not None:
+            self.viewer.set_display(display)
+            if display.mesh is not res.mesh:
+                self.log.log(f"3D view shows a {display.mesh.n_faces:,}-face reduction of the "
+                             f"{res.mesh.n_faces:,}-face mesh")
         self.request_render()
 
     def refresh_view(self) -> None:
+        """Recompute the canvas image for the current view mode (in a worker)."""
         if self.workflow is None:
             return
-        mode = self.view_mode.currentText()
-        img = view_image(self.workflow.scene, self.results, mode)
-        self.editor.set_base_image(img)
+        scene, res, mode = self.workflow.scene, self.results, self.view_mode.currentText()
+        self.view_jobs.submit(lambda cancel, progress: (mode, view_image(scene, res, mode)))
+
+    def _on_view(self, payload) -> None:
+        mode, img = payload
+        if mode == self.view_mode.currentText():
+            self.editor.set_base_image(img)
 
     # ----------------------------------------------------------------- night
     def on_lights_toggled(self, state: dict) -> None:
@@ -255,7 +299,8 @@ class MainWindow(QMainWindow):
         self.request_render()
 
     def request_render(self) -> None:
-        if self.workflow is None or self.results is None or self.results.mesh is None:
+        if self.workflow is None or self.results is None or self.results.mesh is None \
+                or not getattr(self, "results_final", True):
             return
         wf, params, res, override = self.workflow, self.params, self.results, self.light_override
         t0 = self._t_change or time.perf_counter()
@@ -446,9 +491,9 @@ class MainWindow(QMainWindow):
         s = QSettings(ORG, APP)
         s.setValue("geometry", self.saveGeometry())
         s.setValue("state", self.saveState())
-        self.pipeline_jobs.cancel()
-        self.render_jobs.cancel()
-        self.export_jobs.cancel()
+        for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
+            ch.cancel()
+        self.pipeline_jobs.shutdown()  # workers stop at their next cancellation check
         if self.viewer is not None:
             self.viewer.close_viewer()
         super().closeEvent(event)

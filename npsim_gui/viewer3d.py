@@ -10,6 +10,7 @@ image's field of view (OpenCV frame: y down), so the mesh lines up with the phot
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pyvista as pv
@@ -42,6 +43,37 @@ def _sample(img: np.ndarray, pixel: np.ndarray) -> np.ndarray:
     u = np.clip(np.rint(pixel[:, 0]).astype(np.intp), 0, w - 1)
     v = np.clip(np.rint(pixel[:, 1]).astype(np.intp), 0, h - 1)
     return img[v, u]
+
+
+@dataclass
+class MeshDisplay:
+    """VTK-ready geometry of one mesh (built off the GUI thread by :func:`build_display`)."""
+
+    mesh: SceneMesh
+    image: np.ndarray
+    background: pv.PolyData | None
+    foreground: pv.PolyData | None
+    removed: pv.PolyData | None
+    emitters: pv.PolyData | None
+    fields: dict[str, np.ndarray]
+    fov_deg: float | None
+
+
+def _emitter_part(part: MeshPart) -> MeshPart:
+    keep = part.face_light_id() > 0
+    return MeshPart(part.name, part.vertices, part.faces[keep], part.uv, part.pixel, part.label,
+                    part.light_id, part.foreground)
+
+
+def build_display(mesh: SceneMesh, image: np.ndarray, *, removed: MeshPart | None = None,
+                  fields: dict[str, np.ndarray] | None = None, fy: float | None = None) -> MeshDisplay:
+    """Concatenate the sheets into VTK poly data (pure data work: safe in a worker thread)."""
+    bg = _polydata([q for q in mesh.parts if not q.foreground])
+    fg = _polydata([q for q in mesh.parts if q.foreground])
+    rm = _polydata([removed]) if removed is not None and removed.n_faces else None
+    em = _polydata([_emitter_part(q) for q in mesh.parts])
+    fov = math.degrees(2 * math.atan(mesh.height / 2.0 / fy)) if fy else None
+    return MeshDisplay(mesh, image, bg, fg, rm, em, dict(fields or {}), fov)
 
 
 class MeshViewer(QWidget):
@@ -86,10 +118,15 @@ class MeshViewer(QWidget):
                  removed: MeshPart | None = None, fields: dict[str, np.ndarray] | None = None) -> None:
         """Show ``mesh`` coloured from ``image`` (HxWx3 uint8); ``fields`` are HxW maps for
         the 'uncertainty' / 'error' modes (sampled at each vertex's pixel)."""
-        self.mesh, self.image, self.removed = mesh, image, removed
-        self.vertex_fields = dict(fields or {})
-        if fy:
-            self._fov_deg = math.degrees(2 * math.atan(mesh.height / 2.0 / fy))
+        self.set_display(build_display(mesh, image, removed=removed, fields=fields, fy=fy))
+
+    def set_display(self, display: "MeshDisplay") -> None:
+        """Show a display prepared by :func:`build_display` (which may run in a worker thread)."""
+        self.display = display
+        self.mesh, self.image = display.mesh, display.image
+        self.vertex_fields = display.fields
+        if display.fov_deg:
+            self._fov_deg = display.fov_deg
         self._redraw()
         if not self._camera_set:
             self.reset_camera()
@@ -118,34 +155,25 @@ class MeshViewer(QWidget):
         p = self.plotter
         cam = p.camera_position if self._camera_set else None
         p.clear()
-        if self.mesh is None:
+        d = getattr(self, "display", None)
+        if d is None:
             p.render()
             return
-        parts = [q for q in self.mesh.parts if (q.foreground and self.show_fg.isChecked())
-                 or (not q.foreground and self.show_bg.isChecked())]
-        pd = _polydata(parts)
-        if pd is not None:
-            pd.point_data["rgb"] = self._colors(pd)
-            p.add_mesh(pd, scalars="rgb", rgb=True, show_scalar_bar=False, lighting=self.mode.currentText() != "image")
-        if self.show_removed.isChecked() and self.removed is not None and self.removed.n_faces:
-            rd = _polydata([self.removed])
-            p.add_mesh(rd, color="red", opacity=0.8)
-        if self.show_lights.isChecked():
-            lp = _polydata([self._emitter_part(q) for q in parts])
-            if lp is not None:
-                lut = np.zeros((32, 3), np.uint8)
-                for c in light_classes():
-                    lut[c.id] = c.color
-                p.add_mesh(lp, scalars=lut[np.asarray(lp.point_data["light"]) // 1000], rgb=True)
+        for pd, show in ((d.background, self.show_bg.isChecked()), (d.foreground, self.show_fg.isChecked())):
+            if pd is not None and show:
+                pd.point_data["rgb"] = self._colors(pd)
+                p.add_mesh(pd, scalars="rgb", rgb=True, show_scalar_bar=False,
+                           lighting=self.mode.currentText() != "image")
+        if self.show_removed.isChecked() and d.removed is not None:
+            p.add_mesh(d.removed, color="red", opacity=0.8)
+        if self.show_lights.isChecked() and d.emitters is not None:
+            lut = np.zeros((32, 3), np.uint8)
+            for c in light_classes():
+                lut[c.id] = c.color
+            p.add_mesh(d.emitters, scalars=lut[np.asarray(d.emitters.point_data["light"]) // 1000], rgb=True)
         if cam is not None:
             p.camera_position = cam
         p.render()
-
-    @staticmethod
-    def _emitter_part(part: MeshPart) -> MeshPart:
-        keep = part.face_light_id() > 0
-        return MeshPart(part.name, part.vertices, part.faces[keep], part.uv, part.pixel, part.label,
-                        part.light_id, part.foreground)
 
     def reset_camera(self) -> None:
         """Camera at the origin, looking along +z, image 'up' = -y (OpenCV frame)."""

@@ -32,14 +32,20 @@ class _Job(QRunnable):
 
     def run(self) -> None:
         try:
-            result = self.fn(self.cancel, lambda info: self.signals.progress.emit(self.serial, info))
+            result = self.fn(self.cancel, lambda info: self._emit(self.signals.progress, self.serial, info))
         except NpsimCancelled:
             return
         except Exception as exc:  # shown to the user as a readable message, never a crash
-            self.signals.failed.emit(self.serial, f"{type(exc).__name__}: {exc}", traceback.format_exc())
+            self._emit(self.signals.failed, self.serial, f"{type(exc).__name__}: {exc}", traceback.format_exc())
             return
         if not self.cancel.is_set():
-            self.signals.done.emit(self.serial, result)
+            self._emit(self.signals.done, self.serial, result)
+
+    def _emit(self, signal, *args) -> None:
+        try:
+            signal.emit(*args)
+        except RuntimeError:  # the window (and its signal object) is gone: nobody to tell
+            self.cancel.set()
 
 
 class JobChannel(QObject):
@@ -80,9 +86,16 @@ class JobChannel(QObject):
         self.busy.emit(True)
 
     def cancel(self) -> None:
+        self._timer.stop()
+        self._pending = None
         if self._cancel is not None:
             self._cancel.set()
         self._serial += 1
+
+    def shutdown(self, timeout_ms: int = 5000) -> None:
+        """Cancel and wait (bounded) for running jobs, e.g. before the window closes."""
+        self.cancel()
+        self.pool.waitForDone(timeout_ms)
 
     def _start_pending(self) -> None:
         fn, self._pending = self._pending, None
@@ -98,7 +111,10 @@ class JobChannel(QObject):
             try:
                 return fn(cancel, progress)
             finally:
-                self._signals.progress.emit(-1, None)  # marks 'a job ended' for the busy counter
+                try:
+                    self._signals.progress.emit(-1, "ended")  # marks 'a job ended' for the busy counter
+                except RuntimeError:  # channel already deleted (window closed)
+                    pass
         return run
 
     def _on_progress(self, serial: int, info: object) -> None:

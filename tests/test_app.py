@@ -56,30 +56,50 @@ def test_opens_scene_builds_mesh_and_renders(window, scene):
     # the 3D view rendered something (not a blank background)
     shot = window.viewer.screenshot()
     assert shot.std() > 5
-    # the canvas shows every view mode without error
-    for i in range(window.view_mode.count()):
-        window.view_mode.setCurrentIndex(i)
     assert "street" in window.windowTitle()
 
 
+def _record_results(window):
+    """Wrap the window's result display to record (recomputed stages, final?) per update."""
+    seen = []
+    orig = window._show_results
+
+    def spy(res, t0, *, final, **kw):
+        seen.append((list(res.recomputed), final))
+        return orig(res, t0, final=final, **kw)
+    window._show_results = spy
+    return seen
+
+
 def test_lambda_slider_recomputes_only_refine_and_mesh(window, qtbot):
-    before = window.results
-    window.params_panel.sliders[("refine", "lambda2")].setValue(1.0)  # programmatic: no signal
+    seen = _record_results(window)
     slider = window.params_panel.sliders[("refine", "lambda2")]
     slider.slider.setValue(slider.slider.value() + 40)  # as a drag would
-    qtbot.waitUntil(lambda: window.results is not before, timeout=120_000)
-    assert window.results.recomputed == ["refine", "mesh"]
+    qtbot.waitUntil(lambda: bool(seen) and seen[-1][1] and not window.pipeline_jobs.is_busy, timeout=120_000)
+    # first a quick refinement (time budget) for the 2D views, then the full one with its mesh
+    assert seen[0] == (["refine"], False)
+    assert seen[-1] == (["refine", "mesh"], True)
     assert window.params.refine.lambdas[1] == pytest.approx(slider.value())
     assert window.loss_plot.series.get("total")
 
 
 def test_filter_slider_recomputes_from_filter(window, qtbot):
-    before = window.results
+    seen = _record_results(window)
     s = window.params_panel.sliders[("filter", "sigma_s")]
     s.spin.setValue(6.0)
-    qtbot.waitUntil(lambda: window.results is not before, timeout=120_000)
-    assert window.results.recomputed == ["filter", "uncertain", "refine", "mesh"]
+    qtbot.waitUntil(lambda: bool(seen) and seen[-1][1] and not window.pipeline_jobs.is_busy, timeout=120_000)
+    assert seen[0] == (["filter", "uncertain", "refine"], False)
+    assert seen[-1] == (["refine", "mesh"], True)  # filter and U come from the quick pass's cache
     assert window.params.filter.sigma_s == 6.0
+
+
+def test_view_modes_show_in_the_canvas(window, qtbot):
+    from npsim_core.workflow import view_image
+
+    for mode in ("refined depth", "uncertain map", "normal error vs GT"):
+        window.view_mode.setCurrentText(mode)
+        want = view_image(window.workflow.scene, window.results, mode)
+        qtbot.waitUntil(lambda: np.array_equal(window.editor.canvas.base.array[..., :3], want), timeout=30_000)
 
 
 def test_light_toggle_rerenders_with_that_light_off(window, qtbot):
