@@ -115,7 +115,7 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
     return rows
 
 
-def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 128, seeds=(0, 1, 2)) -> None:
+def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 256, seeds=(0, 1, 2)) -> None:
     """Day image + three nights of the synthetic street side by side (docs/img/night_triptych.png).
 
     Uses the same path as ``npsim night``: the scene's *estimated* depth through the best

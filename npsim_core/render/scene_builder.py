@@ -26,7 +26,9 @@ Design
   with ``throw`` (street lights, car front lamps) also get a Mitsuba ``spot``
   at the mask's 3-D centroid: street lights aim straight down (world down, using
   the camera pitch), car lamps along the mask's mean normal tilted 10° down.
-  Spot intensity = radiance · mask area · ``throw.gain``; Mitsuba's spot has a
+  Spot intensity = radiance · mask area · ``throw.gain``; the lamp's visible
+  area emitter is then capped at ``throw.max_visible_radiance`` (max channel, 2.0:
+  saturated at any sane exposure) to avoid fireflies. Mitsuba's spot has a
   smooth falloff between ``beam_deg`` and ``cutoff_deg`` (standing in for SOLO's
   cos/cos² falloff).
 * **Ego headlights**: two spots 0.5 m left/right of the camera, 0.65 m above the
@@ -327,10 +329,16 @@ class BuiltScene:
         # from the camera: a street lamp is not sampled as rarely as one of fifty dim windows,
         # and lamps near the camera, which light most of the pixels, get more samples
         # (Mitsuba has no spatial light tree; any weights keep the estimate unbiased).
+        cap = float(self.table.throw.get("max_visible_radiance", 2.0)) if self.table is not None else np.inf
         for lid, key in self.area_keys.items():
             st = active.lights.get(lid)
             on = st is not None and st.on
             rad = list(st.radiance) if on else [0.0, 0.0, 0.0]
+            if lid in self.spot_keys and max(rad) > cap:
+                # A lamp whose light reaches the scene through its spot: its visible surface only
+                # has to look saturated; capping it removes fireflies from paths that hit the tiny,
+                # very bright lamp head by chance (e.g. in glossy asphalt).
+                rad = [r * cap / max(rad) for r in rad]
             p[f"{key}.radiance.value"] = type(p[f"{key}.radiance.value"])(*rad)
             p[f"{key}.sampling_weight"] = (max(math.pi * _lum(rad) * self.area_m2.get(lid, 1.0)
                                                * self._near(lid), OFF_WEIGHT) if on else OFF_WEIGHT)
