@@ -164,7 +164,7 @@ class MainWindow(QMainWindow):
         folder = scene.provenance.get("folder")
         self.editor.load(scene.image, scene.labels, scene.lights, folder=folder, stem=scene.name)
         self.render_panel.set_day(scene.image)
-        self.params_panel.set_values(self.params.gui_values())
+        self._show_params()
         self.render_panel.seed.blockSignals(True)
         self.render_panel.seed.setValue(self.params.night.seed)
         self.render_panel.seed.blockSignals(False)
@@ -174,6 +174,13 @@ class MainWindow(QMainWindow):
         if folder:
             QSettings(ORG, APP).setValue("last_scene", folder)
         self.recompute()
+
+    def _show_params(self) -> None:
+        values = self.params.gui_values()
+        if self.workflow is not None and not values.get(("camera", "hfov_deg")):
+            # 0 means "the scene's own intrinsics": show the field of view they imply
+            values[("camera", "hfov_deg")] = self.workflow.scene.intrinsics.hfov_deg
+        self.params_panel.set_values(values)
 
     def _update_title(self, *_a) -> None:
         name = self.workflow.scene.name if self.workflow else "no scene"
@@ -192,14 +199,14 @@ class MainWindow(QMainWindow):
 
     def on_preset(self, name: str) -> None:
         self.params = self.params.with_preset(name)
-        self.params_panel.set_values(self.params.gui_values())
+        self._show_params()
         self._t_change = time.perf_counter()
         self.recompute()
 
     def on_reset(self) -> None:
         seed = self.params.night.seed
         self.params = WorkflowParams().with_value("night", "seed", seed)
-        self.params_panel.set_values(self.params.gui_values())
+        self._show_params()
         self._t_change = time.perf_counter()
         self.recompute()
 

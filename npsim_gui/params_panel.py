@@ -55,8 +55,8 @@ SPECS: tuple[tuple[str, tuple[SliderSpec, ...]], ...] = (
     ("Mesh", (
         SliderSpec("mesh", "stride", "stride (px)", 1, 16, integer=True, tooltip="one vertex every N pixels"),
         SliderSpec("mesh", "far_limit", "far limit (m)", 20.0, 1000.0, log=True, decimals=0),
-        SliderSpec("mesh", "hfov_deg", "h. FOV (°)", 20.0, 140.0, decimals=1,
-                   tooltip="horizontal field of view; 0 keeps the scene's intrinsics"),
+        SliderSpec("camera", "hfov_deg", "h. FOV (°)", 20.0, 140.0, decimals=1,
+                   tooltip="horizontal field of view (shows the scene's own until you move it)"),
     )),
     ("Night", (
         SliderSpec("night", "spp", "spp (preview)", 1, 256, integer=True, log=False),

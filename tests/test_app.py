@@ -148,3 +148,13 @@ def test_project_round_trip(window, qtbot, tmp_path):
     assert params.refine.steps == 40
     assert np.array_equal(scene.labels, window.workflow.scene.labels)
     assert scene.lights is not None and scene.lights.instance_ids() == window.workflow.scene.lights.instance_ids()
+
+
+def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene):
+    fov = window.params_panel.sliders[("camera", "hfov_deg")]
+    assert fov.value() == pytest.approx(scene.intrinsics.hfov_deg, abs=0.1)
+    seen = _record_results(window)
+    fov.spin.setValue(70.0)
+    qtbot.waitUntil(lambda: bool(seen) and seen[-1][1] and not window.pipeline_jobs.is_busy, timeout=120_000)
+    assert window.results.intrinsics.hfov_deg == pytest.approx(70.0)
+    assert seen[0][0] == ["filter", "uncertain", "refine"]  # new camera: everything is recomputed
