@@ -17,6 +17,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
                                QProgressDialog, QVBoxLayout, QWidget)
 
+from npsim_core.annotation import find_recovery, load_recovery
 from npsim_core.errors import NpsimInputError
 from npsim_core.scene import Scene
 from npsim_core.workflow import VIEW_MODES, Workflow, WorkflowParams, view_image
@@ -162,7 +163,21 @@ class MainWindow(QMainWindow):
         self.results = None
         self.light_override = None
         folder = scene.provenance.get("folder")
-        self.editor.load(scene.image, scene.labels, scene.lights, folder=folder, stem=scene.name)
+        ann, dirty = scene.lights, False
+        rec = find_recovery(folder, scene.name) if folder else None
+        if rec is not None:
+            choice = self.ask("Recover unsaved edits", f"{scene.name}: the last session ended without saving its "
+                              "light annotation. Restore the unsaved edits?", ["Restore", "Discard"])
+            if choice == "Restore":
+                try:
+                    ann, dirty = load_recovery(rec), True
+                except NpsimInputError as exc:
+                    self.on_error(str(exc), "")
+            else:
+                rec.unlink(missing_ok=True)
+        self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=scene.name, dirty=dirty)
+        if ann is not scene.lights:
+            self.workflow.set_annotation(ann)
         self.render_panel.set_day(scene.image)
         self._show_params()
         self.render_panel.seed.blockSignals(True)

@@ -158,3 +158,29 @@ def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene)
     qtbot.waitUntil(lambda: bool(seen) and seen[-1][1] and not window.pipeline_jobs.is_busy, timeout=120_000)
     assert window.results.intrinsics.hfov_deg == pytest.approx(70.0)
     assert seen[0][0] == ["filter", "uncertain", "refine"]  # new camera: everything is recomputed
+
+
+def test_unsaved_annotation_is_recovered_after_a_crash(qtbot, tmp_path, scene):
+    """Edits autosaved by a session that died are offered back when the scene is opened again."""
+    from npsim_core.annotation import write_recovery
+    from npsim_core.scene import load_scene, save_scene
+    from npsim_gui.main_window import MainWindow
+
+    folder = save_scene(scene, tmp_path / "s")
+    edited = scene.lights.copy()
+    victim = edited.instance_ids()[0]
+    edited.instance_map[edited.instance_map == victim] = 0  # the crashed session erased one light
+    edited.groups = {g: type(x)(x.id, tuple(m for m in x.members if m != victim))
+                     for g, x in edited.groups.items() if any(m != victim for m in x.members)}
+    write_recovery(edited, folder, scene.name)
+    win = MainWindow(with_3d=False)
+    qtbot.addWidget(win)
+    asked = []
+    win.ask = lambda title, text, buttons: asked.append(title) or "Restore"
+    win.set_scene(load_scene(folder), WorkflowParams().with_value("refine", "steps", 5))
+    assert asked == ["Recover unsaved edits"]
+    assert victim not in win.editor.session.ann.instance_ids()
+    assert win.editor.session.is_dirty and win.windowTitle().endswith("*")
+    assert victim not in win.workflow.annotation.instance_ids()
+    win.confirm_close = lambda: True
+    win.close()
