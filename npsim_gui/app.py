@@ -28,10 +28,8 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
 
     from .main_window import MainWindow
 
-    app = QApplication.instance() or QApplication(sys.argv[:1])
-    app.setApplicationName("NPSim")
     params = None
-    try:
+    try:  # read the input before any window exists, so a bad path is a message, not a dialog
         if path is None:
             from npsim_core.synthetic import street_scene
 
@@ -43,6 +41,8 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
     except NpsimInputError as exc:
         print(f"npsim gui: error: {exc}", file=sys.stderr)
         return 2
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("NPSim")
     win = MainWindow()
     win.show()
     win.set_scene(scene, params)

@@ -184,3 +184,19 @@ def test_unsaved_annotation_is_recovered_after_a_crash(qtbot, tmp_path, scene):
     assert victim not in win.workflow.annotation.instance_ids()
     win.confirm_close = lambda: True
     win.close()
+
+
+@pytest.mark.parametrize("cmd", [["gui"], ["annotate", "."]])
+def test_gui_commands_without_display_say_so(cmd, tmp_path):
+    """Without a display the GUI commands explain what to do instead of letting Qt abort."""
+    import subprocess
+    import sys
+
+    from npsim_core.scene import save_scene
+
+    save_scene(street_scene(W, H), tmp_path)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
+    r = subprocess.run([sys.executable, "-m", "npsim_core.cli", *cmd], cwd=tmp_path, env=env, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 2, r.stderr[-800:]
+    assert "no display" in r.stderr

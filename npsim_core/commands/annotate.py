@@ -30,5 +30,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"{it.name}\t{flag}\t{it.image_path}")
         return 0
     # The GUI is loaded only when the command runs, so npsim_core itself never imports Qt.
+    if not importlib.import_module("npsim_gui.app").has_display():
+        from ..errors import NpsimInputError
+
+        raise NpsimInputError("no display to open the editor on (DISPLAY is not set): run it on a desktop or "
+                              "under 'xvfb-run -a npsim annotate …'; 'npsim annotate PATH --list' works without one")
     editor = importlib.import_module("npsim_gui.editor")
     return int(editor.main(args.path, autosave_ms=args.autosave_ms))

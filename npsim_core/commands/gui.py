@@ -26,10 +26,13 @@ def run_gui(args: argparse.Namespace) -> int:
 
     size = parse_size(args.size)
     try:
-        from npsim_gui.app import main
+        from npsim_gui.app import has_display, main
     except ImportError as exc:  # e.g. Qt's system libraries missing
         raise NpsimInputError(f"the GUI cannot start ({exc}); run 'bash npsim.sh setup' to install its "
                               "system packages") from None
+    if not has_display():
+        raise NpsimInputError("no display to open a window on (DISPLAY is not set): run it on a desktop, under "
+                              "'xvfb-run -a npsim gui …', or use 'npsim start' / 'npsim run' for a headless run")
     return main(args.path, sample_size=size, screenshot=args.screenshot, quit_after=args.quit_after)
 
 
