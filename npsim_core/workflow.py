@@ -464,7 +464,7 @@ class Workflow:
                            seed=n.seed)
         cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed)
         for frame in render_preview(built, pp, cancel=cancel):
-            srgb, _ = apply_camera(frame.image, cam)
+            srgb, _ = apply_camera(frame.image, cam, light_classes=self._night["light_classes"])
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active)
 
     def night_final(self, results: WorkflowResults, params: WorkflowParams, *, seed: int | None = None,

@@ -278,3 +278,19 @@ def test_visible_background_vertices_get_their_own_texture():
     assert np.allclose(uv[vis], own[vis]) and np.allclose(uv[~vis], wrong_uv[~vis])
     assert (lab[vis] == 7).all() and (lab[~vis] == 11).all()
     assert lid[1 * W + 1] == 1005 and lid.sum() == 1005
+
+
+def test_fireflies_removed_but_lights_kept():
+    from npsim_core.render.camera_post import remove_fireflies
+
+    img = np.full((9, 9, 3), 0.02, np.float32)
+    img[2, 2] = 5.0          # a Monte Carlo firefly on a dark wall
+    img[6, 6] = 5.0          # a one-pixel lamp (protected)
+    protect = np.zeros((9, 9), bool)
+    protect[6, 6] = True
+    out, n = remove_fireflies(img, 4.0, 0.01, protect)
+    assert n == 1
+    assert np.allclose(out[2, 2], 0.02) and np.allclose(out[6, 6], 5.0)
+    assert np.array_equal(np.delete(out.reshape(-1, 3), [20, 60], axis=0), np.delete(img.reshape(-1, 3), [20, 60], axis=0))
+    flat, n0 = remove_fireflies(np.full((5, 5, 3), 0.3, np.float32))
+    assert n0 == 0 and np.all(flat == 0.3)

@@ -1,6 +1,7 @@
 """Camera post-processing of the linear night render (SPEC §5, thesis §3.6 "Image Post-processing").
 
-Order (a simple camera pipeline): exposure gain ``2**exposure_ev`` on the linear
+Order (a simple camera pipeline): firefly removal (isolated Monte Carlo outliers,
+light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
 render -> optional horizontal motion blur of moving vehicles -> heteroscedastic
 Gaussian noise ``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in
 linear units where 1.0 = sensor white) -> white balance (per-channel gains) ->
@@ -53,6 +54,10 @@ class CameraParams:
     iso : noise preset (None = no noise); ``beta1``/``beta2`` override it when both given.
     white_balance : per-channel gains (R, G, B) applied after the noise.
     motion_blur_px : horizontal blur length for vehicles carrying moving lights (0 = off).
+    firefly_ratio : remove path-tracing fireflies first: a pixel brighter than this multiple of
+        its 3x3 median luminance (plus ``firefly_floor``) takes the median colour; light-source
+        pixels are never touched (0 = off).
+    firefly_floor : absolute luminance margin of that test (linear radiance units).
     seed : noise seed.
     """
 
@@ -62,6 +67,8 @@ class CameraParams:
     beta2: float | None = None
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     motion_blur_px: int = 0
+    firefly_ratio: float = 4.0
+    firefly_floor: float = 0.01
     seed: int = 0
 
     def betas(self) -> tuple[float, float]:
@@ -98,6 +105,31 @@ def moving_vehicle_mask(labels: np.ndarray, light_classes: np.ndarray) -> np.nda
     return np.isin(comp, hit) | moving
 
 
+def remove_fireflies(linear: np.ndarray, ratio: float = 4.0, floor: float = 0.01,
+                     protect: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Replace isolated over-bright pixels (Monte Carlo fireflies) by their 3x3 median.
+
+    A pixel is a firefly when its luminance exceeds ``ratio`` x the 3x3 median luminance
+    + ``floor`` and none of its 8 neighbours reaches half of it (isolated: the corners and
+    edges of genuinely bright regions are kept); ``protect`` (HxW bool, e.g. the light
+    masks) is left alone so that small lamps keep glowing. Returns the image and the
+    number of pixels replaced.
+    """
+    lin = np.ascontiguousarray(linear, dtype=np.float32)
+    lum = np.ascontiguousarray(lin @ np.array([0.2126, 0.7152, 0.0722], np.float32))
+    med = cv2.medianBlur(lum, 3)
+    ring = np.ones((3, 3), np.uint8)
+    ring[1, 1] = 0
+    neighbour_max = cv2.dilate(lum, ring, borderType=cv2.BORDER_REPLICATE)
+    bad = (lum > ratio * med + floor) & (neighbour_max < 0.5 * lum)
+    if protect is not None:
+        bad &= ~cv2.dilate(protect.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    n = int(bad.sum())
+    if n == 0:
+        return lin, 0
+    return np.where(bad[..., None], cv2.medianBlur(lin, 3), lin).astype(np.float32), n
+
+
 def motion_blur(linear: np.ndarray, mask: np.ndarray, length: int) -> np.ndarray:
     """Horizontal box blur of ``length`` px inside ``mask`` (grown by half the length so the streak shows)."""
     if length <= 1 or not mask.any():
@@ -115,15 +147,25 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     ----------
     linear : (H, W, 3) float32 linear RGB (Mitsuba radiance units).
     params : exposure, noise, white balance, motion blur.
-    labels, light_classes : (H, W) maps, needed only for motion blur.
+    labels, light_classes : (H, W) maps: motion blur needs both; ``light_classes`` also keeps
+        light-source pixels out of the firefly removal (resized nearest when the render is smaller).
     """
     lin = np.asarray(linear, dtype=np.float32)
     if lin.ndim != 3 or lin.shape[2] != 3:
         raise NpsimInputError(f"linear image must be HxWx3, got shape {lin.shape}")
     if not np.isfinite(lin).all():
         raise NpsimInputError("linear image contains NaN/inf; the render failed")
+    if params.firefly_ratio > 0 and lin.shape[0] >= 3 and lin.shape[1] >= 3:
+        protect = None
+        if light_classes is not None:
+            protect = np.asarray(light_classes) > 0
+            if protect.shape != lin.shape[:2]:  # preview renders are smaller than the annotation
+                protect = cv2.resize(protect.astype(np.uint8), (lin.shape[1], lin.shape[0]),
+                                     interpolation=cv2.INTER_NEAREST).astype(bool)
+        lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, protect)
     x = lin * np.float32(2.0 ** float(params.exposure_ev))
-    if params.motion_blur_px > 1 and labels is not None and light_classes is not None:
+    if params.motion_blur_px > 1 and labels is not None and light_classes is not None \
+            and np.asarray(light_classes).shape == lin.shape[:2]:
         x = motion_blur(x, moving_vehicle_mask(labels, light_classes), int(params.motion_blur_px))
     b1, b2 = params.betas()
     if b1 > 0 or b2 > 0:
