@@ -104,6 +104,17 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
         err = _srgb_rmse(img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]], ref)
         rows.append({"variant": variant, "size": f"{W}x{H}", "what": "preview 4x4 spp incl. build", "spp": 16,
                      "time": t, "cpu": c, "err": err})
+
+        def prev_app():  # the app's schedule: a 4-spp first frame, then the other 12 in one pass
+            last = None
+            for f in render_preview(build(), PreviewParams(scale=1.0, schedule=(4, 12), seed=5)):
+                last = f
+            return last.image
+
+        img, t, c = _timed(prev_app)
+        err = _srgb_rmse(img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]], ref)
+        rows.append({"variant": variant, "size": f"{W}x{H}", "what": "preview 4+12 spp incl. build (app)",
+                     "spp": 16, "time": t, "cpu": c, "err": err})
         log(f"  preview {t:.2f} s err {err:.3f}")
     for spp in final_spp:
         img, t, c = _timed(lambda: render_linear(built, spp=spp, seed=spp, crop=None))

@@ -71,7 +71,7 @@ class MeshParams:
 class NightParams:
     """Night rendering and camera.
 
-    seed : light activation and noise seed. spp : preview samples per pixel (progressive, 4 per pass).
+    seed : light activation and noise seed. spp : preview samples per pixel (a 4-spp first frame, then the rest).
     preview_scale : preview resolution as a fraction of the image. final_spp : for exports.
     iso : camera noise preset; exposure : stops. ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
@@ -459,8 +459,8 @@ class Workflow:
         active = self.activate(params, light_override)
         built.apply_lights(active)
         n = params.night
-        per = 4
-        pp = PreviewParams(scale=n.preview_scale, spp_per_pass=per, passes=max(1, int(np.ceil(n.spp / per))),
+        first = min(4, int(n.spp))  # a quick first frame, then the rest in one pass
+        pp = PreviewParams(scale=n.preview_scale, schedule=(first,) + ((int(n.spp) - first,) if n.spp > first else ()),
                            seed=n.seed)
         cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed)
         for frame in render_preview(built, pp, cancel=cancel):
