@@ -75,7 +75,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
 
         self.params_panel = ParameterPanel()
-        self.params_panel.setMinimumWidth(380)
+        self.params_panel.setMinimumWidth(330)
         self.params_dock = self._dock("Parameters", self.params_panel, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.viewer = MeshViewer() if with_3d else None
         if self.viewer is not None:
@@ -90,6 +90,9 @@ class MainWindow(QMainWindow):
         bl.addWidget(self.loss_plot, 1)
         bl.addWidget(self.log, 1)
         self.log_dock = self._dock("Loss and log", bottom, Qt.DockWidgetArea.BottomDockWidgetArea)
+        if self.viewer is not None:  # default split of the right column (a saved layout overrides it)
+            self.resizeDocks([self.viewer_dock, self.render_dock], [420, 480], Qt.Orientation.Vertical)
+            self.resizeDocks([self.viewer_dock], [560], Qt.Orientation.Horizontal)
 
     def _dock(self, title: str, widget: QWidget, area) -> QDockWidget:
         d = QDockWidget(title, self)

@@ -98,11 +98,14 @@ class MeshViewer(QWidget):
         self.reset_btn.setToolTip("Put the camera back at the photo's viewpoint")
         self.reset_btn.clicked.connect(self.reset_camera)
         bar.addWidget(self.mode)
-        for w in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
-            bar.addWidget(w)
         bar.addStretch(1)
         bar.addWidget(self.reset_btn)
         lay.addLayout(bar)
+        toggles = QHBoxLayout()  # a second row keeps the dock narrow
+        for w in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
+            toggles.addWidget(w)
+        toggles.addStretch(1)
+        lay.addLayout(toggles)
         self.plotter = QtInteractor(self, auto_update=False)
         self.plotter.set_background("#1b1d22")
         lay.addWidget(self.plotter.interactor, 1)
