@@ -105,6 +105,7 @@ class MainWindow(QMainWindow):
         m = self.menuBar().addMenu("&File")
         self.act_open_scene = self._action(m, "Open scene folder…", "Ctrl+O", self.open_scene_dialog)
         self.act_open_project = self._action(m, "Open project…", "Ctrl+Shift+O", self.open_project_dialog)
+        self.act_reopen = self._action(m, "Reopen last scene", "Ctrl+Shift+R", self.reopen_last)
         self.act_save_project = self._action(m, "Save project…", "Ctrl+S", self.save_project_dialog)
         self.act_save_ann = self._action(m, "Save annotation", "Ctrl+Shift+S", self.save_annotation)
         m.addSeparator()
@@ -382,6 +383,14 @@ class MainWindow(QMainWindow):
             self.set_scene(load_any_scene(path))
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
+
+    def reopen_last(self) -> None:
+        """Open the scene (or project) folder opened last time, remembered across runs."""
+        last = QSettings(ORG, APP).value("last_scene")
+        if not last:
+            self.on_error("no scene folder was opened before", "")
+            return
+        self.open_scene(last)
 
     def open_project_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Open project folder")

@@ -200,3 +200,20 @@ def test_gui_commands_without_display_say_so(cmd, tmp_path):
                        text=True, timeout=120)
     assert r.returncode == 2, r.stderr[-800:]
     assert "no display" in r.stderr
+
+
+def test_last_scene_is_remembered_between_runs(qtbot, tmp_path, scene):
+    from npsim_core.scene import save_scene
+    from npsim_gui.main_window import MainWindow
+
+    folder = save_scene(scene.with_(name="remembered"), tmp_path / "r")
+    first = MainWindow(with_3d=False)
+    qtbot.addWidget(first)
+    first.open_scene(folder)
+    assert first.workflow.scene.name == "remembered"
+    first.close()
+    second = MainWindow(with_3d=False)  # a new run of the app
+    qtbot.addWidget(second)
+    second.reopen_last()
+    assert second.workflow is not None and second.workflow.scene.name == "remembered"
+    second.close()
