@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     for what, section, field, values in (("λ2 change", "refine", "lambda2", [3.0, 7.0, 5.0]),
                                          ("σs change", "filter", "sigma_s", [8.0, 12.0, 10.0])):
         for v in values[: args.repeats]:
-            before_res, before_night = win.results, win.render_panel.night
+            before_res = win.results
             frames = []
             win.render_jobs.progress.connect(lambda f, fr=frames: fr.append(time.perf_counter()))
             t0 = time.perf_counter()

@@ -18,7 +18,6 @@ after it, and a new seed only re-activates lights in the already built night sce
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -407,7 +406,6 @@ class Workflow:
     # ------------------------------------------------------------------ night
     def night_scene(self, results: WorkflowResults, params: WorkflowParams):
         """The Mitsuba scene for ``results.mesh`` (built once per mesh and ego-light setting)."""
-        from .render.lights import load_light_table
         from .render.materials import estimate_materials
         from .render.scene_builder import BuildParams, build_scene
 
