@@ -123,6 +123,12 @@ def process_scene(scene, params, out: Path, nights: int, cmd: str) -> list[Path]
             stage[0] = info["stage"]
             _log(cmd, f"{scene.name}: {stage[0]}…")
 
+    src = "the scene's estimated depth" if scene.depth is not None else \
+        "the semantic pop-up prior (the scene has no depth; see 'npsim estimate')"
+    _log(cmd, f"{scene.name}: {scene.width}x{scene.height}, depth from {src}")
+    if scene.lights is None:
+        _log(cmd, f"{scene.name}: no light annotation, so only the ego headlights and the night sky light the "
+                  "nights (label lights with 'npsim annotate')")
     res = wf.compute(params, progress=on_stage)
     _log(cmd, f"{scene.name}: stages " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items())
          + f"; mesh {res.mesh.n_faces} faces")
