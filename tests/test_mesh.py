@@ -483,3 +483,25 @@ def test_mesh_command(tmp_path, capsys):
     assert len(plys) == 1 and len(list(out.glob("*.glb"))) == 1
     assert len(trimesh.load(plys[0], process=False).faces) <= 10000 * 1.06
     assert main(["mesh", str(folder), "-o", str(out), "--format", "stl"]) == 2
+
+
+def test_benchmark_step_pixel_lower_bound():
+    """benchmarks/mesh.py's lower bound: a clean depth step costs nothing, a flying pixel counts."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("bench_mesh", Path(__file__).resolve().parents[1]
+                                                  / "benchmarks" / "mesh.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    W, H = 32, 16
+    intr = Intrinsics.from_fov(W, H, 60)
+    d = np.full((H, W), 10.0)
+    d[:, W // 2:] = 12.0                      # a 20 % step between two fronto-parallel planes
+    labels = np.full((H, W), BUILDING, np.uint8)
+    n = np.zeros((H, W, 3))
+    n[..., 2] = -1.0
+    assert bench.step_pixels(d, labels, intr, n) == (0, H * W)
+    d[5, W // 2] = 11.0                       # a flying pixel between them
+    labels[0] = SKY
+    assert bench.step_pixels(d, labels, intr, n) == (1, (H - 1) * W)
