@@ -74,6 +74,8 @@ class NightParams:
     preview_scale : preview resolution as a fraction of the image. final_spp : for exports.
     iso : camera noise preset; exposure : stops. ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
+    final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct light only
+        (about half the time; with ``mesh.face_budget`` the fast full-resolution setting).
     """
 
     seed: int = 0
@@ -86,6 +88,14 @@ class NightParams:
     group_all_together: bool = False
     noise: bool = True
     probabilities: tuple = ()
+    final_max_depth: int = 3
+
+    def __post_init__(self) -> None:
+        if int(self.final_max_depth) not in (2, 3, 4):
+            raise NpsimInputError(f"night.final_max_depth must be 2 (direct light), 3 (one bounce) or 4, "
+                                  f"got {self.final_max_depth}")
+        if int(self.spp) < 1 or int(self.final_spp) < 1:
+            raise NpsimInputError(f"night.spp and night.final_spp must be >= 1, got {self.spp}, {self.final_spp}")
 
     def probability(self, class_id: int) -> float | None:
         return dict(self.probabilities).get(int(class_id))
@@ -478,7 +488,7 @@ class Workflow:
         active = self.activate(p)
         built.apply_lights(active)
         linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
-                              passes=max(1, n.final_spp // 16))
+                              passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
         cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed)
         srgb, _ = apply_camera(linear, cam, labels=self.scene.labels, light_classes=self._night["light_classes"])
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active)

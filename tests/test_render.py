@@ -294,3 +294,25 @@ def test_fireflies_removed_but_lights_kept():
     assert np.array_equal(np.delete(out.reshape(-1, 3), [20, 60], axis=0), np.delete(img.reshape(-1, 3), [20, 60], axis=0))
     flat, n0 = remove_fireflies(np.full((5, 5, 3), 0.3, np.float32))
     assert n0 == 0 and np.all(flat == 0.3)
+
+
+def test_night_cli_fast_final_settings(tmp_path):
+    """Direct-light-only path length and a reduced mesh (the fast full-resolution setting)."""
+    from npsim_core.cli import main
+    from npsim_core.scene import save_scene
+
+    s = street_scene(96, 48)
+    save_scene(s, tmp_path / "scene")
+    args = ["night", str(tmp_path / "scene"), "--variants", "1", "--spp", "4", "--variant", "scalar_rgb",
+            "--iso", "0"]
+    assert main(args + ["-o", str(tmp_path / "one"), "--max-depth", "3"]) == 0
+    assert main(args + ["-o", str(tmp_path / "fast"), "--max-depth", "2", "--face-budget", "4000"]) == 0
+    full = json.loads(open(tmp_path / "one" / f"{s.name}_night_0_params.json").read())
+    fast = json.loads(open(tmp_path / "fast" / f"{s.name}_night_0_params.json").read())
+    assert full["max_depth"] == 3 and fast["max_depth"] == 2
+    assert fast["faces"] < full["faces"]
+    lin_fast = np.load(tmp_path / "fast" / f"{s.name}_night_0_linear.npy")
+    assert lin_fast.shape == (48, 96, 3) and np.isfinite(lin_fast).all()
+    assert read_image(tmp_path / "fast" / f"{s.name}_night_0.png").mean() < 100  # a night
+    assert np.array_equal(read_label_image(tmp_path / "fast" / f"{s.name}_night_0_labelIds.png"), s.labels)
+    assert main(args + ["-o", str(tmp_path / "bad"), "--face-budget", "-5"]) == 2

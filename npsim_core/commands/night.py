@@ -41,6 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="auto: refined depth + post-processed mesh (full chain); grid: plain grid mesh (fast)")
     p.add_argument("--variant", choices=["scalar_rgb", "llvm_ad_rgb"], default=None,
                    help="Mitsuba variant (default: probed, llvm_ad_rgb when usable)")
+    p.add_argument("--max-depth", type=int, default=3, choices=[2, 3, 4],
+                   help="path length: 2 = direct light only (fast), 3 = one bounce (default), 4 = two")
+    p.add_argument("--face-budget", type=int, default=0,
+                   help="render a quadtree-reduced mesh of about this many faces (0 = full mesh; --mesh auto)")
     p.set_defaults(func=run)
 
 
@@ -73,7 +77,7 @@ def scaled_scene(scene, scale: float):
                        roughness=near(scene.roughness))
 
 
-def build_night_mesh(scene, mode: str = "auto"):
+def build_night_mesh(scene, mode: str = "auto", face_budget: int = 0):
     """Scene mesh for relighting; returns (SceneMesh, Intrinsics, description).
 
     ``auto``: the full NPSim chain of :mod:`npsim_core.workflow` (cross-bilateral
@@ -94,9 +98,12 @@ def build_night_mesh(scene, mode: str = "auto"):
             _log(f"full mesh chain unavailable ({exc}); using the grid mesh")
         else:
             t0 = time.perf_counter()
-            res = Workflow(scene).compute(WorkflowParams(), until="mesh")
+            params = WorkflowParams().with_value("mesh", "face_budget", int(face_budget))
+            res = Workflow(scene).compute(params, until="mesh")
+            reduced = f", reduced to {res.mesh.n_faces} faces" if face_budget else ""
             return (res.mesh, res.intrinsics,
-                    f"workflow: filter -> uncertain -> refine -> grid + post-processing ({time.perf_counter() - t0:.1f} s)")
+                    f"workflow: filter -> uncertain -> refine -> grid + post-processing{reduced} "
+                    f"({time.perf_counter() - t0:.1f} s)")
     if scene.depth is None:
         raise NpsimInputError(f"scene {scene.name!r} has no estimated depth (depth_pred.npy); "
                               "create one with 'npsim estimate', or use --mesh auto (pop-up prior)")
@@ -126,14 +133,16 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     choice = resolve_variant(args.variant)
     _log(f"scene {scene.name} {scene.width}x{scene.height}; Mitsuba variant {choice.name} ({choice.reason})")
-    mesh, intr, mesh_src = build_night_mesh(scene, args.mesh)
+    if args.face_budget < 0:
+        raise NpsimInputError(f"--face-budget must be >= 0 (0 = full mesh), got {args.face_budget}")
+    mesh, intr, mesh_src = build_night_mesh(scene, args.mesh, args.face_budget)
     _log(f"mesh: {mesh_src}, {mesh.n_faces} faces")
     table = load_light_table(args.light_table)
     light_cls = scene.lights.class_map() if scene.lights is not None else np.zeros(scene.labels.shape, np.uint8)
     mats = estimate_materials(scene.image, scene.labels, albedo=scene.albedo, roughness=scene.roughness,
                               light_classes=light_cls)
     bparams = BuildParams(ego_headlights=not args.no_ego_lights, camera_height=scene.camera_height,
-                          camera_pitch=scene.camera_pitch)
+                          camera_pitch=scene.camera_pitch, max_depth=args.max_depth)
     built = build_scene(mesh, intr, mats, table, scene.lights, None, bparams, variant=choice.name)
     _log(f"scene built in {built.build_seconds:.2f} s ({built.info['shapes']} shapes, {built.info['lights']} lights)")
     for k in range(args.variants):

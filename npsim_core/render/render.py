@@ -113,10 +113,11 @@ def render_preview(built: BuiltScene, params: PreviewParams = PreviewParams(),
 
 
 def render_final(built: BuiltScene, *, spp: int = 64, seed: int = 0, scale: float = 1.0,
-                 cancel: CancelCheck = None, passes: int = 1) -> np.ndarray:
+                 cancel: CancelCheck = None, passes: int = 1, max_depth: int | None = None) -> np.ndarray:
     """Final-quality linear render at ``scale`` of the full resolution.
 
-    With ``passes`` > 1 the spp are split into passes (cancellable between them).
+    With ``passes`` > 1 the spp are split into passes (cancellable between them);
+    ``max_depth`` overrides the scene's path length (2 = direct light only).
     """
     passes = max(1, int(passes))
     per = max(1, int(spp) // passes)
@@ -124,7 +125,7 @@ def render_final(built: BuiltScene, *, spp: int = 64, seed: int = 0, scale: floa
     for k in range(passes):
         if _cancelled(cancel):
             raise NpsimCancelled("final render cancelled")
-        img = render_linear(built, spp=per, seed=seed * 100003 + 7919 + k, scale=scale)
+        img = render_linear(built, spp=per, seed=seed * 100003 + 7919 + k, scale=scale, max_depth=max_depth)
         acc = img if acc is None else acc + img
     return acc / passes
 
