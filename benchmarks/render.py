@@ -183,7 +183,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ref-spp", type=int, default=256, help="spp of the reference renders (default 256)")
     ap.add_argument("--triptych", default=None, metavar="PNG",
                     help="only write the day + three nights picture to PNG (e.g. docs/img/night_triptych.png)")
+    ap.add_argument("--fast-final", metavar="BUDGET", type=int, default=0,
+                    help="only time 2048x1024 finals at 64 spp (scalar_rgb) on a quadtree mesh of about BUDGET "
+                         "faces, with one bounce and with direct light only (npsim night --face-budget/--max-depth)")
     args = ap.parse_args(argv)
+    if args.fast_final:
+        return fast_final(args.fast_final)
     if args.triptych:
         make_triptych(args.triptych)
         return 0
@@ -213,6 +218,31 @@ def main(argv: list[str] | None = None) -> int:
     print(table)
     if args.out:
         Path(args.out).write_text(head + "\n\n" + table + "\n")
+    return 0
+
+
+def fast_final(budget: int, size: tuple[int, int] = (2048, 1024), spp: int = 64) -> int:
+    """Time full-resolution finals on a reduced mesh, as ``npsim night --face-budget B --max-depth D``."""
+    os.environ["NPSIM_MITSUBA_VARIANT"] = "scalar_rgb"
+    from npsim_core.render.render import render_final
+    from npsim_core.synthetic import street_scene
+    from npsim_core.workflow import Workflow, WorkflowParams
+
+    scene = street_scene(*size)
+    wf = Workflow(scene)
+    params = WorkflowParams().with_value("mesh", "face_budget", int(budget))
+    load0 = os.getloadavg()[0]
+    res = wf.compute(params)
+    (built, t_build, _) = _timed(lambda: wf.night_scene(res, params))
+    built.apply_lights(wf.activate(params))
+    print(f"fast finals, {size[0]}x{size[1]}, {spp} spp, {built.variant}, mesh {res.mesh.n_faces} faces "
+          f"(budget {budget}), scene build {t_build:.1f} s, load {load0:.1f}")
+    print("| path length | time s | cpu s |")
+    print("|---|---|---|")
+    for depth in (3, 2):
+        _, t, c = _timed(lambda: render_final(built, spp=spp, seed=1, max_depth=depth))
+        print(f"| {'one bounce' if depth == 3 else 'direct light only'} (max_depth {depth}) | {t:.1f} | {c:.1f} |",
+              flush=True)
     return 0
 
 
