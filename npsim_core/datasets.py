@@ -214,19 +214,24 @@ def _images_under(base: Path, pattern: str) -> list[Path]:
     return sorted(p for p in base.rglob(pattern) if p.is_file())
 
 
-def iter_cityscapes(path: Path, *, trainids: bool = False, hfov_deg: float | None = None) -> Iterator[SceneSource]:
-    """Cityscapes entries below ``path`` (the root or a folder inside ``leftImg8bit``)."""
-    root = _find_root(path, "leftImg8bit")
+def _layout_entries(path: Path, image_dir: str, image_suffix: str,
+                    depth: int) -> Iterator[tuple[Path, tuple[str, ...], str, Path]]:
+    """``(root, folders, stem, image)`` for every ``<root>/<image_dir>/<folders...>/<stem><image_suffix>``
+    below ``path`` (the dataset root or a folder inside ``image_dir``) with ``depth`` path parts."""
+    root = _find_root(path, image_dir)
     if root is None:
         return
-    base = path if "leftImg8bit" in path.parts else root / "leftImg8bit"
+    base = path if image_dir in path.parts else root / image_dir
+    for img in _images_under(base, f"*{image_suffix}"):
+        rel = img.relative_to(root / image_dir)
+        if len(rel.parts) == depth:
+            yield root, rel.parts[:-1], img.name[: -len(image_suffix)], img
+
+
+def iter_cityscapes(path: Path, *, trainids: bool = False, hfov_deg: float | None = None) -> Iterator[SceneSource]:
+    """Cityscapes entries below ``path`` (the root or a folder inside ``leftImg8bit``)."""
     lbl_suffix = "_gtFine_labelTrainIds.png" if trainids else "_gtFine_labelIds.png"
-    for img in _images_under(base, "*_leftImg8bit.png"):
-        rel = img.relative_to(root / "leftImg8bit")
-        if len(rel.parts) != 3:
-            continue
-        split, city = rel.parts[0], rel.parts[1]
-        stem = img.name[: -len("_leftImg8bit.png")]
+    for root, (split, city), stem, img in _layout_entries(path, "leftImg8bit", "_leftImg8bit.png", 3):
         lbl = root / "gtFine" / split / city / f"{stem}{lbl_suffix}"
         if not lbl.is_file():
             continue
@@ -239,17 +244,8 @@ def iter_cityscapes(path: Path, *, trainids: bool = False, hfov_deg: float | Non
 
 def iter_acdc(path: Path, *, trainids: bool = False, hfov_deg: float | None = None) -> Iterator[SceneSource]:
     """ACDC entries below ``path`` (the root or a folder inside ``rgb_anon``)."""
-    root = _find_root(path, "rgb_anon")
-    if root is None:
-        return
-    base = path if "rgb_anon" in path.parts else root / "rgb_anon"
     lbl_suffix = "_gt_labelTrainIds.png" if trainids else "_gt_labelIds.png"
-    for img in _images_under(base, "*_rgb_anon.png"):
-        rel = img.relative_to(root / "rgb_anon")
-        if len(rel.parts) != 4:
-            continue
-        condition, split, seq = rel.parts[:3]
-        stem = img.name[: -len("_rgb_anon.png")]
+    for root, (condition, split, seq), stem, img in _layout_entries(path, "rgb_anon", "_rgb_anon.png", 4):
         lbl = root / "gt" / condition / split / seq / f"{stem}{lbl_suffix}"
         if not lbl.is_file():
             continue
