@@ -14,7 +14,6 @@ import pytest
 
 os.environ.setdefault("XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="npsim-test-config-"))
 
-pytest.importorskip("pytestqt")
 
 from npsim_core.synthetic import street_scene  # noqa: E402
 from npsim_core.workflow import WorkflowParams  # noqa: E402
