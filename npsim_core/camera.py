@@ -100,6 +100,15 @@ class Intrinsics:
         rays[..., 2] = 1.0
         return rays.astype(dtype, copy=False)
 
+    def rays_at(self, uv: np.ndarray, dtype=np.float32) -> np.ndarray:
+        """(N, 3) rays ``K^-1 (u, v, 1)`` (z = 1) through image positions ``uv`` (N, 2), pixels."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        out = np.empty((len(uv), 3), dtype=np.float64)
+        out[:, 0] = (uv[:, 0] - self.cx) / self.fx
+        out[:, 1] = (uv[:, 1] - self.cy) / self.fy
+        out[:, 2] = 1.0
+        return out.astype(dtype, copy=False)
+
 
 def valid_depth_mask(depth: np.ndarray) -> np.ndarray:
     """True where depth is a usable z-depth: finite and > 0."""

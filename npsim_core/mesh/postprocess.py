@@ -72,6 +72,7 @@ from ..camera import Intrinsics, valid_depth_mask
 from ..errors import NpsimInputError
 from ..labels import cityscapes
 from .grid import check_mesh_inputs, pixel_uv, quad_faces, usable_mask
+from .steps import StepFaces, slant_map, step_faces
 from .types import MeshPart, SceneMesh
 
 __all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map",
@@ -118,6 +119,11 @@ class PostprocessParams:
         inside the background sheet (measured at 2048x1024: stretched faces 5,202 ->
         2,680, face-normal error 21.38 -> 21.22 deg, holes 0 either way). ``()`` = the
         thesis's classes only.
+    step_cut : float or None
+        Relative depth step (``|d1 - d2| / min(d1, d2)``) between neighbouring pixels of one
+        sheet above which the sheet is cut and closed by an edge-on wall instead of a
+        stretched face (:mod:`.steps`). 0.04 stays below the 5 % the stretched-face measure
+        calls a discontinuity (:mod:`.quality`). None = no cuts (steps stay bridged).
     """
 
     complete_behind: str = "all"
@@ -128,8 +134,11 @@ class PostprocessParams:
     exclude: tuple[int, ...] | None = None
     far_limit: float | None = None
     occluders: tuple[int, ...] | None = None
+    step_cut: float | None = 0.04
 
     def __post_init__(self) -> None:
+        if self.step_cut is not None and not 0 < self.step_cut < 1:
+            raise NpsimInputError(f"step_cut must be in (0, 1) (relative depth step) or None, got {self.step_cut}")
         if self.complete_behind not in ("all", "adjacent"):
             raise NpsimInputError(f"complete_behind must be 'all' or 'adjacent', got {self.complete_behind!r}")
         if self.keep_consistent is not None and not self.keep_consistent >= 0:
@@ -298,7 +307,8 @@ def _bfs_fill(depth: np.ndarray, known: np.ndarray, target: np.ndarray, obj: np.
 
 def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, uncertain: np.ndarray,
                      light_ids: np.ndarray | None = None, instance_ids: np.ndarray | None = None,
-                     params: PostprocessParams = PostprocessParams()) -> PostprocessResult:
+                     params: PostprocessParams = PostprocessParams(),
+                     normals: np.ndarray | None = None) -> PostprocessResult:
     """Build the post-processed scene mesh (SPEC §4) directly from the depth map and U.
 
     Parameters
@@ -315,6 +325,10 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     instance_ids : (H, W) int, optional
         Object instance ids (> 0) for foreground classes; 0 = use connected components.
     params : PostprocessParams
+    normals : (H, W, 3) float, optional
+        Estimated unit normals (camera frame). Only used to tell a plane seen at a grazing
+        angle from a depth step when cutting steps (``params.step_cut``,
+        :func:`~.steps.slant_map`); without them the normals come from the depth itself.
 
     Returns
     -------
@@ -435,9 +449,20 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     bg_src = np.where(visible_fill, np.arange(H * W).reshape(H, W), bg_src)
     bg_light = np.where(hidden, 0, light_ids).astype(np.int32)
     bg_src = np.where(bgv, bg_src, -1)
-    layers = SheetLayers(background_depth=bg_depth.astype(np.float32), background_source=bg_src,
-                         background_light=bg_light, foreground_depth=fg_depth.astype(np.float32), objects=obj,
-                         object_classes=obj_class, labels=labels, light_ids=light_ids)
+    # Depth steps left inside a sheet: cut and closed by walls (no stretched face, no hole).
+    t = time.perf_counter()
+    bg32, fg32 = bg_depth.astype(np.float32), fg_depth.astype(np.float32)
+    if params.step_cut is not None:
+        if normals is not None and np.shape(normals) != (H, W, 3):
+            raise NpsimInputError(f"normals must be HxWx3 of shape {(H, W, 3)}, got {np.shape(normals)}")
+        steps = (step_faces(bg32, None, params.step_cut, slant_map(bg32, intrinsics, normals)),
+                 step_faces(fg32, obj, params.step_cut, slant_map(fg32, intrinsics, normals)))
+    else:
+        steps = (StepFaces.empty((H, W)), StepFaces.empty((H, W)))
+    tm["steps"] = time.perf_counter() - t
+    layers = SheetLayers(background_depth=bg32, background_source=bg_src,
+                         background_light=bg_light, foreground_depth=fg32, objects=obj,
+                         object_classes=obj_class, labels=labels, light_ids=light_ids, steps=steps)
 
     # Triangulate.
     t = time.perf_counter()
@@ -447,6 +472,7 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     counts = {"uncertain_pixels": int(U.sum()), "deleted_vertices": int((usable & U).sum()),
               "background_completed_rows": n_row, "background_completed_cols": n_col,
               "foreground_completed": int(fg_filled.sum()), "kept_consistent": n_kept, "objects": len(obj_class),
+              "cut_sides": steps[0].cut + steps[1].cut, "wall_faces": steps[0].n_walls + steps[1].n_walls,
               "faces": sum(p.n_faces for p in parts), "vertices": sum(p.n_vertices for p in parts)}
     mesh = SceneMesh(parts=parts, width=W, height=H,
                      info={"stage": "postprocess", "params": asdict(params), "counts": counts, "timings": tm})
@@ -474,6 +500,10 @@ class SheetLayers:
         labelId of object k at index k-1.
     labels, light_ids : (H, W)
         The input label and light maps.
+    steps : tuple of StepFaces
+        (background, foreground) depth steps cut inside the sheets, their mixed quads
+        triangulated with walls (:mod:`.steps`); empty = no cuts. Face vertex ids are
+        "extended": ``< H*W`` a layer's pixel vertex, ``H*W + k`` extra vertex ``k`` of that layer.
     """
 
     background_depth: np.ndarray
@@ -484,10 +514,17 @@ class SheetLayers:
     object_classes: list
     labels: np.ndarray
     light_ids: np.ndarray
+    steps: tuple = ()
 
     @property
     def shape(self) -> tuple[int, int]:
         return self.background_depth.shape
+
+    def step(self, layer: int) -> StepFaces:
+        """Depth steps of layer 0 (background) or 1 (foreground)."""
+        if len(self.steps) > layer and self.steps[layer] is not None:
+            return self.steps[layer]
+        return StepFaces.empty(self.shape)
 
     def background_key(self) -> np.ndarray:
         """Per-pixel merge key of the background sheet: (label, light id) of each vertex, -1 where none."""
@@ -504,17 +541,56 @@ class SheetLayers:
                | (self.light_ids.astype(np.int64) & 0xFFFFFFFF))
         return np.where(ok, key, -1)
 
+    def node_source(self, layer: int, ids: np.ndarray) -> np.ndarray:
+        """Flat pixel of each extended vertex id: the pixel itself, or the corner an extra vertex continues."""
+        HW = self.labels.size
+        ids = np.asarray(ids, dtype=np.int64)
+        src = self.step(layer).source
+        return np.where(ids < HW, ids, src[np.clip(ids - HW, 0, max(len(src) - 1, 0))] if len(src) else ids)
+
     def full_faces(self, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
-        """Full-resolution triangulation: (background faces, foreground faces) as flat pixel indices."""
+        """Full-resolution triangulation: (background faces, foreground faces) in extended vertex ids."""
         H, W = self.shape
         rays = intr.pixel_rays(np.float32)
         flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
         out = []
-        for d, group in ((self.background_depth, None), (self.foreground_depth, self.objects)):
+        for layer, (d, group) in enumerate(((self.background_depth, None), (self.foreground_depth, self.objects))):
             ok = np.isfinite(d)
             pts = rays * np.where(ok, d, 0.0)[..., None]
-            out.append(quad_faces(np.where(ok, flat, -1), pts, group))
+            st = self.step(layer)
+            out.append(np.concatenate([quad_faces(np.where(ok, flat, -1), pts, group, cells=~st.mixed), st.faces]))
         return out[0], out[1]
+
+    def _vertices(self, layer: int, nodes: np.ndarray, intr: Intrinsics):
+        """Positions and attributes of extended vertex ids ``nodes`` of a layer.
+
+        Returns (vertices, pixel position, uv, label, light id). An extra vertex takes its
+        corner's label and light id, and the corner's texture coordinate moved by its offset.
+        """
+        H, W = self.shape
+        HW = H * W
+        st = self.step(layer)
+        ispx = nodes < HW
+        k = np.clip(nodes - HW, 0, None)
+        corner = np.where(ispx, nodes, st.source[np.minimum(k, len(st.source) - 1)] if len(st.source) else nodes)
+        cv_, cu_ = np.divmod(corner, W)
+        pos = np.stack([cu_, cv_], 1).astype(np.float64)
+        if len(st.source) and not ispx.all():
+            pos[~ispx] = st.position[k[~ispx]]
+        if layer == 0:
+            depth = self.background_depth.ravel()
+            label_src = self.background_source.ravel()[corner]
+            light = self.background_light.ravel()[corner]
+        else:
+            depth = self.foreground_depth.ravel()
+            label_src = corner
+            light = self.light_ids.ravel()[corner]
+        z = np.where(ispx, depth[np.minimum(nodes, HW - 1)],
+                     st.depth[np.minimum(k, len(st.depth) - 1)] if len(st.depth) else 0.0)
+        verts = (intr.rays_at(pos, np.float64) * z[:, None]).astype(np.float32)
+        sv, su = np.divmod(label_src, W)
+        uv = pixel_uv(su + (pos[:, 0] - cu_), sv + (pos[:, 1] - cv_), W, H)
+        return verts, pos.astype(np.float32), uv, self.labels.ravel()[label_src].astype(np.uint8), light.astype(np.int32)
 
     def full_parts(self, intr: Intrinsics) -> list[MeshPart]:
         """Full-resolution parts. Fast path for the big background sheet: compact vertex
@@ -525,65 +601,68 @@ class SheetLayers:
         d = self.background_depth
         ok = np.isfinite(d)
         n = int(ok.sum())
-        index = np.full((H, W), -1, dtype=np.int32 if n < 2**31 else np.int64)
+        st = self.step(0)
+        ne = len(st.depth)
+        index = np.full((H, W), -1, dtype=np.int32 if n + ne < 2**31 else np.int64)
         index[ok] = np.arange(n, dtype=index.dtype)
         pts = rays * np.where(ok, d, 0.0)[..., None]
-        faces = quad_faces(index, pts)
+        faces = quad_faces(index, pts, cells=~st.mixed)
         src = self.background_source[ok]
         sv, su = np.divmod(src, W)
         vv, uu = np.nonzero(ok)
-        bg = MeshPart(name="background", vertices=pts[ok], faces=faces, uv=pixel_uv(su, sv, W, H),
-                      pixel=np.stack([uu, vv], 1).astype(np.float32), label=self.labels.ravel()[src].astype(np.uint8),
-                      light_id=self.background_light[ok].astype(np.int32), foreground=False)
+        verts, pix, uv = pts[ok], np.stack([uu, vv], 1).astype(np.float32), pixel_uv(su, sv, W, H)
+        label = self.labels.ravel()[src].astype(np.uint8)
+        light = self.background_light[ok].astype(np.int32)
+        if ne:
+            HW = H * W
+            sf = st.faces
+            faces = np.concatenate([faces, np.where(sf < HW, index.ravel()[np.minimum(sf, HW - 1)], n + sf - HW)])
+            ev, ep, euv, el, eli = self._vertices(0, HW + np.arange(ne), intr)
+            verts, pix, uv = np.concatenate([verts, ev]), np.concatenate([pix, ep]), np.concatenate([uv, euv])
+            label, light = np.concatenate([label, el]), np.concatenate([light, eli])
+        bg = MeshPart(name="background", vertices=verts, faces=faces.astype(np.int64, copy=False), uv=uv,
+                      pixel=pix, label=label, light_id=light, foreground=False)
         fd = self.foreground_depth
         okf = np.isfinite(fd)
         flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
-        fg_faces = quad_faces(np.where(okf, flat, -1), rays * np.where(okf, fd, 0.0)[..., None], self.objects)
+        sf = self.step(1)
+        fg_faces = np.concatenate([quad_faces(np.where(okf, flat, -1), rays * np.where(okf, fd, 0.0)[..., None],
+                                              self.objects, cells=~sf.mixed), sf.faces])
         return [bg] + self.parts(intr, np.zeros((0, 3), dtype=np.int64), fg_faces)[1:]
 
     def parts(self, intr: Intrinsics, bg_faces: np.ndarray, fg_faces: np.ndarray) -> list[MeshPart]:
-        """Mesh parts from faces given as flat pixel indices into the background / foreground layers.
+        """Mesh parts from faces given as extended vertex ids into the background / foreground layers.
 
-        Only referenced pixels become vertices; part k (k >= 1) is object k, possibly empty.
+        Only referenced vertices are kept; part k (k >= 1) is object k, possibly empty.
         """
         H, W = self.shape
         table = cityscapes()
-        rays = intr.pixel_rays(np.float32).reshape(-1, 3)
-        bd, fd = self.background_depth.ravel(), self.foreground_depth.ravel()
-        labels = self.labels.ravel()
-        lookup = np.full(H * W, -1, dtype=np.int64)
 
-        def build(name, faces, depth, fg, label_src, light):
+        lookup = np.full(H * W + max(len(self.step(0).depth), len(self.step(1).depth)), -1, dtype=np.int64)
+
+        def build(name, faces, layer, fg):
             if faces.size * 8 < H * W:       # small part: sorting its indices is cheaper than a full mask
                 nodes = np.unique(faces)
             else:
-                used = np.zeros(H * W, dtype=bool)
+                used = np.zeros(len(lookup), dtype=bool)
                 used[faces.ravel()] = True
                 nodes = np.flatnonzero(used)
             lookup[nodes] = np.arange(len(nodes))
-            local = lookup[faces]
-            sv, su = np.divmod(label_src[nodes], W)
-            vv, uu = np.divmod(nodes, W)
-            return MeshPart(name=name, vertices=(rays[nodes] * depth[nodes, None]).astype(np.float32),
-                            faces=local.reshape(-1, 3), uv=pixel_uv(su, sv, W, H),
-                            pixel=np.stack([uu, vv], 1).astype(np.float32),
-                            label=labels[label_src[nodes]].astype(np.uint8),
-                            light_id=light[nodes].astype(np.int32), foreground=fg)
+            verts, pix, uv, label, light = self._vertices(layer, nodes, intr)
+            return MeshPart(name=name, vertices=verts, faces=lookup[faces].reshape(-1, 3), uv=uv,
+                            pixel=pix, label=label, light_id=light, foreground=fg)
 
-        parts = [build("background", bg_faces, bd, False, self.background_source.ravel(),
-                       self.background_light.ravel())]
+        parts = [build("background", bg_faces, 0, False)]
         n_obj = len(self.object_classes)
         if n_obj:
-            fo = self.objects.ravel()[fg_faces[:, 0]]
+            fo = self.objects.ravel()[self.node_source(1, fg_faces[:, 0])] if len(fg_faces) else np.zeros(0, np.int64)
             order = np.argsort(fo, kind="stable")
             fg_faces, fo = fg_faces[order], fo[order]
             starts = np.searchsorted(fo, np.arange(1, n_obj + 2))
-            ident = np.arange(H * W, dtype=np.int64)
             counter: dict[int, int] = {}
             for k in range(n_obj):
                 c = self.object_classes[k]
                 counter[c] = counter.get(c, 0) + 1
                 cname = table.by_id(c).name.replace(" ", "_")
-                parts.append(build(f"{cname}_{counter[c]}", fg_faces[starts[k]:starts[k + 1]], fd, True, ident,
-                                   self.light_ids.ravel()))
+                parts.append(build(f"{cname}_{counter[c]}", fg_faces[starts[k]:starts[k + 1]], 1, True))
         return parts

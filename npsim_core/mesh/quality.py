@@ -24,6 +24,10 @@ Definitions used by the benchmark:
   the image size; a fixed k (say 4) would count ordinary per-pixel depth noise
   of a network prediction (0.5 % relative noise is already ~16 footprints at
   f = 2262) as spurious faces, while object/background jumps are tens of %.
+* **edge-on face** -- projected area below ``EDGE_ON_AREA`` (1e-3 px²): no camera
+  ray hits it, so it is neither visible nor stretched in the sense above. The walls
+  that close depth steps inside a sheet (:mod:`.steps`) are such faces; they are
+  counted separately (``MeshQuality.edge_on``).
 * **hole** -- a boundary loop (connected set of boundary edges) of a part
   that runs somewhere away from the image border and from "open" pixels (sky,
   excluded labels, beyond the far limit, and foreground pixels whose row run
@@ -50,7 +54,11 @@ from ..camera import Intrinsics, valid_depth_mask
 from ..labels import cityscapes
 from .types import MeshPart, SceneMesh
 
-__all__ = ["Raster", "rasterize", "project", "stretched_faces", "count_holes", "open_mask",
+#: Projected area (pixels²) below which a face is seen edge-on from the camera. Every face
+#: of a grid or post-processed mesh spans at least 1/8 px²; walls (:mod:`.steps`) ~1e-5.
+EDGE_ON_AREA = 1e-3
+
+__all__ = ["edge_on_faces", "Raster", "rasterize", "project", "stretched_faces", "count_holes", "open_mask",
            "reprojection_error", "normal_error", "MeshQuality", "mesh_quality"]
 
 
@@ -106,7 +114,8 @@ def _raster_part(verts, faces, intr, zbuf, fbuf, pbuf, part_idx, chunk=1 << 20):
             w0, w1 = w0 / area, w1 / area
         w2 = 1.0 - w0 - w1
         eps = -1e-4  # a hair of slack so pixel centres on shared edges/sheet borders are not lost to rounding
-        inside = (area != 0) & (w0 >= eps) & (w1 >= eps) & (w2 >= eps)
+        # Edge-on faces (walls, projected area ~0) cover no pixel: skipped, not divided by ~0.
+        inside = (np.abs(area) > EDGE_ON_AREA) & (w0 >= eps) & (w1 >= eps) & (w2 >= eps)
         if not inside.any():
             continue
         fi = rep[inside] + s
@@ -191,6 +200,21 @@ def normal_error(mesh: SceneMesh | MeshPart, raster: Raster, ref_normals: np.nda
             "pixels": int(ok.sum())}
 
 
+def edge_on_faces(part: MeshPart, intr: Intrinsics) -> np.ndarray:
+    """Boolean (F,) mask of faces seen edge-on from the camera (projected area < ``EDGE_ON_AREA`` px²).
+
+    Such a face -- its vertices on at most two camera rays, like the walls that close
+    depth steps (:mod:`.steps`) -- covers no pixel: no camera ray hits it.
+    """
+    if part.n_faces == 0:
+        return np.zeros(0, dtype=bool)
+    uv = project(part.vertices, intr)
+    f = part.faces
+    a, b, c = uv[f[:, 0]], uv[f[:, 1]], uv[f[:, 2]]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    return ~(area > EDGE_ON_AREA)
+
+
 def stretched_faces(part: MeshPart, intr: Intrinsics, k: float | None = None, ref_normals: np.ndarray | None = None,
                     max_slant: float = 50.0, seen_depth: np.ndarray | None = None) -> np.ndarray:
     """Boolean (F,) mask of stretched faces (see module doc for the definition).
@@ -198,6 +222,8 @@ def stretched_faces(part: MeshPart, intr: Intrinsics, k: float | None = None, re
     With ``seen_depth`` (the ray-cast depth of the whole scene mesh), faces hidden
     behind another surface at their centroid pixel (deeper by > 1 %) are not
     counted: the reference normal there belongs to the occluder, not to them.
+    Faces seen edge-on (:func:`edge_on_faces`, e.g. walls) are never visible and
+    never counted; :class:`MeshQuality` reports them separately.
     """
     if part.n_faces == 0:
         return np.zeros(0, dtype=bool)
@@ -218,7 +244,7 @@ def stretched_faces(part: MeshPart, intr: Intrinsics, k: float | None = None, re
         cosang = np.where(np.isfinite(cosang), cosang, 1.0)
         foot = foot / np.maximum(cosang, 1.0 / max_slant)
     k = 0.05 * min(intr.fx, intr.fy) if k is None else k
-    out = e > k * foot
+    out = (e > k * foot) & ~edge_on_faces(part, intr)
     if seen_depth is not None:
         c = v[f].mean(1)
         uv = project(c, intr)
@@ -310,6 +336,7 @@ class MeshQuality:
     faces: int
     vertices: int
     stretched: int
+    edge_on: int
     holes: int
     reproj_within_1pct: float
     reproj_mean: float
@@ -331,8 +358,9 @@ def mesh_quality(mesh: SceneMesh, intr: Intrinsics, depth: np.ndarray, labels: n
     op = open_mask(labels, depth, exclude, far_limit, occluders)
     stretched = sum(int(stretched_faces(p, intr, k, ref_normals, seen_depth=raster.depth).sum()) for p in mesh.parts)
     holes = sum(count_holes(p, intr, op) for p in mesh.parts)
+    edge_on = sum(int(edge_on_faces(p, intr).sum()) for p in mesh.parts)
     ne = normal_error(mesh, raster, ref_normals) if ref_normals is not None else None
-    return MeshQuality(faces=mesh.n_faces, vertices=mesh.n_vertices, stretched=stretched, holes=holes,
+    return MeshQuality(faces=mesh.n_faces, vertices=mesh.n_vertices, stretched=stretched, edge_on=edge_on, holes=holes,
                        reproj_within_1pct=rep["within_tol"], reproj_mean=rep["mean"],
                        normal_mean_deg=None if ne is None else ne["mean_deg"],
                        normal_within_11_25=None if ne is None else ne["within_11_25"])

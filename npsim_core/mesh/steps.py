@@ -1,0 +1,466 @@
+"""Depth steps inside one sheet: cut sides, and walls that keep the sheet closed (SPEC §4).
+
+The post-processing kernel separates objects from the background, but depth steps
+remain *inside* a sheet: a façade in front of another façade, the boxes of one car,
+the road meeting a building behind a kerb. A grid face spanning such a step is a
+stretched face; deleting it leaves a hole. This module does neither:
+
+* A pixel **side** (two 4-neighbouring pixels of the same sheet) is **cut** when the
+  relative depth step ``|d1 - d2| / min(d1, d2)`` exceeds ``tau``.
+* **Closure.** A quad (2x2 pixels, all of one sheet) with exactly one cut side is the
+  end of a slit: going around the quad the surface is continuous, across the side it
+  is not, so no surface without a stretched face exists there. The slit is extended
+  through the quad's side with the largest step, into the next quad, until it meets
+  another cut, the sheet's border or the image border. Every quad then has 0, 2, 3
+  or 4 cut sides, and its corners split into *clusters* of corners joined by uncut
+  sides; no cluster holds both ends of a cut side.
+* **Mixed quads** (a cut side, or a three-corner triangle whose diagonal is a step)
+  are triangulated per cluster as a fan around a vertex at the quad centre: an uncut
+  side ``x-y`` gives ``(centre, x, y)``; a cut side gives ``(centre_x, x, mid_x)`` and
+  ``(centre_y, mid_y, y)``, where ``mid_x`` is ``x``'s surface continued to the side's
+  midpoint (``mid_x`` and ``mid_y`` lie on the same pixel ray, at their two depths).
+* **Walls.** Along each cut, the two sides are joined by the quad
+  ``(centre_x, mid_x, mid_y, centre_y)`` (two triangles). Its four vertices lie on
+  two camera rays, so a wall is seen exactly edge-on from the camera: it covers no
+  pixel and no pixel sees it, while the sheet stays closed (no boundary loop, so no
+  hole) and light cannot leak through the step. Walls are the side faces of the step
+  -- the kerb, the façade's return -- reduced to what the camera cannot see.
+
+Continued surfaces (``mid_*``, ``centre_*``) extrapolate inverse depth linearly from
+the cluster's corners with one-sided differences over uncut sides (exact on planes,
+also on the grazing road), clamped to stay within ``tau / 2`` (mids) and ``tau``
+(centres) of their corners and at least a third of the step away from the other
+side, so no fan edge spans more than about ``tau`` and no wall is degenerate.
+
+Pixel-centre rays only ever hit corner vertices' faces at their own depth: the mesh
+reproduces the depth map at every pixel it keeps, with no stretched visible face.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["StepFaces", "cut_sides", "step_faces", "relative_step", "slant_map"]
+
+
+@dataclass
+class StepFaces:
+    """The mixed quads of one sheet layer, triangulated with their walls.
+
+    Vertex ids in ``faces``: ``< H*W`` is the layer's vertex at that flat pixel index;
+    ``H*W + k`` is extra vertex ``k`` (a continued surface at a side midpoint or a quad centre).
+
+    Attributes
+    ----------
+    mixed : (H-1, W-1) bool
+        Quads triangulated here (every other quad: :func:`~.grid.quad_faces`).
+    faces : (F, 3) int64
+        Front faces toward the camera (walls: consistent with their neighbours).
+    wall : (F,) bool
+        True for wall faces (edge-on from the camera).
+    depth : (E,) float32
+        z-depth of the extra vertices, metres.
+    position : (E, 2) float32
+        Image position (u, v) of the extra vertices (half-integer coordinates).
+    source : (E,) int64
+        Flat pixel index of the corner whose surface an extra vertex continues
+        (its label, light id, object and sheet attributes).
+    cut : int
+        Cut sides, of which ``extended`` were added by the closure.
+    """
+
+    mixed: np.ndarray
+    faces: np.ndarray
+    wall: np.ndarray
+    depth: np.ndarray
+    position: np.ndarray
+    source: np.ndarray
+    cut: int = 0
+    extended: int = 0
+
+    @classmethod
+    def empty(cls, shape: tuple[int, int]) -> "StepFaces":
+        H, W = shape
+        return cls(mixed=np.zeros((max(H - 1, 0), max(W - 1, 0)), dtype=bool), faces=np.zeros((0, 3), np.int64),
+                   wall=np.zeros(0, bool), depth=np.zeros(0, np.float32), position=np.zeros((0, 2), np.float32),
+                   source=np.zeros(0, np.int64))
+
+    @property
+    def n_walls(self) -> int:
+        return int(self.wall.sum())
+
+
+def relative_step(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """``|d1 - d2| / min(d1, d2)``, the relative depth step between two vertices (NaN if either is missing)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.abs(d1 - d2) / np.minimum(d1, d2)
+
+
+def _sides(depth: np.ndarray, group: np.ndarray | None):
+    """Same-sheet sides and their relative steps: (same_h, step_h, same_v, step_v)."""
+    present = np.isfinite(depth)
+    same_h = present[:, :-1] & present[:, 1:]
+    same_v = present[:-1, :] & present[1:, :]
+    if group is not None:
+        same_h &= group[:, :-1] == group[:, 1:]
+        same_v &= group[:-1, :] == group[1:, :]
+    step_h = np.where(same_h, relative_step(depth[:, :-1], depth[:, 1:]), -np.inf)
+    step_v = np.where(same_v, relative_step(depth[:-1, :], depth[1:, :]), -np.inf)
+    return same_h, step_h, same_v, step_v
+
+
+def slant_map(depth: np.ndarray, intr, normals: np.ndarray | None = None, max_slant: float = 50.0) -> np.ndarray:
+    """Per-pixel ``max(|n . r|, 1 / max_slant)``: 1 on a surface seen head-on, small at grazing angles.
+
+    A plane seen at a grazing angle (the far road, a façade along the street) has large
+    depth steps between neighbouring pixels that are not discontinuities; the cut
+    threshold is divided by this factor, as the stretched-face measure divides the pixel
+    footprint (:func:`~.quality.stretched_faces`). ``normals`` (HxWx3, e.g. the estimated
+    normals N) are used where finite; elsewhere the normal comes from the depth map with,
+    per axis, the one-sided difference of *smaller* depth change, so a step does not tilt
+    the normals of the pixels beside it. Pixels with no normal get 1 (strictest).
+    """
+    H, W = depth.shape
+    rays = intr.pixel_rays(np.float64)
+    rhat = rays / np.linalg.norm(rays, axis=2, keepdims=True)
+    P = rays * depth.astype(np.float64)[..., None]
+
+    def tangent(axis):
+        fwd = np.full_like(P, np.nan)
+        bwd = np.full_like(P, np.nan)
+        n = P.shape[axis]
+        if n >= 2:
+            lo = [slice(None)] * 3
+            hi = [slice(None)] * 3
+            lo[axis], hi[axis] = slice(0, n - 1), slice(1, n)
+            diff = P[tuple(hi)] - P[tuple(lo)]
+            fwd[tuple(lo)] = diff
+            bwd[tuple(hi)] = diff
+        use_b = ~(np.abs(fwd[..., 2]) <= np.abs(bwd[..., 2]))      # NaN forward -> backward
+        return np.where(use_b[..., None], bwd, fwd)
+
+    n = np.cross(tangent(0), tangent(1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n /= np.linalg.norm(n, axis=2, keepdims=True)
+    if normals is not None:
+        nn = np.asarray(normals, dtype=np.float64)
+        ok = np.isfinite(nn).all(2)
+        n = np.where(ok[..., None], nn, n)
+    c = np.abs((n * rhat).sum(2))
+    return np.where(np.isfinite(c), np.clip(c, 1.0 / max_slant, 1.0), 1.0)
+
+
+def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant: np.ndarray | None = None):
+    """Cut sides after closure (see module doc).
+
+    Parameters
+    ----------
+    depth : (H, W) float
+        Depth of the layer's vertices, metres; NaN where the layer has none.
+    group : (H, W) int or None
+        Sheet id per pixel (objects); sides only join pixels of one group.
+    tau : float
+        Relative step above which a side is cut on a surface seen head-on.
+    slant : (H, W) float, optional
+        :func:`slant_map`; the threshold of a side is ``tau / max(slant_p, slant_q)``.
+
+    Returns
+    -------
+    cut_h : (H, W-1) bool
+        Side between (v, u) and (v, u+1) is cut.
+    cut_v : (H-1, W) bool
+        Side between (v, u) and (v+1, u) is cut.
+    same_h, same_v : bool arrays of the same shapes
+        Sides joining two vertices of one sheet (cut or not).
+    extended : int
+        Sides cut by the closure.
+    """
+    H, W = depth.shape
+    same_h, step_h, same_v, step_v = _sides(depth, group)
+    if slant is None:
+        cut_h, cut_v = step_h > tau, step_v > tau
+    else:
+        cut_h = step_h > tau / np.maximum(slant[:, :-1], slant[:, 1:])
+        cut_v = step_v > tau / np.maximum(slant[:-1, :], slant[1:, :])
+    if H < 2 or W < 2:
+        return cut_h, cut_v, same_h, same_v, 0
+    full4 = same_h[:-1, :] & same_h[1:, :] & same_v[:, :-1] & same_v[:, 1:]
+
+    def ncut(i, j):
+        return (cut_h[i, j].astype(np.int8) + cut_h[i + 1, j] + cut_v[i, j] + cut_v[i, j + 1])
+
+    qi, qj = np.nonzero(full4 & ((cut_h[:-1, :].astype(np.int8) + cut_h[1:, :] + cut_v[:, :-1] + cut_v[:, 1:]) == 1))
+    extended = 0
+    # Each round extends every open slit by one quad; a slit ends at another cut or a border.
+    while len(qi):
+        s = np.stack([np.where(cut_h[qi, qj], -np.inf, step_h[qi, qj]),            # top
+                      np.where(cut_h[qi + 1, qj], -np.inf, step_h[qi + 1, qj]),    # bottom
+                      np.where(cut_v[qi, qj], -np.inf, step_v[qi, qj]),            # left
+                      np.where(cut_v[qi, qj + 1], -np.inf, step_v[qi, qj + 1])], 1)  # right
+        k = np.argmax(s, axis=1)
+        top, bot, lef, rig = k == 0, k == 1, k == 2, k == 3
+        cut_h[qi[top], qj[top]] = True
+        cut_h[qi[bot] + 1, qj[bot]] = True
+        cut_v[qi[lef], qj[lef]] = True
+        cut_v[qi[rig], qj[rig] + 1] = True
+        extended += len(qi)
+        # The quad across the new cut may now be a slit end.
+        ni = np.concatenate([qi[top] - 1, qi[bot] + 1, qi[lef], qi[rig]])
+        nj = np.concatenate([qj[top], qj[bot], qj[lef] - 1, qj[rig] + 1])
+        ok = (ni >= 0) & (ni < H - 1) & (nj >= 0) & (nj < W - 1)
+        ni, nj = ni[ok], nj[ok]
+        if len(ni) == 0:
+            break
+        flat = np.unique(ni * (W - 1) + nj)
+        ni, nj = np.divmod(flat, W - 1)
+        keep = full4[ni, nj] & (ncut(ni, nj) == 1)
+        qi, qj = ni[keep], nj[keep]
+    return cut_h, cut_v, same_h, same_v, extended
+
+
+def _inverse_gradient(iz: np.ndarray, cont_h: np.ndarray, cont_v: np.ndarray, r: np.ndarray, c: np.ndarray):
+    """d(1/z)/du and d(1/z)/dv at pixels (r, c) from their uncut neighbours (central, one-sided or 0)."""
+    H, W = iz.shape
+
+    def axis(cont, along_u):
+        if along_u:
+            fwd_ok = (c < W - 1) & cont[r, np.minimum(c, W - 2)]
+            bwd_ok = (c > 0) & cont[r, np.maximum(c - 1, 0)]
+            fwd = iz[r, np.minimum(c + 1, W - 1)] - iz[r, c]
+            bwd = iz[r, c] - iz[r, np.maximum(c - 1, 0)]
+        else:
+            fwd_ok = (r < H - 1) & cont[np.minimum(r, H - 2), c]
+            bwd_ok = (r > 0) & cont[np.maximum(r - 1, 0), c]
+            fwd = iz[np.minimum(r + 1, H - 1), c] - iz[r, c]
+            bwd = iz[r, c] - iz[np.maximum(r - 1, 0), c]
+        n = fwd_ok.astype(np.float64) + bwd_ok
+        tot = np.where(fwd_ok, fwd, 0.0) + np.where(bwd_ok, bwd, 0.0)
+        return np.where(n > 0, tot / np.maximum(n, 1), 0.0)
+
+    return axis(cont_h, True), axis(cont_v, False)
+
+
+def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
+               slant: np.ndarray | None = None) -> StepFaces:
+    """Cut the depth steps of one layer and triangulate its mixed quads with walls (see module doc).
+
+    Parameters
+    ----------
+    depth : (H, W) float
+        Depth of the layer's vertices (metres), NaN where it has none.
+    group : (H, W) int or None
+        Sheet id per pixel (foreground objects); None = one sheet.
+    tau : float or None
+        Relative step above which a side is cut (head-on); None = no cuts (empty result).
+    slant : (H, W) float, optional
+        :func:`slant_map` (None = every surface head-on): thresholds and clamps scale by 1/slant.
+
+    Returns
+    -------
+    StepFaces
+    """
+    H, W = depth.shape
+    if tau is None or H < 2 or W < 2:
+        return StepFaces.empty((H, W))
+    d = depth.astype(np.float64)
+    cut_h, cut_v, same_h, same_v, extended = cut_sides(d, group, tau, slant)
+    tau_px = np.full(d.shape, float(tau)) if slant is None else tau / slant       # per-pixel threshold
+    cont_h, cont_v = same_h & ~cut_h, same_v & ~cut_v
+    # Mixed quads: a cut side, or a lone triangle whose diagonal is a step.
+    mixed = cut_h[:-1, :] | cut_h[1:, :] | cut_v[:, :-1] | cut_v[:, 1:]
+    full = same_h[:-1, :] & same_h[1:, :] & same_v[:, :-1] & same_v[:, 1:]
+    # Lone triangles as in quad_faces: (a,c,b)/(b,c,d) use diagonal b-c, (a,c,d)/(a,d,b) use a-d.
+    a, b, c_, dd = d[:-1, :-1], d[:-1, 1:], d[1:, :-1], d[1:, 1:]
+    if group is None:
+        g = np.zeros(d.shape, dtype=np.int8)
+    else:
+        g = group
+    ga, gb, gc, gd = g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:]
+    pa, pb, pc, pd = np.isfinite(a), np.isfinite(b), np.isfinite(c_), np.isfinite(dd)
+    t_bc = ~full & ((pa & pb & pc & (ga == gb) & (ga == gc)) | (pb & pc & pd & (gb == gc) & (gb == gd)))
+    t_ad = ~full & ((pa & pc & pd & (ga == gc) & (ga == gd)) | (pa & pb & pd & (ga == gb) & (ga == gd)))
+    ta, tb, tc_, td = tau_px[:-1, :-1], tau_px[:-1, 1:], tau_px[1:, :-1], tau_px[1:, 1:]
+    mixed |= (t_bc & (relative_step(b, c_) > np.minimum(tb, tc_))) | (t_ad & (relative_step(a, dd) > np.minimum(ta, td)))
+    qi, qj = np.nonzero(mixed)
+    n = len(qi)
+    out = StepFaces.empty((H, W))
+    out.mixed = mixed
+    out.cut, out.extended = int(cut_h.sum() + cut_v.sum()), int(extended)
+    if n == 0:
+        return out
+    HW = H * W
+    iz_img = 1.0 / d                                            # NaN stays NaN
+
+    # --- mid vertices: one per (cut side, endpoint), shared by the two quads of the side.
+    hr, hc = np.nonzero(cut_h)
+    vr, vc = np.nonzero(cut_v)
+    nh = len(hr)
+    side_id_h = np.full(cut_h.shape, -1, dtype=np.int64)
+    side_id_h[hr, hc] = np.arange(nh)
+    side_id_v = np.full(cut_v.shape, -1, dtype=np.int64)
+    side_id_v[vr, vc] = nh + np.arange(len(vr))
+    # endpoint 0 = left/top pixel, 1 = right/bottom pixel
+    m_r = np.concatenate([hr, hr, vr, vr + 1])
+    m_c = np.concatenate([hc, hc + 1, vc, vc])
+    o_r = np.concatenate([hr, hr, vr + 1, vr])                  # the other endpoint
+    o_c = np.concatenate([hc + 1, hc, vc, vc])
+    du = np.concatenate([np.full(nh, 0.5), np.full(nh, -0.5), np.zeros(2 * len(vr))])
+    dv = np.concatenate([np.zeros(2 * nh), np.full(len(vr), 0.5), np.full(len(vr), -0.5)])
+    # Ids: side s, endpoint e -> 2 s + e; the arrays above are ordered (h e0, h e1, v e0, v e1).
+    nv_ = len(vr)
+    mid_order = np.concatenate([2 * np.arange(nh), 2 * np.arange(nh) + 1,
+                                2 * (nh + np.arange(nv_)), 2 * (nh + np.arange(nv_)) + 1])
+    gu, gv = _inverse_gradient(iz_img, cont_h, cont_v, m_r, m_c)
+    dx, dy = d[m_r, m_c], d[o_r, o_c]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ext = 1.0 / (iz_img[m_r, m_c] + gu * du + gv * dv)
+    ext = np.where(np.isfinite(ext) & (ext > 0), ext, dx)
+    tx = tau_px[m_r, m_c]
+    lo, hi = dx / (1 + tx / 2), dx * (1 + tx / 2)
+    near = dx < dy
+    hi = np.where(near, np.minimum(hi, dx + (dy - dx) / 3), hi)
+    lo = np.where(near, lo, np.maximum(lo, dx - (dx - dy) / 3))
+    mid_depth = np.empty(2 * (nh + nv_))
+    mid_depth[mid_order] = np.clip(ext, lo, hi)
+    mid_pos = np.empty((2 * (nh + nv_), 2))
+    mid_pos[mid_order, 0] = m_c + np.where(du != 0, np.where(du > 0, 0.5, -0.5), 0.0)
+    mid_pos[mid_order, 1] = m_r + np.where(dv != 0, np.where(dv > 0, 0.5, -0.5), 0.0)
+    mid_src = np.empty(2 * (nh + nv_), dtype=np.int64)
+    mid_src[mid_order] = m_r * W + m_c
+    n_mid = len(mid_depth)
+
+    # --- per mixed quad: corners a (0,0), b (1,0), c (0,1), d (1,1) as (du, dv).
+    cr = np.stack([qi, qi, qi + 1, qi + 1], 1)
+    cc = np.stack([qj, qj + 1, qj, qj + 1], 1)
+    cpix = cr * W + cc
+    cdep = d[cr, cc]
+    # Sides: index into the 4 corners and whether each is joined / cut.
+    # Perimeter order a -> c -> d -> b -> a keeps the fans front-facing (see grid.py winding).
+    per = [(0, 2), (2, 3), (3, 1), (1, 0)]
+    s_cont = np.stack([cont_v[qi, qj], cont_h[qi + 1, qj], cont_v[qi, qj + 1], cont_h[qi, qj]], 1)
+    s_cut = np.stack([cut_v[qi, qj], cut_h[qi + 1, qj], cut_v[qi, qj + 1], cut_h[qi, qj]], 1)
+    s_id = np.stack([side_id_v[qi, qj], side_id_h[qi + 1, qj], side_id_v[qi, qj + 1], side_id_h[qi, qj]], 1)
+    # endpoint of the first corner x of each perimeter side (a of (a,c) is v-side's top = 0; ...)
+    x_end = np.array([0, 0, 1, 1])
+    # Clusters: union over joined sides (labels = smallest corner index of the cluster).
+    lab = np.where(np.isfinite(cdep), np.arange(4)[None, :], 99)
+    for _ in range(3):
+        for k, (x, y) in enumerate(per):
+            m = s_cont[:, k]
+            lo_ = np.minimum(lab[:, x], lab[:, y])
+            lab[m, x] = lo_[m]
+            lab[m, y] = lo_[m]
+    # Centre of each cluster: mean of the corners' surfaces continued to the quad centre.
+    off_u = np.array([0.5, -0.5, 0.5, -0.5])
+    off_v = np.array([0.5, 0.5, -0.5, -0.5])
+    gu4, gv4 = _inverse_gradient(iz_img, cont_h, cont_v, cr.ravel(), cc.ravel())
+    with np.errstate(invalid="ignore"):
+        ext4 = iz_img[cr, cc] + gu4.reshape(n, 4) * off_u + gv4.reshape(n, 4) * off_v
+    onehot = (lab[:, :, None] == np.arange(4)[None, None, :])                # (n, corner, cluster)
+    okc = np.isfinite(cdep)[:, :, None] & onehot
+    cnt = okc.sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ciz = np.where(okc, ext4[:, :, None], 0.0).sum(1) / cnt
+        cz = 1.0 / ciz
+    plain_mean = np.where(okc, cdep[:, :, None], 0.0).sum(1) / np.maximum(cnt, 1)
+    cz = np.where(np.isfinite(cz) & (cz > 0), cz, plain_mean)
+    tc = tau_px[cr, cc][:, :, None]
+    with np.errstate(invalid="ignore"):
+        clo = np.where(okc, cdep[:, :, None] / (1 + tc), -np.inf).max(1)
+        chi = np.where(okc, cdep[:, :, None] * (1 + tc), np.inf).min(1)
+    # Keep each side of a cut at least a third of the step away from the other side.
+    for k, (x, y) in enumerate(per):
+        m = s_cut[:, k]
+        if not m.any():
+            continue
+        rows = np.flatnonzero(m)
+        dx_, dy_ = cdep[rows, x], cdep[rows, y]
+        lx, ly = lab[rows, x], lab[rows, y]
+        nx = dx_ < dy_
+        # near side: centre <= d_near + gap/3 ; far side: centre >= d_far - gap/3
+        gap = np.abs(dy_ - dx_) / 3
+        lnear = np.where(nx, lx, ly)
+        lfar = np.where(nx, ly, lx)
+        dnear = np.minimum(dx_, dy_)
+        dfar = np.maximum(dx_, dy_)
+        np.minimum.at(chi, (rows, lnear), dnear + gap)
+        np.maximum.at(clo, (rows, lfar), dfar - gap)
+    feasible = clo <= chi
+    with np.errstate(invalid="ignore"):
+        cz = np.where(feasible, np.clip(cz, clo, chi), 0.5 * (clo + chi))
+    centre_base = n_mid
+    centre_id = HW + centre_base + 4 * np.arange(n)[:, None] + np.where(lab < 4, lab, 0)   # (n, 4) per corner
+
+    faces, wall = [], []
+    for k, (x, y) in enumerate(per):
+        P, Q = cpix[:, x], cpix[:, y]
+        Cx, Cy = centre_id[:, x], centre_id[:, y]
+        m = s_cont[:, k]
+        if m.any():
+            faces.append(np.stack([Cx[m], P[m], Q[m]], 1))
+            wall.append(np.zeros(int(m.sum()), bool))
+        m = s_cut[:, k]
+        if m.any():
+            rows = np.flatnonzero(m)
+            sid = s_id[rows, k]
+            Mx = HW + 2 * sid + x_end[k]
+            My = HW + 2 * sid + (1 - x_end[k])
+            cx_, cy_, p_, q_ = Cx[rows], Cy[rows], P[rows], Q[rows]
+            faces += [np.stack([cx_, p_, Mx], 1), np.stack([cy_, My, q_], 1), np.stack([cx_, Mx, My], 1)]
+            wall += [np.zeros(2 * len(rows), bool), np.ones(len(rows), bool)]
+            # The wall's edge on the quad's centre ray runs from centre_y to centre_x through every
+            # other cluster centre in between, so the walls of three or four clusters meeting at
+            # the centre share their edges exactly (no boundary, no degenerate cap).
+            X, Y = lab[rows, x], lab[rows, y]
+            zq = cz[rows]                                          # (r, 4) centre depth per cluster label
+            zX, zY = zq[np.arange(len(rows)), X], zq[np.arange(len(rows)), Y]
+            pres = (lab[rows][:, :, None] == np.arange(4)[None, None, :]).any(1)
+            lbl = np.arange(4)[None, :]
+            with np.errstate(invalid="ignore"):
+                betw = pres & (lbl != X[:, None]) & (lbl != Y[:, None]) & ((zq - zX[:, None]) * (zq - zY[:, None]) < 0)
+            key = np.where(betw, np.abs(zq - zY[:, None]), np.inf)
+            order = np.argsort(key, axis=1)
+            nb = betw.sum(1)
+            chain = np.full((len(rows), 6), -1, dtype=np.int64)
+            chain[:, 0] = cy_
+            base_q = HW + centre_base + 4 * np.flatnonzero(m)
+            for j in range(4):
+                has = nb > j
+                chain[has, 1 + j] = base_q[has] + order[has, j]
+            chain[np.arange(len(rows)), 1 + nb] = cx_
+            for j in range(5):
+                ok = (chain[:, j] >= 0) & (chain[:, j + 1] >= 0)
+                if ok.any():
+                    faces.append(np.stack([My[ok], chain[ok, j], chain[ok, j + 1]], 1))
+                    wall.append(np.ones(int(ok.sum()), bool))
+    if not faces:
+        return out
+    F = np.concatenate(faces, 0).astype(np.int64)
+    Wl = np.concatenate(wall)
+    # Extra vertices: mids then centres; keep only the referenced ones, renumbered.
+    ext_ids = F[F >= HW] - HW
+    used = np.unique(ext_ids)
+    remap = np.full(n_mid + 4 * n, -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    F = np.where(F >= HW, HW + remap[np.maximum(F - HW, 0)], F)
+    is_mid = used < n_mid
+    q_of = np.where(is_mid, 0, (used - n_mid) // 4)
+    l_of = np.where(is_mid, 0, (used - n_mid) % 4)
+    mi = np.minimum(used, n_mid - 1) if n_mid else np.zeros_like(used)
+    # A centre takes the attributes of its cluster's first corner (label index = corner index).
+    cen_src = cpix[q_of, l_of]
+    cen_dep = cz[q_of, l_of]
+    cen_pos = np.stack([qj[q_of] + 0.5, qi[q_of] + 0.5], 1)
+    if n_mid:
+        depth_e = np.where(is_mid, mid_depth[mi], cen_dep)
+        src_e = np.where(is_mid, mid_src[mi], cen_src)
+        pos_e = np.where(is_mid[:, None], mid_pos[mi], cen_pos)
+    else:
+        depth_e, src_e, pos_e = cen_dep, cen_src, cen_pos
+    out.faces, out.wall = F, Wl
+    out.depth = depth_e.astype(np.float32)
+    out.position = pos_e.astype(np.float32)
+    out.source = src_e.astype(np.int64)
+    return out
