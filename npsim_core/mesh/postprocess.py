@@ -63,6 +63,7 @@ raster order of their first pixel).
 from __future__ import annotations
 
 import time
+from functools import partial
 from dataclasses import asdict, dataclass, field
 
 import cv2
@@ -72,7 +73,7 @@ from ..camera import Intrinsics, valid_depth_mask
 from ..errors import NpsimInputError
 from ..labels import cityscapes
 from .grid import check_mesh_inputs, pixel_uv, quad_faces, usable_mask
-from .steps import StepFaces, slant_map, step_faces
+from .steps import StepFaces, slant_at, step_faces
 from .types import MeshPart, SceneMesh
 
 __all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map",
@@ -328,7 +329,7 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     normals : (H, W, 3) float, optional
         Estimated unit normals (camera frame). Only used to tell a plane seen at a grazing
         angle from a depth step when cutting steps (``params.step_cut``,
-        :func:`~.steps.slant_map`); without them the normals come from the depth itself.
+        :func:`~.steps.slant_at`); without them the normals come from the depth itself.
 
     Returns
     -------
@@ -455,8 +456,11 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     if params.step_cut is not None:
         if normals is not None and np.shape(normals) != (H, W, 3):
             raise NpsimInputError(f"normals must be HxWx3 of shape {(H, W, 3)}, got {np.shape(normals)}")
-        steps = (step_faces(bg32, None, params.step_cut, slant_map(bg32, intrinsics, normals)),
-                 step_faces(fg32, obj, params.step_cut, slant_map(fg32, intrinsics, normals)))
+        # Hidden background is a guess whose orientation nobody measured: no grazing allowance there.
+        bg_label = labels.ravel()[np.clip(bg_src, 0, None)].reshape(H, W)
+        steps = tuple(step_faces(d_, g_, params.step_cut, partial(slant_at, d_, intrinsics, normals=normals,
+                                                                    strict=strict), surface)
+                      for d_, g_, strict, surface in ((bg32, None, fgv, bg_label), (fg32, obj, None, labels)))
     else:
         steps = (StepFaces.empty((H, W)), StepFaces.empty((H, W)))
     tm["steps"] = time.perf_counter() - t

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["StepFaces", "cut_sides", "step_faces", "relative_step", "slant_map"]
+__all__ = ["StepFaces", "cut_sides", "step_faces", "relative_step", "slant_at"]
 
 
 @dataclass
@@ -68,7 +68,7 @@ class StepFaces:
         Flat pixel index of the corner whose surface an extra vertex continues
         (its label, light id, object and sheet attributes).
     cut : int
-        Cut sides, of which ``extended`` were added by the closure.
+        Cut sides.
     """
 
     mixed: np.ndarray
@@ -78,7 +78,6 @@ class StepFaces:
     position: np.ndarray
     source: np.ndarray
     cut: int = 0
-    extended: int = 0
 
     @classmethod
     def empty(cls, shape: tuple[int, int]) -> "StepFaces":
@@ -111,8 +110,9 @@ def _sides(depth: np.ndarray, group: np.ndarray | None):
     return same_h, step_h, same_v, step_v
 
 
-def slant_map(depth: np.ndarray, intr, normals: np.ndarray | None = None, max_slant: float = 50.0) -> np.ndarray:
-    """Per-pixel ``max(|n . r|, 1 / max_slant)``: 1 on a surface seen head-on, small at grazing angles.
+def slant_at(depth: np.ndarray, intr, r: np.ndarray, c: np.ndarray, normals: np.ndarray | None = None,
+             max_slant: float = 50.0, strict: np.ndarray | None = None) -> np.ndarray:
+    """``max(|n . r|, 1 / max_slant)`` at pixels (r, c): 1 on a surface seen head-on, small at grazing angles.
 
     A plane seen at a grazing angle (the far road, a façade along the street) has large
     depth steps between neighbouring pixels that are not discontinuities; the cut
@@ -123,37 +123,43 @@ def slant_map(depth: np.ndarray, intr, normals: np.ndarray | None = None, max_sl
     the normals of the pixels beside it. Pixels with no normal get 1 (strictest).
     """
     H, W = depth.shape
-    rays = intr.pixel_rays(np.float64)
-    rhat = rays / np.linalg.norm(rays, axis=2, keepdims=True)
-    P = rays * depth.astype(np.float64)[..., None]
+    r = np.asarray(r, dtype=np.int64)
+    c = np.asarray(c, dtype=np.int64)
+    uv = np.stack([c, r], 1)
+    ray = intr.rays_at(uv, np.float64)
+    rhat = ray / np.linalg.norm(ray, axis=1, keepdims=True)
 
-    def tangent(axis):
-        fwd = np.full_like(P, np.nan)
-        bwd = np.full_like(P, np.nan)
-        n = P.shape[axis]
-        if n >= 2:
-            lo = [slice(None)] * 3
-            hi = [slice(None)] * 3
-            lo[axis], hi[axis] = slice(0, n - 1), slice(1, n)
-            diff = P[tuple(hi)] - P[tuple(lo)]
-            fwd[tuple(lo)] = diff
-            bwd[tuple(hi)] = diff
-        use_b = ~(np.abs(fwd[..., 2]) <= np.abs(bwd[..., 2]))      # NaN forward -> backward
-        return np.where(use_b[..., None], bwd, fwd)
+    def point(rr, cc):
+        ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
+        d = np.where(ok, depth[np.clip(rr, 0, H - 1), np.clip(cc, 0, W - 1)], np.nan).astype(np.float64)
+        return intr.rays_at(np.stack([cc, rr], 1), np.float64) * d[:, None]
 
-    n = np.cross(tangent(0), tangent(1))
+    P = point(r, c)
+
+    def tangent(dr, dc):
+        fwd = point(r + dr, c + dc) - P
+        bwd = P - point(r - dr, c - dc)
+        use_b = ~(np.abs(fwd[:, 2]) <= np.abs(bwd[:, 2]))         # NaN forward -> backward
+        return np.where(use_b[:, None], bwd, fwd)
+
+    n = np.cross(tangent(1, 0), tangent(0, 1))
     with np.errstate(invalid="ignore", divide="ignore"):
-        n /= np.linalg.norm(n, axis=2, keepdims=True)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+    cs = np.abs((n * rhat).sum(1))
+    cs = np.where(np.isfinite(cs), np.clip(cs, 1.0 / max_slant, 1.0), 1.0)
     if normals is not None:
-        nn = np.asarray(normals, dtype=np.float64)
-        ok = np.isfinite(nn).all(2)
-        n = np.where(ok[..., None], nn, n)
-    c = np.abs((n * rhat).sum(2))
-    return np.where(np.isfinite(c), np.clip(c, 1.0 / max_slant, 1.0), 1.0)
+        nn = np.asarray(normals)[r, c].astype(np.float64)
+        cn = np.abs((nn * rhat).sum(1))
+        cn = np.where(np.isfinite(cn), np.clip(cn, 1.0 / max_slant, 1.0), 1.0)
+        cs = np.where(np.isfinite(nn).all(1), cn, cs)
+    if strict is not None:
+        cs = np.where(strict[r, c], 1.0, cs)
+    return cs
 
 
-def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant: np.ndarray | None = None):
-    """Cut sides after closure (see module doc).
+def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant=None,
+              surface: np.ndarray | None = None):
+    """Sides of one layer to cut (see module doc).
 
     Parameters
     ----------
@@ -163,8 +169,12 @@ def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant: np
         Sheet id per pixel (objects); sides only join pixels of one group.
     tau : float
         Relative step above which a side is cut on a surface seen head-on.
-    slant : (H, W) float, optional
-        :func:`slant_map`; the threshold of a side is ``tau / max(slant_p, slant_q)``.
+    slant : callable (r, c) -> slant factors, optional
+        E.g. :func:`slant_at` bound to the layer; the threshold of a side is
+        ``tau / max(slant_p, slant_q)``. Only sides stepping by more than ``tau`` ask.
+    surface : (H, W) int, optional
+        Semantic label of each vertex. The grazing allowance is for *one* surface: a side
+        joining two labels (a façade above a pavement) keeps the head-on threshold.
 
     Returns
     -------
@@ -174,50 +184,20 @@ def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant: np
         Side between (v, u) and (v+1, u) is cut.
     same_h, same_v : bool arrays of the same shapes
         Sides joining two vertices of one sheet (cut or not).
-    extended : int
-        Sides cut by the closure.
     """
     H, W = depth.shape
     same_h, step_h, same_v, step_v = _sides(depth, group)
-    if slant is None:
-        cut_h, cut_v = step_h > tau, step_v > tau
-    else:
-        cut_h = step_h > tau / np.maximum(slant[:, :-1], slant[:, 1:])
-        cut_v = step_v > tau / np.maximum(slant[:-1, :], slant[1:, :])
-    if H < 2 or W < 2:
-        return cut_h, cut_v, same_h, same_v, 0
-    full4 = same_h[:-1, :] & same_h[1:, :] & same_v[:, :-1] & same_v[:, 1:]
-
-    def ncut(i, j):
-        return (cut_h[i, j].astype(np.int8) + cut_h[i + 1, j] + cut_v[i, j] + cut_v[i, j + 1])
-
-    qi, qj = np.nonzero(full4 & ((cut_h[:-1, :].astype(np.int8) + cut_h[1:, :] + cut_v[:, :-1] + cut_v[:, 1:]) == 1))
-    extended = 0
-    # Each round extends every open slit by one quad; a slit ends at another cut or a border.
-    while len(qi):
-        s = np.stack([np.where(cut_h[qi, qj], -np.inf, step_h[qi, qj]),            # top
-                      np.where(cut_h[qi + 1, qj], -np.inf, step_h[qi + 1, qj]),    # bottom
-                      np.where(cut_v[qi, qj], -np.inf, step_v[qi, qj]),            # left
-                      np.where(cut_v[qi, qj + 1], -np.inf, step_v[qi, qj + 1])], 1)  # right
-        k = np.argmax(s, axis=1)
-        top, bot, lef, rig = k == 0, k == 1, k == 2, k == 3
-        cut_h[qi[top], qj[top]] = True
-        cut_h[qi[bot] + 1, qj[bot]] = True
-        cut_v[qi[lef], qj[lef]] = True
-        cut_v[qi[rig], qj[rig] + 1] = True
-        extended += len(qi)
-        # The quad across the new cut may now be a slit end.
-        ni = np.concatenate([qi[top] - 1, qi[bot] + 1, qi[lef], qi[rig]])
-        nj = np.concatenate([qj[top], qj[bot], qj[lef] - 1, qj[rig] + 1])
-        ok = (ni >= 0) & (ni < H - 1) & (nj >= 0) & (nj < W - 1)
-        ni, nj = ni[ok], nj[ok]
-        if len(ni) == 0:
-            break
-        flat = np.unique(ni * (W - 1) + nj)
-        ni, nj = np.divmod(flat, W - 1)
-        keep = full4[ni, nj] & (ncut(ni, nj) == 1)
-        qi, qj = ni[keep], nj[keep]
-    return cut_h, cut_v, same_h, same_v, extended
+    cut_h, cut_v = step_h > tau, step_v > tau
+    if slant is not None:
+        # Slant can only raise the threshold: ask it only where the step exceeds tau.
+        for cut, step, (dr, dc) in ((cut_h, step_h, (0, 1)), (cut_v, step_v, (1, 0))):
+            r, c = np.nonzero(cut)
+            if surface is not None:
+                one = surface[r, c] == surface[r + dr, c + dc]
+                r, c = r[one], c[one]
+            s_ = np.maximum(slant(r, c), slant(r + dr, c + dc))
+            cut[r, c] = step[r, c] > tau / s_
+    return cut_h, cut_v, same_h, same_v
 
 
 def _inverse_gradient(iz: np.ndarray, cont_h: np.ndarray, cont_v: np.ndarray, r: np.ndarray, c: np.ndarray):
@@ -242,8 +222,8 @@ def _inverse_gradient(iz: np.ndarray, cont_h: np.ndarray, cont_v: np.ndarray, r:
     return axis(cont_h, True), axis(cont_v, False)
 
 
-def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
-               slant: np.ndarray | None = None) -> StepFaces:
+def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, slant=None,
+               surface: np.ndarray | None = None) -> StepFaces:
     """Cut the depth steps of one layer and triangulate its mixed quads with walls (see module doc).
 
     Parameters
@@ -254,8 +234,11 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
         Sheet id per pixel (foreground objects); None = one sheet.
     tau : float or None
         Relative step above which a side is cut (head-on); None = no cuts (empty result).
-    slant : (H, W) float, optional
-        :func:`slant_map` (None = every surface head-on): thresholds and clamps scale by 1/slant.
+    slant : callable (r, c) -> slant factors, optional
+        :func:`slant_at` bound to the layer (None = every surface head-on): thresholds and
+        clamps scale by 1/slant.
+    surface : (H, W) int, optional
+        Semantic label of each vertex (see :func:`cut_sides`).
 
     Returns
     -------
@@ -265,8 +248,12 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
     if tau is None or H < 2 or W < 2:
         return StepFaces.empty((H, W))
     d = depth.astype(np.float64)
-    cut_h, cut_v, same_h, same_v, extended = cut_sides(d, group, tau, slant)
-    tau_px = np.full(d.shape, float(tau)) if slant is None else tau / slant       # per-pixel threshold
+    cut_h, cut_v, same_h, same_v = cut_sides(d, group, tau, slant, surface)
+
+    def tau_at(r, c):
+        """Per-pixel threshold tau / slant."""
+        return np.full(np.shape(r), float(tau)) if slant is None else tau / slant(r, c)
+
     cont_h, cont_v = same_h & ~cut_h, same_v & ~cut_v
     # Mixed quads: a cut side, or a lone triangle whose diagonal is a step.
     mixed = cut_h[:-1, :] | cut_h[1:, :] | cut_v[:, :-1] | cut_v[:, 1:]
@@ -281,13 +268,16 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
     pa, pb, pc, pd = np.isfinite(a), np.isfinite(b), np.isfinite(c_), np.isfinite(dd)
     t_bc = ~full & ((pa & pb & pc & (ga == gb) & (ga == gc)) | (pb & pc & pd & (gb == gc) & (gb == gd)))
     t_ad = ~full & ((pa & pc & pd & (ga == gc) & (ga == gd)) | (pa & pb & pd & (ga == gb) & (ga == gd)))
-    ta, tb, tc_, td = tau_px[:-1, :-1], tau_px[:-1, 1:], tau_px[1:, :-1], tau_px[1:, 1:]
-    mixed |= (t_bc & (relative_step(b, c_) > np.minimum(tb, tc_))) | (t_ad & (relative_step(a, dd) > np.minimum(ta, td)))
+    for tri, (r0, c0, r1, c1), (p, q) in ((t_bc, (0, 1, 1, 0), (b, c_)), (t_ad, (0, 0, 1, 1), (a, dd))):
+        i, j = np.nonzero(tri & (relative_step(p, q) > tau))
+        if len(i):
+            big = relative_step(p[i, j], q[i, j]) > np.minimum(tau_at(i + r0, j + c0), tau_at(i + r1, j + c1))
+            mixed[i[big], j[big]] = True
     qi, qj = np.nonzero(mixed)
     n = len(qi)
     out = StepFaces.empty((H, W))
     out.mixed = mixed
-    out.cut, out.extended = int(cut_h.sum() + cut_v.sum()), int(extended)
+    out.cut = int(cut_h.sum() + cut_v.sum())
     if n == 0:
         return out
     HW = H * W
@@ -317,7 +307,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
     with np.errstate(divide="ignore", invalid="ignore"):
         ext = 1.0 / (iz_img[m_r, m_c] + gu * du + gv * dv)
     ext = np.where(np.isfinite(ext) & (ext > 0), ext, dx)
-    tx = tau_px[m_r, m_c]
+    tx = tau_at(m_r, m_c)
     lo, hi = dx / (1 + tx / 2), dx * (1 + tx / 2)
     near = dx < dy
     hi = np.where(near, np.minimum(hi, dx + (dy - dx) / 3), hi)
@@ -366,13 +356,13 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
         cz = 1.0 / ciz
     plain_mean = np.where(okc, cdep[:, :, None], 0.0).sum(1) / np.maximum(cnt, 1)
     cz = np.where(np.isfinite(cz) & (cz > 0), cz, plain_mean)
-    tc = tau_px[cr, cc][:, :, None]
+    tc = tau_at(cr.ravel(), cc.ravel()).reshape(n, 4)[:, :, None]
     with np.errstate(invalid="ignore"):
         clo = np.where(okc, cdep[:, :, None] / (1 + tc), -np.inf).max(1)
         chi = np.where(okc, cdep[:, :, None] * (1 + tc), np.inf).min(1)
     # Keep each side of a cut at least a third of the step away from the other side.
     for k, (x, y) in enumerate(per):
-        m = s_cut[:, k]
+        m = s_cut[:, k] & (lab[:, x] != lab[:, y])       # a slit's end joins both sides: no separation
         if not m.any():
             continue
         rows = np.flatnonzero(m)
@@ -431,7 +421,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None,
                 chain[has, 1 + j] = base_q[has] + order[has, j]
             chain[np.arange(len(rows)), 1 + nb] = cx_
             for j in range(5):
-                ok = (chain[:, j] >= 0) & (chain[:, j + 1] >= 0)
+                ok = (chain[:, j] >= 0) & (chain[:, j + 1] >= 0) & (chain[:, j] != chain[:, j + 1])
                 if ok.any():
                     faces.append(np.stack([My[ok], chain[ok, j], chain[ok, j + 1]], 1))
                     wall.append(np.ones(int(ok.sum()), bool))
