@@ -286,7 +286,8 @@ def _stage_mesh(inputs: dict, params: MeshStageParams, ctx) -> dict:
     mp = params.mesh
     if mp.postprocess and mp.stride == 1:
         pp = replace(params.postprocess, far_limit=mp.far_limit)
-        res = postprocess_mesh(depth, intr, scene.labels, inputs["uncertain"], light_ids=light_ids, params=pp)
+        res = postprocess_mesh(depth, intr, scene.labels, inputs["uncertain"], light_ids=light_ids, params=pp,
+                               normals=scene.normals)
         removed = removed_faces(depth, intr, scene.labels, inputs["uncertain"])
         mesh = res.mesh
         if mp.face_budget and mesh.n_faces > mp.face_budget:

@@ -36,7 +36,8 @@ def _subsample(scene, stages, n: int):
     # Pixel u' of the subsampled image is pixel n*u' of the original: fx' = fx/n, cx' = cx/n.
     small = Intrinsics(intr.fx / n, intr.fy / n, intr.cx / n, intr.cy / n, w, h)
     lights = None if scene.lights is None else np.ascontiguousarray(scene.lights.instance_map[sl])
-    return (small, np.ascontiguousarray(scene.labels[sl]), lights, np.ascontiguousarray(scene.image[sl]),
+    normals = None if scene.normals is None else np.ascontiguousarray(scene.normals[sl])
+    return (small, np.ascontiguousarray(scene.labels[sl]), lights, normals, np.ascontiguousarray(scene.image[sl]),
             {k: np.ascontiguousarray(getattr(stages, k)[sl]) for k in ("predicted", "filtered", "uncertain",
                                                                          "refined")})
 
@@ -65,11 +66,12 @@ def run(args: argparse.Namespace) -> int:
     times.update(stages.timings)
     for k, why in stages.skipped.items():
         print(f"  {k}: skipped ({why})")
-    intr, labels, lights, image, maps = _subsample(scene, stages, args.stride)
+    intr, labels, lights, normals, image, maps = _subsample(scene, stages, args.stride)
     t = time.perf_counter()
     result = None
     if args.variant == "npsim":
-        result = postprocess_mesh(maps["refined"], intr, labels, maps["uncertain"], lights, params=pp)
+        result = postprocess_mesh(maps["refined"], intr, labels, maps["uncertain"], lights, params=pp,
+                                  normals=normals)
         mesh = result.mesh
         times["mesh+postprocess"] = time.perf_counter() - t
     else:
@@ -83,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
         red = reduce_mesh(result.layers, intr, ReduceParams(budget=args.budget))
         mesh = red.mesh
         times["reduce"] = time.perf_counter() - t
+        if mesh.n_faces > 1.05 * args.budget:
+            print(f"  note: {mesh.n_faces} faces, above the budget of {args.budget}: label, light and "
+                  "silhouette borders and depth steps stay at pixel resolution and need that many")
     t = time.perf_counter()
     paths = export_mesh(mesh, args.out, stem=f"{scene.name}_{args.variant}", formats=formats, image=image)
     times["export"] = time.perf_counter() - t

@@ -137,7 +137,7 @@ def _timed(fn, track_memory: bool):
 def npsim_mesh(scene: Scene, stages: DepthStages, params: PipelineParams = PipelineParams()) -> PostprocessResult:
     """The NPSim mesh of a scene from its depth stages."""
     return postprocess_mesh(stages.refined, scene.intrinsics, scene.labels, stages.uncertain, _light_ids(scene),
-                            params=params.postprocess)
+                            params=params.postprocess, normals=scene.normals)
 
 
 def build_variants(scene: Scene, params: PipelineParams = PipelineParams(), stages: DepthStages | None = None,

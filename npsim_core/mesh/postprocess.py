@@ -135,7 +135,7 @@ class PostprocessParams:
     exclude: tuple[int, ...] | None = None
     far_limit: float | None = None
     occluders: tuple[int, ...] | None = None
-    step_cut: float | None = 0.04
+    step_cut: float | None = 0.03
 
     def __post_init__(self) -> None:
         if self.step_cut is not None and not 0 < self.step_cut < 1:
@@ -456,11 +456,13 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     if params.step_cut is not None:
         if normals is not None and np.shape(normals) != (H, W, 3):
             raise NpsimInputError(f"normals must be HxWx3 of shape {(H, W, 3)}, got {np.shape(normals)}")
-        # Hidden background is a guess whose orientation nobody measured: no grazing allowance there.
+        # Hidden background is a guess whose orientation nobody measured (the normals there are the
+        # object's): no grazing allowance. Its steps get walls; seen from the camera they are hidden.
         bg_label = labels.ravel()[np.clip(bg_src, 0, None)].reshape(H, W)
-        steps = tuple(step_faces(d_, g_, params.step_cut, partial(slant_at, d_, intrinsics, normals=normals,
+        steps = tuple(step_faces(d_, g_, params.step_cut, partial(slant_at, d_, intrinsics, normals=n_,
                                                                     strict=strict), surface)
-                      for d_, g_, strict, surface in ((bg32, None, fgv, bg_label), (fg32, obj, None, labels)))
+                      for d_, g_, n_, strict, surface in ((bg32, None, normals, fgv, bg_label),
+                                                          (fg32, obj, normals, None, labels)))
     else:
         steps = (StepFaces.empty((H, W)), StepFaces.empty((H, W)))
     tm["steps"] = time.perf_counter() - t

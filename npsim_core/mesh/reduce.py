@@ -20,7 +20,8 @@ from a quadtree of square cells on the pixel grid:
   leaf's perimeter (T-junctions of smaller neighbours) are collected; a leaf
   without such vertices gets its two triangles, a leaf with them a fan around
   its centre pixel through every perimeter vertex in order. Quads no leaf
-  covers are triangulated as in the full grid (:func:`~.grid.quad_faces`).
+  covers are triangulated as in the full grid (:func:`~.grid.quad_faces`); quads
+  holding a depth step keep the post-processed mesh's fans and walls (:mod:`.steps`).
   So every shared edge is shared exactly -- no cracks and no T-junctions.
 * Budget: the tolerance is found by bisection on a face-count estimate from
   the error pyramid, then the mesh is built (and rebuilt, at most three more
@@ -41,6 +42,7 @@ from ..camera import Intrinsics
 from ..errors import NpsimInputError
 from .grid import quad_faces
 from .postprocess import SheetLayers
+from .steps import StepFaces
 from .types import SceneMesh
 
 __all__ = ["ReduceParams", "ReduceResult", "reduce_mesh", "decimate_pymeshlab", "merge_parts"]
@@ -84,7 +86,7 @@ class ReduceResult:
 class _Pyramid:
     """Per-level monotone cell errors of one layer (see module doc)."""
 
-    def __init__(self, depth: np.ndarray, key: np.ndarray, max_level: int):
+    def __init__(self, depth: np.ndarray, key: np.ndarray, max_level: int, blocked: np.ndarray | None = None):
         H, W = depth.shape
         self.H, self.W = H, W
         valid = np.isfinite(depth) & (key >= 0)
@@ -92,6 +94,8 @@ class _Pyramid:
         k00, k01, k10, k11 = key[:-1, :-1], key[:-1, 1:], key[1:, :-1], key[1:, 1:]
         uni0 = (k00 >= 0) & (k00 == k01) & (k00 == k10) & (k00 == k11) & valid[:-1, :-1] & valid[:-1, 1:] \
             & valid[1:, :-1] & valid[1:, 1:]
+        if blocked is not None:
+            uni0 &= ~blocked          # mixed quads (depth steps with walls) stay at pixel resolution
         self.err = [np.where(uni0, 0.0, np.inf)]
         self.levels = 0
         for k in range(1, max_level + 1):
@@ -158,8 +162,8 @@ def _estimate_faces(pyrs: list[_Pyramid], tau: float, fixed: int) -> float:
 
 
 def _layer_faces(depth: np.ndarray, pyr: _Pyramid, tau: float, group: np.ndarray | None,
-                 intr: Intrinsics) -> tuple[np.ndarray, dict]:
-    """Faces (flat pixel indices) of one layer at tolerance ``tau``."""
+                 intr: Intrinsics, steps: StepFaces) -> tuple[np.ndarray, dict]:
+    """Faces (extended vertex ids, see :class:`SheetLayers`) of one layer at tolerance ``tau``."""
     H, W = depth.shape
     leaves = pyr.leaves(tau)
     covered = np.zeros((H - 1, W - 1), dtype=bool)
@@ -172,11 +176,13 @@ def _layer_faces(depth: np.ndarray, pyr: _Pyramid, tau: float, group: np.ndarray
     ok = np.isfinite(depth)
     flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
     pts = intr.pixel_rays(np.float32) * np.where(ok, depth, 0.0)[..., None]
-    f0 = quad_faces(np.where(ok, flat, -1), pts, group, cells=~covered)
+    f0 = quad_faces(np.where(ok, flat, -1), pts, group, cells=~covered & ~steps.mixed)
     used = np.zeros(H * W, dtype=bool)
     used[f0.ravel()] = True
-    out = [f0]
-    info = {"quads": int(len(f0))}
+    sf = steps.faces.ravel()
+    used[sf[sf < H * W]] = True
+    out = [f0, steps.faces]
+    info = {"quads": int(len(f0)), "step_faces": int(len(steps.faces))}
     cells = []
     for k in range(1, len(leaves)):
         s = 1 << k
@@ -239,13 +245,14 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
     if layers.shape != (intr.height, intr.width):
         raise NpsimInputError(f"layers are {layers.shape} but intrinsics are {intr.height}x{intr.width}")
     bd, fd = layers.background_depth, layers.foreground_depth
-    pyrs = [_Pyramid(bd, layers.background_key(), params.max_level),
-            _Pyramid(fd, layers.foreground_key(), params.max_level)]
+    st = (layers.step(0), layers.step(1))
+    pyrs = [_Pyramid(bd, layers.background_key(), params.max_level, st[0].mixed),
+            _Pyramid(fd, layers.foreground_key(), params.max_level, st[1].mixed)]
     t1 = time.perf_counter()
     tau = params.tol
     if params.budget is not None:
-        # Faces of quads that never merge (mixed keys, borders): roughly constant.
-        fixed = 0
+        # Fans and walls of depth-step quads never merge; other unmerged quads are in the estimate.
+        fixed = len(st[0].faces) + len(st[1].faces)
         target = float(params.budget)
         for attempt in range(4):
             lo, hi = 1e-7, 1.0
@@ -259,16 +266,16 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
                     else:
                         hi = mid
                 tau = hi
-            bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr)
-            fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr)
+            bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr, st[0])
+            fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1])
             n = len(bg_faces) + len(fg_faces)
             if attempt < 3 and n > 1.05 * params.budget and tau < 1.0:
                 target *= params.budget / n      # the estimate was off: correct the target and rebuild
                 continue
             break
     else:
-        bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr)
-        fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr)
+        bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr, st[0])
+        fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1])
     t2 = time.perf_counter()
     parts = layers.parts(intr, bg_faces, fg_faces)
     t3 = time.perf_counter()
