@@ -117,10 +117,12 @@ def slant_at(depth: np.ndarray, intr, r: np.ndarray, c: np.ndarray, normals: np.
     A plane seen at a grazing angle (the far road, a façade along the street) has large
     depth steps between neighbouring pixels that are not discontinuities; the cut
     threshold is divided by this factor, as the stretched-face measure divides the pixel
-    footprint (:func:`~.quality.stretched_faces`). ``normals`` (HxWx3, e.g. the estimated
-    normals N) are used where finite; elsewhere the normal comes from the depth map with,
+    footprint (:func:`~.quality.stretched_faces`). The normal comes from the depth map with,
     per axis, the one-sided difference of *smaller* depth change, so a step does not tilt
-    the normals of the pixels beside it. Pixels with no normal get 1 (strictest).
+    the normals of the pixels beside it; with ``normals`` (HxWx3, e.g. the estimated normals
+    N) the stricter (less grazing) of the two is used: estimated normals are blurred at box
+    edges and call them grazing, the depth alone calls a flying-pixel ramp grazing, a plane
+    seen at a grazing angle is grazing in both. Pixels with no normal get 1 (strictest).
     """
     H, W = depth.shape
     r = np.asarray(r, dtype=np.int64)
@@ -151,7 +153,7 @@ def slant_at(depth: np.ndarray, intr, r: np.ndarray, c: np.ndarray, normals: np.
         nn = np.asarray(normals)[r, c].astype(np.float64)
         cn = np.abs((nn * rhat).sum(1))
         cn = np.where(np.isfinite(cn), np.clip(cn, 1.0 / max_slant, 1.0), 1.0)
-        cs = np.where(np.isfinite(nn).all(1), cn, cs)
+        cs = np.maximum(cs, cn)           # the stricter of the two: a step needs both to call it grazing
     if strict is not None:
         cs = np.where(strict[r, c], 1.0, cs)
     return cs
