@@ -272,11 +272,23 @@ def _stability_cases():
     d6[28:30, 22:26] = np.nan
     d6[40, :] = np.nan
     cases["nan_islands"] = (d6, lab)
+    # Depth steps inside the background sheet that end inside it (slits), a 4-way saddle, and
+    # every pixel a step (random depth on the building).
+    d7 = d.copy()
+    d7[5:25, 30:60] = 24.0                          # façade step, its edges end inside the wall
+    d7[8:14, 70:80] = np.linspace(30, 20, 10)       # a ramp of 5 %-ish steps
+    d7[15:17, 85:87] = [[20.0, 30.0], [30.0, 20.0]]    # saddle: diagonals alike, sides all steps
+    cases["background_steps"] = (d7, lab)
+    d8 = d.copy()
+    rng = np.random.default_rng(3)
+    wall = lab == BUILDING
+    d8[wall] = rng.uniform(15, 40, wall.sum()).astype(np.float32)
+    cases["random_steps"] = (d8, lab)
     return cases, intr
 
 
 @pytest.mark.parametrize("case", ["border_objects", "all_foreground", "nested", "thin_segments", "sky_rows",
-                                  "nan_islands"])
+                                  "nan_islands", "background_steps", "random_steps"])
 @pytest.mark.parametrize("umode", ["hand", "none", "all"])
 def test_postprocess_stability(case, umode):
     cases, intr = _stability_cases()
@@ -295,6 +307,15 @@ def test_postprocess_stability(case, umode):
         ras = rasterize(r.mesh, intr)
         ok = np.isfinite(d) & (lab != SKY) & ~U
         assert np.isfinite(ras.depth[ok]).mean() > 0.99
+    # Depth steps inside a sheet are walled, never stretched; every pixel keeps its depth.
+    ras = rasterize(r.mesh, intr)
+    n = normals_from_depth(d, intr)
+    assert sum(stretched_faces(p, intr, None, n, seen_depth=ras.depth).sum() for p in r.mesh.parts) == 0
+    if umode != "all" and case not in ("nan_islands", "sky_rows"):
+        assert reprojection_error(ras, d, lab)["within_tol"] > 0.99
+    # The reduced mesh keeps every guarantee.
+    red = reduce_mesh(r.layers, intr, ReduceParams(tol=0.01))
+    assert_clean(red.mesh, intr, lab)
 
 
 def test_postprocess_adjacent_mode_and_params():

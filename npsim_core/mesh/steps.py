@@ -382,6 +382,9 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     feasible = clo <= chi
     with np.errstate(invalid="ignore"):
         cz = np.where(feasible, np.clip(cz, clo, chi), 0.5 * (clo + chi))
+    # Centres of different clusters on one ray must differ, or the walls meeting there could not
+    # share their edges (a 4-way saddle gives two pairs of equal centres): split ties by 1e-5.
+    cz = cz * (1.0 + 1e-5 * np.arange(4)[None, :])
     centre_base = n_mid
     centre_id = HW + centre_base + 4 * np.arange(n)[:, None] + np.where(lab < 4, lab, 0)   # (n, 4) per corner
 
