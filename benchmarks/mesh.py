@@ -1,32 +1,29 @@
 """Scene mesh: the thesis's three variants side by side, and error against face budget for reduction.
 
-    .venv/bin/python benchmarks/mesh.py [--sizes 512x256,2048x1024] [--refine] [--no-pymeshlab]
-                                        [--render docs/img]
+    .venv/bin/python benchmarks/mesh.py [--sizes 512x256,2048x1024] [--no-refine] [--no-pymeshlab]
+                                        [--rules] [--render docs/img]
 
 Table 1 (per size, synthetic street scene): ``raw`` (Worldsheet grid of the
 predicted depth), ``filtered`` (grid of the cross-bilateral-filtered depth) and
-``npsim`` (filtered -> U -> [normal-guided refinement with --refine] -> post-processing kernel).
+``npsim`` (filtered -> U -> normal-guided refinement -> post-processing kernel; ``--no-refine``
+skips the refinement).
 Columns: faces; stretched faces (visible faces with longest edge > k times the
 slant-corrected pixel footprint with k = 0.05 f, GT normals -- see npsim_core/mesh/quality.py);
-holes (boundary loops away from image border and sky); reprojection: fraction
+edge-on faces (the walls closing depth steps: projected area ~0, no camera ray hits them); holes (boundary loops away from image border and sky); reprojection: fraction
 of non-sky pixels whose ray-cast mesh depth is within 1 % of the depth the mesh
 came from, and within 1 % of the ground-truth depth; face-normal error against
 GT normals (mean angle of the face seen at each pixel, and fraction <= 11.25°);
-meshing time and peak traced memory (tracemalloc, numpy buffers).
+meshing time (untraced run) and peak memory (tracemalloc, numpy buffers, second run).
 
 Table 2: the quadtree reduction of the npsim mesh to face budgets (fraction of
 its faces) against pymeshlab's quadric edge collapse at 10 %: faces, build
 time, and the depth error each adds (ray-cast against the unreduced npsim mesh:
 fraction of pixels within 1 %, mean relative error), holes.
 
-``--tradeoff`` adds table 3 (issue 4's two unmet targets): the npsim mesh with
-the thesis rule, with ``keep_consistent`` and with every visible vertex keeping its
-own depth, each also with its stretched faces *cut* (faces whose depth range
-exceeds 5 %, removed without closing the cut -- an experiment, not a kernel
-option), and a lower bound: source pixels with no unstretched grid triangle
-incident to them (their depth differs by more than the slant-corrected 5 % from
-the neighbours of every incident triangle), which a grid-vertex mesh with no
-stretched face can only reproduce by leaving them isolated (a miss).
+``--rules`` adds table 3: the kernel's two choices side by side -- what U does
+to *visible* vertices (the thesis replaces every U vertex by completed depth; the
+default keeps visible depth) and what happens to depth steps left inside a sheet
+(bridged by stretched faces, or cut and closed by edge-on walls, the default).
 
 ``--render DIR`` writes ``DIR/mesh_<variant>.png`` (label-coloured pyvista
 off-screen renders of the 512x256 variants from a viewpoint beside the camera),
@@ -75,7 +72,8 @@ def variants_table(scene, stages, refine: bool) -> tuple[list[str], dict]:
         q = mesh_quality(v.mesh, intr, v.source_depth, scene.labels, scene.normals_gt, raster=ras)
         gt = reprojection_error(ras, scene.depth_gt, scene.labels)
         # The reprojection error's mean against the GT depth is the mesh's AbsRel (misses count 1).
-        rows.append(f"| {name} | {q.faces:,} | {q.stretched:,} | {q.holes} | {100 * q.reproj_within_1pct:.2f} % | "
+        rows.append(f"| {name} | {q.faces:,} | {q.stretched:,} | {q.edge_on:,} | {q.holes} | "
+                    f"{100 * q.reproj_within_1pct:.2f} % | "
                     f"{gt['mean']:.4f} | {q.normal_mean_deg:.2f}° | {100 * q.normal_within_11_25:.1f} % | "
                     f"{v.seconds:.2f} s | {v.peak_mb:,.0f} MB |")
     return rows, vs
@@ -108,72 +106,25 @@ def reduction_table(scene, npsim_variant, fractions, pymeshlab: bool) -> list[st
     return rows
 
 
-def step_pixels(depth, labels, intr, ref_normals, k_rel: float = 0.05, max_slant: float = 50.0) -> tuple[int, int]:
-    """(pixels without an unstretched incident grid triangle, valid non-sky pixels) of ``depth``.
-
-    A grid triangle (p and two of its 8-neighbours forming a grid half-quad) is
-    unstretched when all its depths agree within ``k_rel / max(|n_ref . r|, 1/max_slant)``
-    (relative), the same slant-corrected 5 % as the stretched-face measure.
-    """
-    from npsim_core.labels import cityscapes
-
-    H, W = depth.shape
-    d = depth.astype(np.float64)
-    ok = np.isfinite(d) & (d > 0) & (labels != cityscapes().sky_id)
-    r = intr.pixel_rays(np.float64)
-    r = r / np.linalg.norm(r, axis=2, keepdims=True)
-    cos = np.abs((ref_normals.astype(np.float64) * r).sum(2))
-    tol = k_rel / np.maximum(np.where(np.isfinite(cos), cos, 1.0), 1.0 / max_slant)
-    pad = np.pad(np.where(ok, d, np.nan), 1, constant_values=np.nan)
-
-    def nb(dr, dc):
-        return pad[1 + dr:1 + dr + H, 1 + dc:1 + dc + W]
-
-    def close(a, b):
-        with np.errstate(invalid="ignore"):
-            return np.abs(a - b) <= tol * np.minimum(a, b)
-
-    good = np.zeros((H, W), dtype=bool)
-    tris = [((0, 1), (1, 0)), ((1, 0), (0, -1)), ((0, -1), (-1, 0)), ((-1, 0), (0, 1)), ((0, 1), (1, 1)),
-            ((1, 0), (1, 1)), ((0, -1), (-1, -1)), ((-1, 0), (-1, -1)), ((0, 1), (-1, 1)), ((-1, 0), (-1, 1)),
-            ((0, -1), (1, -1)), ((1, 0), (1, -1))]
-    for a, b in tris:
-        A, B = nb(*a), nb(*b)
-        good |= close(d, A) & close(d, B) & close(A, B)
-    return int((ok & ~good).sum()), int(ok.sum())
-
-
-def tradeoff_table(scene, stages) -> list[str]:
-    """Table 3: thesis rule vs keeping visible depth, each without and with cutting stretched faces."""
-    import dataclasses
-
+def rules_table(scene, stages) -> list[str]:
+    """Table 3: what U does to visible vertices (thesis rule / keep) x depth steps (bridged / cut + walls)."""
     from npsim_core.mesh.pipeline import _light_ids
     from npsim_core.mesh.postprocess import PostprocessParams, postprocess_mesh
     from npsim_core.mesh.quality import mesh_quality, rasterize
-    from npsim_core.mesh.types import SceneMesh
 
     intr = scene.intrinsics
     rows = []
-    for name, kc in (("thesis rule (default)", None), ("keep_consistent=0.2", 0.2), ("keep all visible", 1e9)):
-        r = postprocess_mesh(stages.refined, intr, scene.labels, stages.uncertain, _light_ids(scene),
-                             params=PostprocessParams(keep_consistent=kc))
-        for cut in (False, True):
-            mesh = r.mesh
-            if cut:
-                parts = []
-                for p in mesh.parts:
-                    if p.n_faces:
-                        z = p.vertices[:, 2][p.faces].astype(np.float64)
-                        p = dataclasses.replace(p, faces=p.faces[(z.max(1) - z.min(1)) <= 0.05 * z.min(1)])
-                    parts.append(p)
-                mesh = SceneMesh(parts=parts, width=mesh.width, height=mesh.height, info={})
-            q = mesh_quality(mesh, intr, stages.refined, scene.labels, scene.normals_gt,
-                             raster=rasterize(mesh, intr))
-            rows.append(f"| {name}{' + cut > 5 %' if cut else ''} | {q.faces:,} | {q.stretched:,} | {q.holes} | "
-                        f"{100 * q.reproj_within_1pct:.2f} % | {q.normal_mean_deg:.2f}° |")
-    n, tot = step_pixels(stages.refined, scene.labels, intr, scene.normals_gt)
-    rows.append(f"\nLower bound: {n:,} of {tot:,} source pixels ({100 * n / tot:.2f} %) have no unstretched "
-                f"incident grid triangle ({int(stages.uncertain[np.isfinite(stages.refined)].sum()):,} pixels in U).")
+    for name, kc in (("thesis rule: U vertices replaced", None), ("visible vertices keep depth (default)", np.inf)):
+        for cut in (None, PostprocessParams().step_cut):
+            t = time.perf_counter()
+            r = postprocess_mesh(stages.refined, intr, scene.labels, stages.uncertain, _light_ids(scene),
+                                 params=PostprocessParams(keep_consistent=kc, step_cut=cut), normals=scene.normals)
+            sec = time.perf_counter() - t
+            q = mesh_quality(r.mesh, intr, stages.refined, scene.labels, scene.normals_gt,
+                             raster=rasterize(r.mesh, intr))
+            steps = "cut + walls" if cut else "bridged"
+            rows.append(f"| {name} | {steps} | {q.faces:,} | {q.stretched:,} | {q.edge_on:,} | {q.holes} | "
+                        f"{100 * q.reproj_within_1pct:.2f} % | {q.normal_mean_deg:.2f}° | {sec:.2f} s |")
     return rows
 
 
@@ -231,13 +182,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="512x256,2048x1024")
     ap.add_argument("--fractions", default="0.25,0.1,0.05", help="face budgets as fractions of the npsim mesh")
-    ap.add_argument("--refine", action="store_true",
-                    help="include the normal-guided refinement in the npsim variant (slow: minutes at 512x256 here)")
-    ap.add_argument("--refine-max-pixels", type=int, default=600_000,
-                    help="skip refinement above this many pixels (its own benchmark covers speed)")
+    ap.add_argument("--no-refine", action="store_true",
+                    help="skip the normal-guided refinement in the npsim variant (~40 s at 2048x1024 here)")
     ap.add_argument("--no-pymeshlab", action="store_true")
-    ap.add_argument("--tradeoff", action="store_true",
-                    help="add table 3: thesis rule vs keeping visible depth, with/without cutting stretched faces")
+    ap.add_argument("--rules", action="store_true",
+                    help="add table 3: thesis rule vs keeping visible depth, steps bridged vs cut + walls")
     ap.add_argument("--render", default=None, help="write mesh_<variant>.png pictures of the first size here")
     ap.add_argument("--render-child", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -253,22 +202,23 @@ def main(argv: list[str] | None = None) -> int:
     for k, size in enumerate(args.sizes.split(",")):
         W, H = _size(size)
         scene = street_scene(W, H)
-        refine = args.refine and W * H <= args.refine_max_pixels
+        refine = not args.no_refine
         t = time.perf_counter()
         stages = depth_stages(scene, PipelineParams(refine=refine))
         st = ", ".join(f"{a} {b:.2f} s" for a, b in stages.timings.items())
         sk = ", ".join(f"{a}: {b}" for a, b in stages.skipped.items())
         print(f"\n## {W}x{H}  (depth stages: {st}{'; skipped ' + sk if sk else ''})\n")
-        print("| variant | faces | stretched | holes | reproj ≤1 % (source) | AbsRel vs GT | "
+        print("| variant | faces | stretched | edge-on | holes | reproj ≤1 % (source) | AbsRel vs GT | "
               "normal err | ≤11.25° | mesh time | peak mem |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         rows, vs = variants_table(scene, stages, refine)
         print("\n".join(rows), flush=True)
-        if args.tradeoff:
-            print(f"\nStretched faces against reprojection at {W}x{H} (npsim mesh, {_load()}):\n")
-            print("| kernel variant | faces | stretched | holes | reproj ≤1 % (source) | normal err |")
-            print("|---|---|---|---|---|---|")
-            print("\n".join(tradeoff_table(scene, stages)), flush=True)
+        if args.rules:
+            print(f"\nThe kernel's choices at {W}x{H} (npsim mesh, {_load()}):\n")
+            print("| visible U vertices | depth steps in a sheet | faces | stretched | edge-on | holes | "
+                  "reproj ≤1 % (source) | normal err | kernel time |")
+            print("|---|---|---|---|---|---|---|---|---|")
+            print("\n".join(rules_table(scene, stages)), flush=True)
         if args.render and k == 0:
             render_variants(vs, scene.labels.shape, Path(args.render))
             print(f"\nrendered {', '.join(f'mesh_{n}.png' for n in vs)} to {args.render}")

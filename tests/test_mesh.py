@@ -541,23 +541,25 @@ def test_mesh_command(tmp_path, capsys):
     assert main(["mesh", str(folder), "-o", str(out), "--format", "stl"]) == 2
 
 
-def test_benchmark_step_pixel_lower_bound():
-    """benchmarks/mesh.py's lower bound: a clean depth step costs nothing, a flying pixel counts."""
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location("bench_mesh", Path(__file__).resolve().parents[1]
-                                                  / "benchmarks" / "mesh.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    W, H = 32, 16
+def test_isolated_flying_pixel_is_reproduced_without_stretched_faces():
+    """A pixel whose depth differs from all its neighbours (no unstretched grid triangle exists) is
+    kept as its own walled tile: the mesh reproduces it exactly and nothing is stretched or open."""
+    W, H = 128, 64                            # f = 111 px: a pixel is 0.9 % of depth, well below 5 %
     intr = Intrinsics.from_fov(W, H, 60)
-    d = np.full((H, W), 10.0)
+    d = np.full((H, W), 10.0, np.float32)
     d[:, W // 2:] = 12.0                      # a 20 % step between two fronto-parallel planes
-    labels = np.full((H, W), BUILDING, np.uint8)
-    n = np.zeros((H, W, 3))
-    n[..., 2] = -1.0
-    assert bench.step_pixels(d, labels, intr, n) == (0, H * W)
     d[5, W // 2] = 11.0                       # a flying pixel between them
-    labels[0] = SKY
-    assert bench.step_pixels(d, labels, intr, n) == (1, (H - 1) * W)
+    d[9, 5] = 10.8                            # and one alone in the near plane
+    labels = np.full((H, W), BUILDING, np.uint8)
+    n = np.zeros((H, W, 3), np.float32)
+    n[..., 2] = -1.0
+    r = postprocess_mesh(d, intr, labels, np.zeros((H, W), bool), normals=n)
+    ras = rasterize(r.mesh, intr)
+    assert reprojection_error(ras, d, labels)["within_tol"] == 1.0
+    assert stretched_faces(r.mesh.parts[0], intr, None, n, seen_depth=ras.depth).sum() == 0
+    assert edge_on_faces(r.mesh.parts[0], intr).sum() > 0
+    assert_clean(r.mesh, intr, labels)
+    # Without the cuts the same pixels are bridged by stretched faces.
+    b = postprocess_mesh(d, intr, labels, np.zeros((H, W), bool), params=PostprocessParams(step_cut=None))
+    rb = rasterize(b.mesh, intr)
+    assert stretched_faces(b.mesh.parts[0], intr, None, n, seen_depth=rb.depth).sum() > 0

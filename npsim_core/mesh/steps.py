@@ -249,7 +249,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     H, W = depth.shape
     if tau is None or H < 2 or W < 2:
         return StepFaces.empty((H, W))
-    d = depth.astype(np.float64)
+    d = np.asarray(depth, dtype=np.float32)      # whole-image work in float32; gathered values in float64
     cut_h, cut_v, same_h, same_v = cut_sides(d, group, tau, slant, surface)
 
     def tau_at(r, c):
@@ -283,7 +283,8 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     if n == 0:
         return out
     HW = H * W
-    iz_img = 1.0 / d                                            # NaN stays NaN
+    with np.errstate(divide="ignore"):
+        iz_img = 1.0 / d                                        # NaN stays NaN
 
     # --- mid vertices: one per (cut side, endpoint), shared by the two quads of the side.
     hr, hc = np.nonzero(cut_h)
@@ -305,9 +306,9 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     mid_order = np.concatenate([2 * np.arange(nh), 2 * np.arange(nh) + 1,
                                 2 * (nh + np.arange(nv_)), 2 * (nh + np.arange(nv_)) + 1])
     gu, gv = _inverse_gradient(iz_img, cont_h, cont_v, m_r, m_c)
-    dx, dy = d[m_r, m_c], d[o_r, o_c]
+    dx, dy = d[m_r, m_c].astype(np.float64), d[o_r, o_c].astype(np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ext = 1.0 / (iz_img[m_r, m_c] + gu * du + gv * dv)
+        ext = 1.0 / (iz_img[m_r, m_c].astype(np.float64) + gu * du + gv * dv)
     ext = np.where(np.isfinite(ext) & (ext > 0), ext, dx)
     tx = tau_at(m_r, m_c)
     lo, hi = dx / (1 + tx / 2), dx * (1 + tx / 2)
@@ -327,7 +328,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     cr = np.stack([qi, qi, qi + 1, qi + 1], 1)
     cc = np.stack([qj, qj + 1, qj, qj + 1], 1)
     cpix = cr * W + cc
-    cdep = d[cr, cc]
+    cdep = d[cr, cc].astype(np.float64)
     # Sides: index into the 4 corners and whether each is joined / cut.
     # Perimeter order a -> c -> d -> b -> a keeps the fans front-facing (see grid.py winding).
     per = [(0, 2), (2, 3), (3, 1), (1, 0)]
@@ -349,7 +350,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     off_v = np.array([0.5, 0.5, -0.5, -0.5])
     gu4, gv4 = _inverse_gradient(iz_img, cont_h, cont_v, cr.ravel(), cc.ravel())
     with np.errstate(invalid="ignore"):
-        ext4 = iz_img[cr, cc] + gu4.reshape(n, 4) * off_u + gv4.reshape(n, 4) * off_v
+        ext4 = iz_img[cr, cc].astype(np.float64) + gu4.reshape(n, 4) * off_u + gv4.reshape(n, 4) * off_v
     onehot = (lab[:, :, None] == np.arange(4)[None, None, :])                # (n, corner, cluster)
     okc = np.isfinite(cdep)[:, :, None] & onehot
     cnt = okc.sum(1)
@@ -383,8 +384,8 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     with np.errstate(invalid="ignore"):
         cz = np.where(feasible, np.clip(cz, clo, chi), 0.5 * (clo + chi))
     # Centres of different clusters on one ray must differ, or the walls meeting there could not
-    # share their edges (a 4-way saddle gives two pairs of equal centres): split ties by 1e-5.
-    cz = cz * (1.0 + 1e-5 * np.arange(4)[None, :])
+    # share their edges (a 4-way saddle gives two pairs of equal centres): split ties by 0.1 %.
+    cz = cz * (1.0 + 1e-3 * np.arange(4)[None, :])
     centre_base = n_mid
     centre_id = HW + centre_base + 4 * np.arange(n)[:, None] + np.where(lab < 4, lab, 0)   # (n, 4) per corner
 
