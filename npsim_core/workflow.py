@@ -288,7 +288,7 @@ def _stage_mesh(inputs: dict, params: MeshStageParams, ctx) -> dict:
         pp = replace(params.postprocess, far_limit=mp.far_limit)
         res = postprocess_mesh(depth, intr, scene.labels, inputs["uncertain"], light_ids=light_ids, params=pp,
                                normals=scene.normals)
-        removed = removed_faces(depth, intr, scene.labels, inputs["uncertain"])
+        removed = removed_faces(depth, intr, scene.labels, res.layers)
         mesh = res.mesh
         if mp.face_budget and mesh.n_faces > mp.face_budget:
             from .mesh.reduce import ReduceParams, reduce_mesh
@@ -507,10 +507,12 @@ class NightFrame:
     active: Any = None
 
 
-# --------------------------------------------------------------------------- uncertain-face deletion, for display
-def removed_faces(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, uncertain: np.ndarray) -> MeshPart:
-    """The grid faces that uncertain-face deletion removes (any vertex in U), as one part."""
+# --------------------------------------------------------------------------- replaced grid faces, for display
+def removed_faces(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, layers) -> MeshPart:
+    """The Worldsheet grid faces of ``depth`` the post-processing kernel did not keep, as one part
+    (see :func:`npsim_core.mesh.postprocess.replaced_grid_faces`)."""
     from .mesh.grid import grid_mesh
+    from .mesh.postprocess import replaced_grid_faces
 
     full = grid_mesh(depth, intrinsics, labels).parts
     parts = [p for p in full if p.n_faces]
@@ -518,9 +520,7 @@ def removed_faces(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray,
         return MeshPart("removed", np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64), np.zeros((0, 2), np.float32),
                         np.zeros((0, 2), np.float32), np.zeros(0, np.uint8), np.zeros(0, np.int32))
     p = parts[0]
-    px = np.rint(p.pixel).astype(np.intp)
-    in_u = uncertain[px[:, 1], px[:, 0]]
-    keep = in_u[p.faces].any(axis=1)
+    keep = replaced_grid_faces(p, layers)
     return MeshPart("removed", p.vertices, p.faces[keep], p.uv, p.pixel, p.label, p.light_id)
 
 

@@ -563,3 +563,25 @@ def test_isolated_flying_pixel_is_reproduced_without_stretched_faces():
     b = postprocess_mesh(d, intr, labels, np.zeros((H, W), bool), params=PostprocessParams(step_cut=None))
     rb = rasterize(b.mesh, intr)
     assert stretched_faces(b.mesh.parts[0], intr, None, n, seen_depth=rb.depth).sum() > 0
+
+
+def test_replaced_grid_faces_are_those_across_sheets_and_steps():
+    from npsim_core.mesh.postprocess import replaced_grid_faces
+
+    d, lab, intr = toy_scene()
+    d[5:20, 60:80] = 24.0                               # a façade step inside the background sheet
+    r = postprocess_mesh(d, intr, lab, hand_uncertain(d, lab))
+    grid = grid_mesh(d, intr, lab).parts[0]
+    rep = replaced_grid_faces(grid, r.layers)
+    px = np.rint(grid.pixel).astype(int)
+    flab = lab[px[grid.faces, 1], px[grid.faces, 0]]
+    mixed_lab = (flab != flab[:, :1]).any(1)
+    assert rep[mixed_lab & np.isin(flab, [CAR, POLE]).any(1)].all()       # object/background faces
+    zf = d[px[grid.faces, 1], px[grid.faces, 0]]
+    step = (zf.max(1) - zf.min(1)) > 0.1 * zf.min(1)
+    assert rep[step].all()                                                  # every bridged step
+    qv, qu = px[grid.faces, 1].min(1), px[grid.faces, 0].min(1)
+    quad = np.stack([d[qv, qu], d[qv, qu + 1], d[qv + 1, qu], d[qv + 1, qu + 1]], 1)
+    qlab = np.stack([lab[qv, qu], lab[qv, qu + 1], lab[qv + 1, qu], lab[qv + 1, qu + 1]], 1)
+    flat_wall = (qlab == BUILDING).all(1) & (quad == quad[:, :1]).all(1)
+    assert flat_wall.sum() > 1000 and not rep[flat_wall].any()             # plain surface is kept

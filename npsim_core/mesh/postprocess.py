@@ -84,7 +84,7 @@ from .steps import StepFaces, slant_at, step_faces
 from .types import MeshPart, SceneMesh
 
 __all__ = ["PostprocessParams", "PostprocessResult", "SheetLayers", "postprocess_mesh", "object_map",
-           "default_occluders"]
+           "default_occluders", "replaced_grid_faces"]
 
 _N8 = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
@@ -450,7 +450,10 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     # Keep hidden background behind the objects in front of it; drop what the far limit cuts.
     bgv = np.isfinite(bg_depth) & (bg_depth > 0)
     both = filled & bgv & fgv
-    bg_depth[both] = np.maximum(bg_depth[both], fg_depth[both] * (1.0 + params.behind_margin))
+    # Behind the deepest object vertex around (3x3): an object face between two of its pixels
+    # (e.g. across a step of the object) can then never be behind a hidden background face.
+    fg_max = cv2.dilate(np.where(fgv, fg_depth, 0.0).astype(np.float32), np.ones((3, 3), np.uint8))
+    bg_depth[both] = np.maximum(bg_depth[both], fg_max[both] * (1.0 + params.behind_margin))
     if params.far_limit is not None:
         bgv &= bg_depth <= params.far_limit
         fgv &= fg_depth <= params.far_limit
@@ -471,14 +474,22 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     if params.step_cut is not None:
         if normals is not None and np.shape(normals) != (H, W, 3):
             raise NpsimInputError(f"normals must be HxWx3 of shape {(H, W, 3)}, got {np.shape(normals)}")
-        # Hidden background is a guess whose orientation nobody measured (the normals there are the
-        # object's): no grazing allowance. Its steps get walls; seen from the camera they are hidden.
+        # Hidden background (an object in front) is the row-wise completion: its row-to-row
+        # differences are interpolation, not scene steps, and no camera ray sees them -- never cut
+        # where one object covers all around. Along silhouettes (and between two objects) a sliver
+        # of it shows; nobody measured its orientation (the normals there are the object's): no
+        # grazing allowance on that band.
+        k3 = np.ones((3, 3), np.uint8)
+        o = np.where(fgv, obj, -1).astype(np.float32)
+        interior = fgv & (cv2.erode(o, k3) == cv2.dilate(o, k3))     # 3x3 all behind one object
+        band = fgv & ~interior
+        bg_normals = None if normals is None else np.where(fgv[..., None], np.nan, normals)
         bg_label = labels.ravel()[np.clip(bg_src, 0, None)].reshape(H, W)
         cap = params.step_cut_grazing / params.step_cut
         steps = tuple(step_faces(d_, g_, params.step_cut, partial(slant_at, d_, intrinsics, normals=n_,
-                                                                    strict=strict, max_slant=cap), surface)
-                      for d_, g_, n_, strict, surface in ((bg32, None, normals, fgv, bg_label),
-                                                          (fg32, obj, normals, None, labels)))
+                                                                    strict=strict, max_slant=cap), surface, uncut)
+                      for d_, g_, n_, strict, surface, uncut in ((bg32, None, bg_normals, band, bg_label, interior),
+                                                                 (fg32, obj, normals, None, labels, None)))
     else:
         steps = (StepFaces.empty((H, W)), StepFaces.empty((H, W)))
     tm["steps"] = time.perf_counter() - t
@@ -499,6 +510,32 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     mesh = SceneMesh(parts=parts, width=W, height=H,
                      info={"stage": "postprocess", "params": asdict(params), "counts": counts, "timings": tm})
     return PostprocessResult(mesh=mesh, layers=layers, counts=counts, timings=tm)
+
+
+def replaced_grid_faces(grid: MeshPart, layers: "SheetLayers", tol: float = 0.01) -> np.ndarray:
+    """(F,) mask of the faces of a full-resolution grid mesh that the post-processed sheets replace.
+
+    A grid face is replaced when its pixels belong to different sheets (an object and the
+    background, two objects), when it lies in a quad that holds a depth step of its sheet
+    (cut and walled, :mod:`.steps`), or when the kernel moved one of its vertices by more
+    than ``tol`` (relative; the thesis rule replaces U vertices by completed depth).
+    """
+    H, W = layers.shape
+    px = np.rint(grid.pixel).astype(np.int64)
+    flat = px[:, 1] * W + px[:, 0]
+    fd, bd = layers.foreground_depth.ravel()[flat], layers.background_depth.ravel()[flat]
+    on_fg = np.isfinite(fd)
+    sheet = np.where(on_fg, layers.objects.ravel()[flat], 0)
+    z = np.where(on_fg, fd, bd).astype(np.float64)
+    zg = grid.vertices[:, 2].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        moved = ~(np.abs(z - zg) <= tol * zg)
+    f = grid.faces
+    s = sheet[f]
+    differ = (s[:, 0] != s[:, 1]) | (s[:, 1] != s[:, 2])
+    q = px[f, 1].min(1) * (W - 1) + px[f, 0].min(1)
+    mixed = np.where(s[:, 0] > 0, layers.step(1).mixed.ravel()[q], layers.step(0).mixed.ravel()[q])
+    return differ | mixed | moved[f].any(1)
 
 
 @dataclass

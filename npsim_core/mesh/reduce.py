@@ -60,13 +60,21 @@ class ReduceParams:
         Maximum relative depth error of a merged cell when no budget is given.
     max_level : int
         Largest cell is ``2^max_level`` pixels.
+    steps : "auto" | "kept"
+        Depth-step quads (fans and edge-on walls, :mod:`.steps`) stay at pixel resolution and
+        never merge. ``"auto"``: when that alone exceeds the budget, the steps are bridged by
+        plain grid quads instead (2 faces per quad instead of about 6-10; those faces are
+        stretched again, as in the raw grid). ``"kept"``: never bridge (the budget may be missed).
     """
 
     budget: int | None = None
     tol: float = 0.002
     max_level: int = 6
+    steps: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.steps not in ("auto", "kept"):
+            raise NpsimInputError(f"steps must be 'auto' or 'kept', got {self.steps!r}")
         if self.budget is not None and int(self.budget) < 1:
             raise NpsimInputError(f"face budget must be >= 1, got {self.budget}")
         if not self.tol >= 0:
@@ -77,10 +85,14 @@ class ReduceParams:
 
 @dataclass
 class ReduceResult:
+    """Reduced mesh, the tolerance used, leaf counts, timings, and whether depth steps were
+    ``"kept"`` (fans and walls) or ``"bridged"`` (grid quads, to meet a tight budget)."""
+
     mesh: SceneMesh
     tol: float
     leaves: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    steps: str = "kept"
 
 
 class _Pyramid:
@@ -245,12 +257,15 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
     if layers.shape != (intr.height, intr.width):
         raise NpsimInputError(f"layers are {layers.shape} but intrinsics are {intr.height}x{intr.width}")
     bd, fd = layers.background_depth, layers.foreground_depth
-    st = (layers.step(0), layers.step(1))
-    pyrs = [_Pyramid(bd, layers.background_key(), params.max_level, st[0].mixed),
-            _Pyramid(fd, layers.foreground_key(), params.max_level, st[1].mixed)]
-    t1 = time.perf_counter()
-    tau = params.tol
-    if params.budget is not None:
+    kept = (layers.step(0), layers.step(1))
+
+    def build(st):
+        pyrs = [_Pyramid(bd, layers.background_key(), params.max_level, st[0].mixed),
+                _Pyramid(fd, layers.foreground_key(), params.max_level, st[1].mixed)]
+        tau = params.tol
+        if params.budget is None:
+            return (_layer_faces(bd, pyrs[0], tau, None, intr, st[0]),
+                    _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1]), tau)
         # Fans and walls of depth-step quads never merge; other unmerged quads are in the estimate.
         fixed = len(st[0].faces) + len(st[1].faces)
         target = float(params.budget)
@@ -266,24 +281,35 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
                     else:
                         hi = mid
                 tau = hi
-            bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr, st[0])
-            fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1])
-            n = len(bg_faces) + len(fg_faces)
+            bg = _layer_faces(bd, pyrs[0], tau, None, intr, st[0])
+            fg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1])
+            n = len(bg[0]) + len(fg[0])
             if attempt < 3 and n > 1.05 * params.budget and tau < 1.0:
                 target *= params.budget / n      # the estimate was off: correct the target and rebuild
                 continue
             break
-    else:
-        bg_faces, ibg = _layer_faces(bd, pyrs[0], tau, None, intr, st[0])
-        fg_faces, ifg = _layer_faces(fd, pyrs[1], tau, layers.objects, intr, st[1])
+        return bg, fg, tau
+
+    (bg_faces, ibg), (fg_faces, ifg), tau = build(kept)
+    steps = "kept"
+    t1 = time.perf_counter()
+    has_steps = len(kept[0].faces) + len(kept[1].faces) > 0
+    if params.budget is not None and has_steps and params.steps != "kept" \
+            and len(bg_faces) + len(fg_faces) > 1.05 * params.budget:
+        # Over budget with every step at pixel resolution: bridge the steps (two grid triangles per
+        # quad instead of fans and walls); their faces are stretched again but cost a fifth.
+        empty = StepFaces.empty(layers.shape)
+        (bg_faces, ibg), (fg_faces, ifg), tau = build((empty, empty))
+        steps = "bridged"
     t2 = time.perf_counter()
     parts = layers.parts(intr, bg_faces, fg_faces)
     t3 = time.perf_counter()
-    tm = {"pyramid": t1 - t0, "triangulate": t2 - t1, "parts": t3 - t2, "total": t3 - t0}
+    tm = {"build": t1 - t0, "bridged rebuild": t2 - t1, "parts": t3 - t2, "total": t3 - t0}
     mesh = SceneMesh(parts=parts, width=intr.width, height=intr.height,
-                     info={"stage": "reduce", "tol": tau, "budget": params.budget, "timings": tm,
+                     info={"stage": "reduce", "tol": tau, "budget": params.budget, "timings": tm, "steps": steps,
                            "faces": sum(p.n_faces for p in parts)})
-    return ReduceResult(mesh=mesh, tol=float(tau), leaves={"background": ibg, "foreground": ifg}, timings=tm)
+    return ReduceResult(mesh=mesh, tol=float(tau), leaves={"background": ibg, "foreground": ifg}, timings=tm,
+                        steps=steps)
 
 
 def merge_parts(mesh: SceneMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

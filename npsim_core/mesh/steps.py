@@ -153,6 +153,7 @@ def slant_at(depth: np.ndarray, intr, r: np.ndarray, c: np.ndarray, normals: np.
         nn = np.asarray(normals)[r, c].astype(np.float64)
         cn = np.abs((nn * rhat).sum(1))
         cn = np.where(np.isfinite(cn), np.clip(cn, 1.0 / max_slant, 1.0), 1.0)
+        cn = np.where(np.isfinite(nn).all(1), cn, 0.0)
         cs = np.maximum(cs, cn)           # the stricter of the two: a step needs both to call it grazing
     if strict is not None:
         cs = np.where(strict[r, c], 1.0, cs)
@@ -160,7 +161,7 @@ def slant_at(depth: np.ndarray, intr, r: np.ndarray, c: np.ndarray, normals: np.
 
 
 def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant=None,
-              surface: np.ndarray | None = None):
+              surface: np.ndarray | None = None, uncut: np.ndarray | None = None):
     """Sides of one layer to cut (see module doc).
 
     Parameters
@@ -177,6 +178,9 @@ def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant=Non
     surface : (H, W) int, optional
         Semantic label of each vertex. The grazing allowance is for *one* surface: a side
         joining two labels (a façade above a pavement) keeps the head-on threshold.
+    uncut : (H, W) bool, optional
+        Pixels whose sides between each other are never cut (e.g. hidden background, whose
+        row-to-row differences come from the row-wise completion, not from the scene).
 
     Returns
     -------
@@ -190,6 +194,9 @@ def cut_sides(depth: np.ndarray, group: np.ndarray | None, tau: float, slant=Non
     H, W = depth.shape
     same_h, step_h, same_v, step_v = _sides(depth, group)
     cut_h, cut_v = step_h > tau, step_v > tau
+    if uncut is not None:
+        cut_h &= ~(uncut[:, :-1] & uncut[:, 1:])
+        cut_v &= ~(uncut[:-1, :] & uncut[1:, :])
     if slant is not None:
         # Slant can only raise the threshold: ask it only where the step exceeds tau.
         for cut, step, (dr, dc) in ((cut_h, step_h, (0, 1)), (cut_v, step_v, (1, 0))):
@@ -224,8 +231,85 @@ def _inverse_gradient(iz: np.ndarray, cont_h: np.ndarray, cont_v: np.ndarray, r:
     return axis(cont_h, True), axis(cont_v, False)
 
 
+_PERIM = np.array([0, 2, 3, 1])          # corners a, c, d, b: the front-facing perimeter order
+
+
+def _two_sheet_quads(faces: list, wall: list, tau: float, HW: int, cpix, cdep, lab, s_cut, s_id, x_end,
+                     mid_depth) -> np.ndarray:
+    """Cheaper triangulation of the commonest mixed quads; returns the mask of quads it handled.
+
+    A quad with all four corners, two clusters and two cut sides is a straight step (cut
+    sides opposite) or a corner of one (cut sides adjacent). Each side is then a polygon
+    on its corners and the two mids, the contour between the mids is straight, and the
+    wall is one quad: 6 faces instead of the 10 of the centre fans, no centre vertex.
+    A quad whose polygons would have an edge spanning more than 1.5 ``tau`` keeps the fans.
+    """
+    n = len(cpix)
+    present = (lab < 4).all(1)
+    ncl = (lab[:, :, None] == np.arange(4)[None, None, :]).any(1).sum(1)
+    ncut = s_cut.sum(1)
+    cand = present & (ncl == 2) & (ncut == 2)
+    out = np.zeros(n, dtype=bool)
+    if not cand.any():
+        return out
+
+    def mid(rows, k, corner_first):
+        e = x_end[k] if corner_first else 1 - x_end[k]
+        return HW + 2 * s_id[rows, k] + e
+
+    def depth_of(ids):
+        return np.where(ids < HW, 0.0, mid_depth[np.clip(ids - HW, 0, len(mid_depth) - 1)])
+
+    groups = []
+    # Straight: cut sides k1 and k1 + 2 (perimeter sides: k from P[k] to P[k+1]).
+    for k1 in (0, 1):
+        k2 = k1 + 2
+        rows = np.flatnonzero(cand & s_cut[:, k1] & s_cut[:, k2])
+        if len(rows) == 0:
+            continue
+        P = [_PERIM[(k1 + j) % 4] for j in range(4)]           # P[k1], P[k1+1], P[k1+2], P[k1+3]
+        p0, q1, q2, r1 = (cpix[rows, c] for c in P)
+        z0, zq1, zq2, zr1 = (cdep[rows, c] for c in P)
+        M1, M2 = mid(rows, k1, False), mid(rows, k2, True)        # cluster {P1, P2}
+        N1, N2 = mid(rows, k1, True), mid(rows, k2, False)        # cluster {P3, P0}
+        f = [np.stack([M1, q1, q2], 1), np.stack([M1, q2, M2], 1),
+             np.stack([N2, r1, p0], 1), np.stack([N2, p0, N1], 1)]
+        w = [np.stack([M1, M2, N2], 1), np.stack([M1, N2, N1], 1)]
+        zm1, zm2, zn1, zn2 = depth_of(M1), depth_of(M2), depth_of(N1), depth_of(N2)
+        edges = [(zm1, zq1), (zq1, zq2), (zq2, zm1), (zq2, zm2), (zm2, zm1),
+                 (zn2, zr1), (zr1, z0), (z0, zn2), (z0, zn1), (zn1, zn2)]
+        groups.append((rows, f, w, edges))
+    # Corner: cut sides k-1 and k around corner x = P[k] alone.
+    for i in range(4):
+        kp, kn = (i - 1) % 4, i
+        rows = np.flatnonzero(cand & s_cut[:, kp] & s_cut[:, kn])
+        if len(rows) == 0:
+            continue
+        x, nn, o, pp = (_PERIM[(i + j) % 4] for j in range(4))
+        X, Nn, O, Pp = (cpix[rows, c] for c in (x, nn, o, pp))
+        zx, zn_, zo, zp = (cdep[rows, c] for c in (x, nn, o, pp))
+        mpS, mpO = mid(rows, kp, False), mid(rows, kp, True)
+        mnS, mnO = mid(rows, kn, True), mid(rows, kn, False)
+        f = [np.stack([mpS, X, mnS], 1), np.stack([O, Pp, mpO], 1), np.stack([O, mpO, mnO], 1),
+             np.stack([O, mnO, Nn], 1)]
+        w = [np.stack([mpS, mnS, mnO], 1), np.stack([mpS, mnO, mpO], 1)]
+        zmpS, zmpO, zmnS, zmnO = depth_of(mpS), depth_of(mpO), depth_of(mnS), depth_of(mnO)
+        edges = [(zmpS, zx), (zx, zmnS), (zmnS, zmpS), (zo, zp), (zp, zmpO), (zmpO, zo), (zmpO, zmnO),
+                 (zmnO, zo), (zmnO, zn_), (zn_, zo)]
+        groups.append((rows, f, w, edges))
+    for rows, f, w, edges in groups:
+        worst = np.max([relative_step(a, b) for a, b in edges], axis=0)
+        ok = worst <= 1.5 * tau
+        if not ok.any():
+            continue
+        out[rows[ok]] = True
+        faces += [t[ok] for t in f] + [t[ok] for t in w]
+        wall += [np.zeros(int(ok.sum()) * len(f), bool), np.ones(int(ok.sum()) * len(w), bool)]
+    return out
+
+
 def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, slant=None,
-               surface: np.ndarray | None = None) -> StepFaces:
+               surface: np.ndarray | None = None, uncut: np.ndarray | None = None) -> StepFaces:
     """Cut the depth steps of one layer and triangulate its mixed quads with walls (see module doc).
 
     Parameters
@@ -241,6 +325,8 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
         clamps scale by 1/slant.
     surface : (H, W) int, optional
         Semantic label of each vertex (see :func:`cut_sides`).
+    uncut : (H, W) bool, optional
+        Pixels whose mutual sides are never cut (see :func:`cut_sides`).
 
     Returns
     -------
@@ -250,7 +336,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     if tau is None or H < 2 or W < 2:
         return StepFaces.empty((H, W))
     d = np.asarray(depth, dtype=np.float32)      # whole-image work in float32; gathered values in float64
-    cut_h, cut_v, same_h, same_v = cut_sides(d, group, tau, slant, surface)
+    cut_h, cut_v, same_h, same_v = cut_sides(d, group, tau, slant, surface, uncut)
 
     def tau_at(r, c):
         """Per-pixel threshold tau / slant."""
@@ -390,14 +476,15 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     centre_id = HW + centre_base + 4 * np.arange(n)[:, None] + np.where(lab < 4, lab, 0)   # (n, 4) per corner
 
     faces, wall = [], []
+    simple = _two_sheet_quads(faces, wall, tau, HW, cpix, cdep, lab, s_cut, s_id, x_end, mid_depth)
     for k, (x, y) in enumerate(per):
         P, Q = cpix[:, x], cpix[:, y]
         Cx, Cy = centre_id[:, x], centre_id[:, y]
-        m = s_cont[:, k]
+        m = s_cont[:, k] & ~simple
         if m.any():
             faces.append(np.stack([Cx[m], P[m], Q[m]], 1))
             wall.append(np.zeros(int(m.sum()), bool))
-        m = s_cut[:, k]
+        m = s_cut[:, k] & ~simple
         if m.any():
             rows = np.flatnonzero(m)
             sid = s_id[rows, k]
