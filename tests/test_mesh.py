@@ -585,3 +585,20 @@ def test_replaced_grid_faces_are_those_across_sheets_and_steps():
     qlab = np.stack([lab[qv, qu], lab[qv, qu + 1], lab[qv + 1, qu], lab[qv + 1, qu + 1]], 1)
     flat_wall = (qlab == BUILDING).all(1) & (quad == quad[:, :1]).all(1)
     assert flat_wall.sum() > 1000 and not rep[flat_wall].any()             # plain surface is kept
+
+
+def test_reduce_bridges_steps_only_when_the_budget_needs_it():
+    cases, intr = _stability_cases()
+    d, lab = cases["random_steps"]
+    r = postprocess_mesh(d, intr, lab, hand_uncertain(d, lab))
+    fixed = sum(len(r.layers.step(i).faces) for i in (0, 1))
+    roomy = reduce_mesh(r.layers, intr, ReduceParams(budget=r.mesh.n_faces))
+    assert roomy.steps == "kept" and roomy.mesh.n_faces <= r.mesh.n_faces
+    tight = reduce_mesh(r.layers, intr, ReduceParams(budget=fixed // 2))
+    assert tight.steps == "bridged" and tight.mesh.n_faces < fixed
+    assert not any((p.pixel % 1 != 0).any() for p in tight.mesh.parts)     # no wall vertices left
+    assert_clean(tight.mesh, intr, lab)
+    strict = reduce_mesh(r.layers, intr, ReduceParams(budget=fixed // 2, steps="kept"))
+    assert strict.steps == "kept" and strict.mesh.n_faces >= fixed
+    with pytest.raises(NpsimInputError):
+        ReduceParams(steps="sometimes")

@@ -290,12 +290,15 @@ def reduce_mesh(layers: SheetLayers, intr: Intrinsics, params: ReduceParams = Re
             break
         return bg, fg, tau
 
-    (bg_faces, ibg), (fg_faces, ifg), tau = build(kept)
+    fixed = len(kept[0].faces) + len(kept[1].faces)
+    # Step faces alone above the budget: no need to try keeping them.
+    hopeless = params.budget is not None and params.steps != "kept" and fixed > params.budget
     steps = "kept"
+    if not hopeless:
+        (bg_faces, ibg), (fg_faces, ifg), tau = build(kept)
     t1 = time.perf_counter()
-    has_steps = len(kept[0].faces) + len(kept[1].faces) > 0
-    if params.budget is not None and has_steps and params.steps != "kept" \
-            and len(bg_faces) + len(fg_faces) > 1.05 * params.budget:
+    if hopeless or (params.budget is not None and fixed and params.steps != "kept"
+                    and len(bg_faces) + len(fg_faces) > 1.05 * params.budget):
         # Over budget with every step at pixel resolution: bridge the steps (two grid triangles per
         # quad instead of fans and walls); their faces are stretched again but cost a fifth.
         empty = StepFaces.empty(layers.shape)
