@@ -602,3 +602,21 @@ def test_reduce_bridges_steps_only_when_the_budget_needs_it():
     assert strict.steps == "kept" and strict.mesh.n_faces >= fixed
     with pytest.raises(NpsimInputError):
         ReduceParams(steps="sometimes")
+
+
+def test_postprocess_choices_are_settable_and_saved():
+    """`--set postprocess.step_cut=null` and the inf default survive the command line and a project file."""
+    import json
+
+    from npsim_core.commands.run import _parse_value
+    from npsim_core.workflow import WorkflowParams
+
+    assert _parse_value("null") is None and _parse_value("inf") == np.inf
+    p = WorkflowParams().with_value("postprocess", "step_cut", _parse_value("null"))
+    p = p.with_value("postprocess", "keep_consistent", _parse_value("none"))
+    assert p.postprocess.step_cut is None and p.postprocess.keep_consistent is None
+    d = WorkflowParams()
+    back = WorkflowParams.from_json(json.loads(json.dumps(d.to_json())))
+    assert back.postprocess == d.postprocess and back.postprocess.keep_consistent == np.inf
+    with pytest.raises(NpsimInputError):
+        WorkflowParams().with_value("postprocess", "step_cut", 2.0)

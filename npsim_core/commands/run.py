@@ -60,6 +60,8 @@ def _parse_value(raw: str):
     low = raw.lower()
     if low in ("true", "false"):
         return low == "true"
+    if low in ("null", "none"):
+        return None
     for cast in (int, float):
         try:
             return cast(raw)
