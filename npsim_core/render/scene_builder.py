@@ -166,7 +166,8 @@ def _visible_background_repair(mesh: SceneMesh, labels: np.ndarray, light_ids: n
         if not p.foreground and p.n_vertices:
             px = np.rint(p.pixel).astype(np.int64)
             flat = px[:, 1] * W + px[:, 0]
-            vis = ~covered[flat]
+            # Vertices closing depth steps sit between pixels and carry their own position's uv.
+            vis = ~covered[flat] & (p.pixel == np.rint(p.pixel)).all(1)
             own_uv = np.stack([(px[:, 0] + 0.5) / W, 1.0 - (px[:, 1] + 0.5) / H], 1).astype(np.float32)
             uv = np.where(vis[:, None], own_uv, uv)
             lab = np.where(vis, labels.ravel()[flat], lab).astype(np.uint8)
