@@ -2,8 +2,8 @@
 
 Colour modes: the day image (per-vertex colour sampled at the source pixel),
 semantic labels, vertex normals, uncertainty, or per-vertex error. Toggles for
-the background / foreground sheets, removed spurious faces (red) and light
-emitters. "Input view" puts the camera at the origin looking down +z with the
+the background / foreground sheets, the walls closing depth steps (grey), the grid
+faces the post-processing replaced (red) and light emitters. "Input view" puts the camera at the origin looking down +z with the
 image's field of view (OpenCV frame: y down), so the mesh lines up with the photo.
 """
 
@@ -53,6 +53,7 @@ class MeshDisplay:
     image: np.ndarray
     background: pv.PolyData | None
     foreground: pv.PolyData | None
+    walls: pv.PolyData | None
     removed: pv.PolyData | None
     emitters: pv.PolyData | None
     fields: dict[str, np.ndarray]
@@ -60,20 +61,28 @@ class MeshDisplay:
 
 
 def _emitter_part(part: MeshPart) -> MeshPart:
-    keep = part.face_light_id() > 0
+    return _select(part, part.face_light_id() > 0)
+
+
+def _select(part: MeshPart, keep: np.ndarray) -> MeshPart:
     return MeshPart(part.name, part.vertices, part.faces[keep], part.uv, part.pixel, part.label,
                     part.light_id, part.foreground)
 
 
 def build_display(mesh: SceneMesh, image: np.ndarray, *, removed: MeshPart | None = None,
                   fields: dict[str, np.ndarray] | None = None, fy: float | None = None) -> MeshDisplay:
-    """Concatenate the sheets into VTK poly data (pure data work: safe in a worker thread)."""
-    bg = _polydata([q for q in mesh.parts if not q.foreground])
-    fg = _polydata([q for q in mesh.parts if q.foreground])
+    """Concatenate the sheets into VTK poly data (pure data work: safe in a worker thread).
+
+    The walls that close depth steps (edge-on from the camera) are kept apart so the
+    3D view can show them in their own colour or hide them."""
+    walls = [q.edge_on_faces() for q in mesh.parts]
+    bg = _polydata([_select(q, ~w) for q, w in zip(mesh.parts, walls) if not q.foreground])
+    fg = _polydata([_select(q, ~w) for q, w in zip(mesh.parts, walls) if q.foreground])
+    wl = _polydata([_select(q, w) for q, w in zip(mesh.parts, walls)])
     rm = _polydata([removed]) if removed is not None and removed.n_faces else None
     em = _polydata([_emitter_part(q) for q in mesh.parts])
     fov = math.degrees(2 * math.atan(mesh.height / 2.0 / fy)) if fy else None
-    return MeshDisplay(mesh, image, bg, fg, rm, em, dict(fields or {}), fov)
+    return MeshDisplay(mesh, image, bg, fg, wl, rm, em, dict(fields or {}), fov)
 
 
 class MeshViewer(QWidget):
@@ -88,10 +97,14 @@ class MeshViewer(QWidget):
         self.mode.addItems(COLOR_MODES)
         self.show_bg = QCheckBox("background")
         self.show_fg = QCheckBox("foreground")
-        self.show_removed = QCheckBox("removed faces")
+        self.show_walls = QCheckBox("walls")
+        self.show_walls.setToolTip("Faces closing depth steps inside a sheet: along the camera rays, "
+                                   "invisible from the photo's viewpoint (grey)")
+        self.show_removed = QCheckBox("removed")
+        self.show_removed.setToolTip("Grid faces the post-processing replaced (red)")
         self.show_lights = QCheckBox("emitters")
-        for cb in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
-            cb.setChecked(cb in (self.show_bg, self.show_fg))
+        for cb in (self.show_bg, self.show_fg, self.show_walls, self.show_removed, self.show_lights):
+            cb.setChecked(cb in (self.show_bg, self.show_fg, self.show_walls))
             cb.toggled.connect(self._redraw)
         self.mode.currentTextChanged.connect(self._redraw)
         self.reset_btn = QPushButton("Input view")
@@ -102,7 +115,7 @@ class MeshViewer(QWidget):
         bar.addWidget(self.reset_btn)
         lay.addLayout(bar)
         toggles = QHBoxLayout()  # a second row keeps the dock narrow
-        for w in (self.show_bg, self.show_fg, self.show_removed, self.show_lights):
+        for w in (self.show_bg, self.show_fg, self.show_walls, self.show_removed, self.show_lights):
             toggles.addWidget(w)
         toggles.addStretch(1)
         lay.addLayout(toggles)
@@ -167,6 +180,8 @@ class MeshViewer(QWidget):
                 pd.point_data["rgb"] = self._colors(pd)
                 p.add_mesh(pd, scalars="rgb", rgb=True, show_scalar_bar=False,
                            lighting=self.mode.currentText() != "image", render=False, reset_camera=False)
+        if self.show_walls.isChecked() and d.walls is not None:
+            p.add_mesh(d.walls, color="#8a8f99", opacity=0.7, render=False, reset_camera=False)
         if self.show_removed.isChecked() and d.removed is not None:
             p.add_mesh(d.removed, color="red", opacity=0.8, render=False, reset_camera=False)
         if self.show_lights.isChecked() and d.emitters is not None:

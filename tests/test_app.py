@@ -56,6 +56,12 @@ def test_opens_scene_builds_mesh_and_renders(window, scene):
     shot = window.viewer.screenshot()
     assert shot.std() > 5
     assert "street" in window.windowTitle()
+    # The walls closing depth steps are their own layer in the 3D view, and can be hidden.
+    d = window.viewer.display
+    assert d.walls is not None and d.walls.n_cells > 0
+    assert d.walls.n_cells + d.background.n_cells + d.foreground.n_cells == window.viewer.mesh.n_faces
+    window.viewer.show_walls.setChecked(False)
+    window.viewer.show_walls.setChecked(True)
 
 
 def _record_results(window):

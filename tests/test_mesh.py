@@ -620,3 +620,12 @@ def test_postprocess_choices_are_settable_and_saved():
     assert back.postprocess == d.postprocess and back.postprocess.keep_consistent == np.inf
     with pytest.raises(NpsimInputError):
         WorkflowParams().with_value("postprocess", "step_cut", 2.0)
+
+
+def test_edge_on_faces_from_pixels_match_the_projection():
+    d, lab, intr = toy_scene()
+    d[5:20, 60:80] = 24.0
+    r = postprocess_mesh(d, intr, lab, hand_uncertain(d, lab))
+    for p in r.mesh.parts:
+        np.testing.assert_array_equal(p.edge_on_faces(), edge_on_faces(p, intr))
+    assert sum(int(p.edge_on_faces().sum()) for p in r.mesh.parts) == r.counts["wall_faces"]

@@ -70,6 +70,15 @@ class MeshPart:
         same = (l[:, 0] == l[:, 1]) & (l[:, 1] == l[:, 2])
         return np.where(same, l[:, 0], 0).astype(np.int32)
 
+    def edge_on_faces(self) -> np.ndarray:
+        """(F,) bool: faces whose vertices' image positions (``pixel``) are collinear -- seen
+        exactly edge-on from the camera, like the walls that close depth steps."""
+        if self.n_faces == 0:
+            return np.zeros(0, dtype=bool)
+        q = self.pixel.astype(np.float64)[self.faces]
+        area2 = (q[:, 1, 0] - q[:, 0, 0]) * (q[:, 2, 1] - q[:, 0, 1]) - (q[:, 1, 1] - q[:, 0, 1]) * (q[:, 2, 0] - q[:, 0, 0])
+        return np.abs(area2) < 1e-6
+
     def face_normals(self) -> np.ndarray:
         """(F, 3) unit geometric normals (toward the camera for front faces)."""
         v = self.vertices.astype(np.float64)
