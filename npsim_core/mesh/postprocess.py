@@ -137,6 +137,10 @@ class PostprocessParams:
         than 4.5 %, below the 5 % the stretched-face measure calls a discontinuity
         (:mod:`.quality`): a slit's end is closed by a fan whose spokes span at most half of
         the three other sides of its quad (3 x 3 % / 2), every other edge at most the threshold.
+    extend_edges : bool
+        Sheet borders (silhouettes, the sky line, two objects meeting) run half a pixel beyond
+        the border pixels' centres, through the sides' midpoints, so each sheet covers exactly
+        its pixels' area and a render's outlines match the label masks. Needs ``step_cut``.
     """
 
     complete_behind: str = "all"
@@ -149,6 +153,7 @@ class PostprocessParams:
     occluders: tuple[int, ...] | None = None
     step_cut: float | None = 0.03
     step_cut_grazing: float = 0.045
+    extend_edges: bool = True
 
     def __post_init__(self) -> None:
         if not (self.step_cut or 0) <= self.step_cut_grazing < 1:
@@ -487,7 +492,8 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
         bg_label = labels.ravel()[np.clip(bg_src, 0, None)].reshape(H, W)
         cap = params.step_cut_grazing / params.step_cut
         steps = tuple(step_faces(d_, g_, params.step_cut, partial(slant_at, d_, intrinsics, normals=n_,
-                                                                    strict=strict, max_slant=cap), surface, uncut)
+                                                                    strict=strict, max_slant=cap), surface, uncut,
+                                 params.extend_edges)
                       for d_, g_, n_, strict, surface, uncut in ((bg32, None, bg_normals, band, bg_label, interior),
                                                                  (fg32, obj, normals, None, labels, None)))
     else:

@@ -309,7 +309,8 @@ def _two_sheet_quads(faces: list, wall: list, tau: float, HW: int, cpix, cdep, l
 
 
 def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, slant=None,
-               surface: np.ndarray | None = None, uncut: np.ndarray | None = None) -> StepFaces:
+               surface: np.ndarray | None = None, uncut: np.ndarray | None = None,
+               extend_edges: bool = False) -> StepFaces:
     """Cut the depth steps of one layer and triangulate its mixed quads with walls (see module doc).
 
     Parameters
@@ -327,6 +328,12 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
         Semantic label of each vertex (see :func:`cut_sides`).
     uncut : (H, W) bool, optional
         Pixels whose mutual sides are never cut (see :func:`cut_sides`).
+    extend_edges : bool
+        A sheet's border (a side to a pixel without a vertex of the same sheet: sky, another
+        object, the background) runs through the side's midpoint, half a pixel beyond the
+        border pixels' centres, like a cut without a wall: each sheet then covers exactly its
+        own pixels' area (two objects meet without a crack, an object's outline matches its
+        label mask).
 
     Returns
     -------
@@ -343,8 +350,15 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
         return np.full(np.shape(r), float(tau)) if slant is None else tau / slant(r, c)
 
     cont_h, cont_v = same_h & ~cut_h, same_v & ~cut_v
-    # Mixed quads: a cut side, or a lone triangle whose diagonal is a step.
+    present = np.isfinite(d)
+    if extend_edges:          # a side with a vertex of this sheet at one end only (or two sheets)
+        open_h = (present[:, :-1] | present[:, 1:]) & ~same_h
+        open_v = (present[:-1, :] | present[1:, :]) & ~same_v
+    else:
+        open_h, open_v = np.zeros_like(cut_h), np.zeros_like(cut_v)
+    # Mixed quads: a cut or open side, or a lone triangle whose diagonal is a step.
     mixed = cut_h[:-1, :] | cut_h[1:, :] | cut_v[:, :-1] | cut_v[:, 1:]
+    mixed |= open_h[:-1, :] | open_h[1:, :] | open_v[:, :-1] | open_v[:, 1:]
     full = same_h[:-1, :] & same_h[1:, :] & same_v[:, :-1] & same_v[:, 1:]
     # Lone triangles as in quad_faces: (a,c,b)/(b,c,d) use diagonal b-c, (a,c,d)/(a,d,b) use a-d.
     a, b, c_, dd = d[:-1, :-1], d[:-1, 1:], d[1:, :-1], d[1:, 1:]
@@ -372,9 +386,9 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     with np.errstate(divide="ignore"):
         iz_img = 1.0 / d                                        # NaN stays NaN
 
-    # --- mid vertices: one per (cut side, endpoint), shared by the two quads of the side.
-    hr, hc = np.nonzero(cut_h)
-    vr, vc = np.nonzero(cut_v)
+    # --- mid vertices: one per (cut or open side, endpoint), shared by the two quads of the side.
+    hr, hc = np.nonzero(cut_h | open_h)
+    vr, vc = np.nonzero(cut_v | open_v)
     nh = len(hr)
     side_id_h = np.full(cut_h.shape, -1, dtype=np.int64)
     side_id_h[hr, hc] = np.arange(nh)
@@ -398,9 +412,12 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     ext = np.where(np.isfinite(ext) & (ext > 0), ext, dx)
     tx = tau_at(m_r, m_c)
     lo, hi = dx / (1 + tx / 2), dx * (1 + tx / 2)
-    near = dx < dy
-    hi = np.where(near, np.minimum(hi, dx + (dy - dx) / 3), hi)
-    lo = np.where(near, lo, np.maximum(lo, dx - (dx - dy) / 3))
+    is_cut = np.concatenate([cut_h[hr, hc], cut_h[hr, hc], cut_v[vr, vc], cut_v[vr, vc]])
+    near = is_cut & (dx < dy)
+    far = is_cut & (dx > dy)
+    with np.errstate(invalid="ignore"):
+        hi = np.where(near, np.minimum(hi, dx + (dy - dx) / 3), hi)
+        lo = np.where(far, np.maximum(lo, dx - (dx - dy) / 3), lo)
     mid_depth = np.empty(2 * (nh + nv_))
     mid_depth[mid_order] = np.clip(ext, lo, hi)
     mid_pos = np.empty((2 * (nh + nv_), 2))
@@ -420,6 +437,7 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
     per = [(0, 2), (2, 3), (3, 1), (1, 0)]
     s_cont = np.stack([cont_v[qi, qj], cont_h[qi + 1, qj], cont_v[qi, qj + 1], cont_h[qi, qj]], 1)
     s_cut = np.stack([cut_v[qi, qj], cut_h[qi + 1, qj], cut_v[qi, qj + 1], cut_h[qi, qj]], 1)
+    s_open = np.stack([open_v[qi, qj], open_h[qi + 1, qj], open_v[qi, qj + 1], open_h[qi, qj]], 1)
     s_id = np.stack([side_id_v[qi, qj], side_id_h[qi + 1, qj], side_id_v[qi, qj + 1], side_id_h[qi, qj]], 1)
     # endpoint of the first corner x of each perimeter side (a of (a,c) is v-side's top = 0; ...)
     x_end = np.array([0, 0, 1, 1])
@@ -471,7 +489,11 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
         cz = np.where(feasible, np.clip(cz, clo, chi), 0.5 * (clo + chi))
     # Centres of different clusters on one ray must differ, or the walls meeting there could not
     # share their edges (a 4-way saddle gives two pairs of equal centres): split ties by 0.1 %.
-    cz = cz * (1.0 + 1e-3 * np.arange(4)[None, :])
+    has = cnt > 0
+    for l_ in range(1, 4):
+        for m_ in range(l_):
+            tie = has[:, l_] & has[:, m_] & (np.abs(cz[:, l_] - cz[:, m_]) < 1e-3 * cz[:, m_])
+            cz[tie, l_] *= 1.0 + 2e-3
     centre_base = n_mid
     centre_id = HW + centre_base + 4 * np.arange(n)[:, None] + np.where(lab < 4, lab, 0)   # (n, 4) per corner
 
@@ -484,6 +506,18 @@ def step_faces(depth: np.ndarray, group: np.ndarray | None, tau: float | None, s
         if m.any():
             faces.append(np.stack([Cx[m], P[m], Q[m]], 1))
             wall.append(np.zeros(int(m.sum()), bool))
+        m = s_open[:, k] & ~simple
+        if m.any():
+            # A sheet's border: each present end continues to the midpoint, no wall.
+            sid = s_id[:, k]
+            px_ = m & (lab[:, x] < 4)
+            if px_.any():
+                faces.append(np.stack([Cx[px_], P[px_], HW + 2 * sid[px_] + x_end[k]], 1))
+                wall.append(np.zeros(int(px_.sum()), bool))
+            py_ = m & (lab[:, y] < 4)
+            if py_.any():
+                faces.append(np.stack([Cy[py_], HW + 2 * sid[py_] + (1 - x_end[k]), Q[py_]], 1))
+                wall.append(np.zeros(int(py_.sum()), bool))
         m = s_cut[:, k] & ~simple
         if m.any():
             rows = np.flatnonzero(m)
