@@ -2,38 +2,40 @@
 
 The post-processing kernel separates objects from the background, but depth steps
 remain *inside* a sheet: a façade in front of another façade, the boxes of one car,
-the road meeting a building behind a kerb. A grid face spanning such a step is a
-stretched face; deleting it leaves a hole. This module does neither:
+flying pixels at an object's rim. A grid face spanning such a step is a stretched
+face; deleting it leaves a hole. This module does neither:
 
 * A pixel **side** (two 4-neighbouring pixels of the same sheet) is **cut** when the
-  relative depth step ``|d1 - d2| / min(d1, d2)`` exceeds ``tau``.
-* **Closure.** A quad (2x2 pixels, all of one sheet) with exactly one cut side is the
-  end of a slit: going around the quad the surface is continuous, across the side it
-  is not, so no surface without a stretched face exists there. The slit is extended
-  through the quad's side with the largest step, into the next quad, until it meets
-  another cut, the sheet's border or the image border. Every quad then has 0, 2, 3
-  or 4 cut sides, and its corners split into *clusters* of corners joined by uncut
-  sides; no cluster holds both ends of a cut side.
-* **Mixed quads** (a cut side, or a three-corner triangle whose diagonal is a step)
-  are triangulated per cluster as a fan around a vertex at the quad centre: an uncut
-  side ``x-y`` gives ``(centre, x, y)``; a cut side gives ``(centre_x, x, mid_x)`` and
-  ``(centre_y, mid_y, y)``, where ``mid_x`` is ``x``'s surface continued to the side's
-  midpoint (``mid_x`` and ``mid_y`` lie on the same pixel ray, at their two depths).
-* **Walls.** Along each cut, the two sides are joined by the quad
-  ``(centre_x, mid_x, mid_y, centre_y)`` (two triangles). Its four vertices lie on
-  two camera rays, so a wall is seen exactly edge-on from the camera: it covers no
-  pixel and no pixel sees it, while the sheet stays closed (no boundary loop, so no
-  hole) and light cannot leak through the step. Walls are the side faces of the step
-  -- the kerb, the façade's return -- reduced to what the camera cannot see.
+  relative depth step ``|d1 - d2| / min(d1, d2)`` exceeds ``tau`` (raised on surfaces
+  seen at a grazing angle, see :func:`slant_at` and :func:`cut_sides`).
+* A **mixed quad** (a cut side, an open side -- see ``extend_edges`` -- or a lone
+  three-corner triangle whose diagonal is a step) is triangulated per **cluster**
+  (corners joined by uncut sides). Each side of a cut continues its surface to the
+  side's midpoint (``mid_x`` and ``mid_y`` lie on the same pixel ray, at two depths).
+  Straight steps and step corners (two clusters, two cut sides) give each cluster a
+  polygon on its corners and the two mids, and one wall quad between the mids: 6 faces.
+  Other mixed quads fan each cluster around its own vertex on the quad-centre ray: an
+  uncut side ``x-y`` gives ``(centre, x, y)``, a cut side ``(centre_x, x, mid_x)`` and
+  ``(centre_y, mid_y, y)``.
+* **Walls.** Along each cut the two sides are joined by faces whose vertices lie on two
+  camera rays (the side's midpoint and the quad centre), so a wall is seen exactly
+  edge-on from the camera: it covers no pixel and no pixel sees it, while the sheet
+  stays closed (no boundary loop, so no hole) and light cannot leak through the step.
+  Walls are the side faces of the step -- the kerb, the façade's return -- reduced to
+  what the camera cannot see. Where three or four clusters meet, their walls share
+  the edges between their centres on the quad-centre ray (ties split by 0.2 %).
+* A cut that ends inside a sheet (a **slit**: the quad's only cut side, both ends in one
+  cluster) is closed by the wall triangle ``(centre, mid_x, mid_y)``; its spokes span at
+  most half of the quad's three uncut sides.
 
-Continued surfaces (``mid_*``, ``centre_*``) extrapolate inverse depth linearly from
-the cluster's corners with one-sided differences over uncut sides (exact on planes,
-also on the grazing road), clamped to stay within ``tau / 2`` (mids) and ``tau``
-(centres) of their corners and at least a third of the step away from the other
-side, so no fan edge spans more than about ``tau`` and no wall is degenerate.
+Continued surfaces (mids, centres) extrapolate inverse depth linearly from the
+cluster's corners with one-sided differences over uncut sides (exact on planes, also on
+the grazing road), clamped to stay within ``tau / 2`` (mids) and ``tau`` (centres) of
+their corners and at least a third of the step away from the other side, so no visible
+edge spans more than 1.5 ``tau`` and no wall is degenerate.
 
-Pixel-centre rays only ever hit corner vertices' faces at their own depth: the mesh
-reproduces the depth map at every pixel it keeps, with no stretched visible face.
+Pixel-centre rays only ever hit faces at their own pixel's depth: the mesh reproduces
+the depth map at every pixel it keeps, with no stretched visible face.
 """
 
 from __future__ import annotations
