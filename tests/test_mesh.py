@@ -620,6 +620,8 @@ def test_postprocess_choices_are_settable_and_saved():
     assert back.postprocess == d.postprocess and back.postprocess.keep_consistent == np.inf
     with pytest.raises(NpsimInputError):
         WorkflowParams().with_value("postprocess", "step_cut", 2.0)
+    with pytest.raises(NpsimInputError, match="number"):
+        WorkflowParams().with_value("postprocess", "step_cut", "abc")
 
 
 def test_edge_on_faces_from_pixels_match_the_projection():

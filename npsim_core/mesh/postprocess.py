@@ -156,6 +156,11 @@ class PostprocessParams:
     extend_edges: bool = True
 
     def __post_init__(self) -> None:
+        for name in ("keep_consistent", "step_cut", "step_cut_grazing", "behind_margin", "far_limit"):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise NpsimInputError(f"{name} must be a number{'' if name == 'step_cut_grazing' else ' or null'}, "
+                                      f"got {v!r}")
         if not (self.step_cut or 0) <= self.step_cut_grazing < 1:
             raise NpsimInputError(f"step_cut_grazing must be in [step_cut, 1), got {self.step_cut_grazing}")
         if self.step_cut is not None and not 0 < self.step_cut < 1:
