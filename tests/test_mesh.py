@@ -537,7 +537,8 @@ def test_mesh_command(tmp_path, capsys):
     assert len(trimesh.load(plys[0], process=False).faces) <= budget * 1.06
     # Far below what the pixel-resolution borders and depth steps need: said, not hidden.
     assert main(["mesh", str(folder), "-o", str(out), "--format", "ply", "--no-refine", "--budget", "100"]) == 0
-    assert "above the budget" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "above the budget" in text and "bridged" in text
     assert main(["mesh", str(folder), "-o", str(out), "--format", "stl"]) == 2
 
 

@@ -85,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
         red = reduce_mesh(result.layers, intr, ReduceParams(budget=args.budget))
         mesh = red.mesh
         times["reduce"] = time.perf_counter() - t
+        if red.steps == "bridged":
+            print("  note: depth steps bridged by grid quads to meet the budget (their walls need more faces)")
         if mesh.n_faces > 1.05 * args.budget:
             print(f"  note: {mesh.n_faces} faces, above the budget of {args.budget}: label, light and "
                   "silhouette borders and depth steps stay at pixel resolution and need that many")
