@@ -248,10 +248,16 @@ def test_street_scene_cache(tmp_path, monkeypatch):
 
     monkeypatch.setenv("NPSIM_CACHE", str(tmp_path))
     monkeypatch.setattr(syn, "auto_spp", lambda w, h: 1)
+    stale = tmp_path / f"street_40x20_s0_v{syn.SCENE_VERSION - 1}"   # an older version's entry ...
+    other = tmp_path / f"street_40x21_s0_v{syn.SCENE_VERSION - 1}"   # ... and another size's
+    for f in (stale, other):
+        f.mkdir()
+        (f / "scene.json").write_text("{}")
     first = street_scene(40, 20, seed=0)
     folder = tmp_path / f"street_40x20_s0_v{syn.SCENE_VERSION}"
     assert (folder / "scene.json").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp folder left behind
+    assert not stale.exists() and other.exists()      # superseded entries of this size are pruned
 
     def boom(*a, **k):
         raise AssertionError("cache miss")

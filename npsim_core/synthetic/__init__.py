@@ -177,12 +177,21 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "npsim"
 
 
+def _prune_old_versions(root: Path, width: int, height: int, seed: int) -> None:
+    """Delete this size and seed's cache entries of older scene versions (they are never read again)."""
+    for old in root.glob(f"street_{width}x{height}_s{int(seed)}_v*"):
+        v = old.name.rsplit("_v", 1)[-1]
+        if v.isdigit() and int(v) < SCENE_VERSION:
+            shutil.rmtree(old, ignore_errors=True)
+
+
 def street_scene(width: int = 256, height: int = 128, seed: int = 0) -> Scene:
     """:func:`make_street_scene` with default parameters, cached as a scene folder.
 
     The folder ``<cache_dir()>/street_<W>x<H>_s<seed>_v<SCENE_VERSION>`` is written
     to a temporary sibling and renamed into place, so concurrent callers and
-    crashes never see a half-written scene.
+    crashes never see a half-written scene; entries of older scene versions for the
+    same size and seed are deleted then.
     """
     width, height = _check_size(width, height)
     root = cache_dir()
@@ -207,6 +216,7 @@ def street_scene(width: int = 256, height: int = 128, seed: int = 0) -> Scene:
         except OSError:
             # Another process won the race (target exists and is non-empty): use theirs.
             shutil.rmtree(tmp, ignore_errors=True)
+        _prune_old_versions(root, width, height, seed)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
