@@ -76,6 +76,8 @@ class NightParams:
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
     final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct light only
         (about half the time; with ``mesh.face_budget`` the fast full-resolution setting).
+    denoise : filter the Monte Carlo noise of previews and finals, guided by the refined depth,
+        normals, labels and albedo (``npsim_core.render.denoise``), before the camera noise.
     """
 
     seed: int = 0
@@ -89,6 +91,7 @@ class NightParams:
     noise: bool = True
     probabilities: tuple = ()
     final_max_depth: int = 3
+    denoise: bool = True
 
     def __post_init__(self) -> None:
         if int(self.final_max_depth) not in (2, 3, 4):
@@ -432,7 +435,14 @@ class Workflow:
                                       light_classes=light_cls)
             bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch)
             built = build_scene(results.mesh, results.intrinsics, mats, table, self.annotation, None, bp)
-            self._night = {"key": key, "built": built, "light_classes": light_cls}
+            # Denoising guides: the mesh reproduces the refined depth at every pixel it shows.
+            from .camera import normals_from_depth
+            from .render.denoise import DenoiseGuides
+
+            d = results.depth
+            guides = DenoiseGuides(mats.albedo, d, normals_from_depth(d, results.intrinsics), s.labels,
+                                   light_cls > 0)
+            self._night = {"key": key, "built": built, "light_classes": light_cls, "guides": guides}
         built = self._night["built"]
         built.set_ego_headlights(params.night.ego_headlights)
         return built
@@ -471,9 +481,10 @@ class Workflow:
         first = min(4, int(n.spp))  # a quick first frame, then the rest in one pass
         pp = PreviewParams(scale=n.preview_scale, schedule=(first,) + ((int(n.spp) - first,) if n.spp > first else ()),
                            seed=n.seed)
-        cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed)
+        cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed, denoise=n.denoise)
         for frame in render_preview(built, pp, cancel=cancel):
-            srgb, _ = apply_camera(frame.image, cam, light_classes=self._night["light_classes"])
+            srgb, _ = apply_camera(frame.image, cam, light_classes=self._night["light_classes"],
+                                   guides=self._night["guides"])
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active)
 
     def night_final(self, results: WorkflowResults, params: WorkflowParams, *, seed: int | None = None,
@@ -490,8 +501,9 @@ class Workflow:
         built.apply_lights(active)
         linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
                               passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
-        cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed)
-        srgb, _ = apply_camera(linear, cam, labels=self.scene.labels, light_classes=self._night["light_classes"])
+        cam = CameraParams(exposure_ev=n.exposure, iso=n.iso if n.noise else None, seed=n.seed, denoise=n.denoise)
+        srgb, _ = apply_camera(linear, cam, labels=self.scene.labels, light_classes=self._night["light_classes"],
+                               guides=self._night["guides"])
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active)
 
 

@@ -116,6 +116,7 @@ class ParameterPanel(QWidget):
                 self._check(form, "night", "ego_headlights", "ego vehicle headlights")
                 self._check(form, "night", "group_all_together", "groups switch as one")
                 self._check(form, "night", "noise", "camera noise")
+                self._check(form, "night", "denoise", "denoise (guided by depth, normals, labels)")
             lay.addWidget(box)
         probs = QGroupBox("Light activation probability per class")
         pform = QVBoxLayout(probs)

@@ -337,3 +337,49 @@ def test_label_render_of_the_postprocessed_mesh_matches_labels():
             assert (got == s.labels).mean() >= 0.995 and miou >= 0.99, ious[ext]
             assert min(ious[ext].values()) >= 0.97, ious[ext]
     assert min(ious[False].values()) < 0.9       # without it thin poles lose their outer half-pixels
+
+
+def test_denoise_removes_noise_but_keeps_edges_and_lights():
+    from npsim_core.render.denoise import DenoiseGuides, DenoiseParams, denoise
+
+    H, W = 48, 96
+    rng = np.random.default_rng(0)
+    clean = np.full((H, W, 3), 0.02, np.float32)
+    clean[:, W // 2:] = 0.2                           # a lit wall beside a dark road: a sharp edge
+    clean[10:14, 10:14] = 5.0                         # a lamp
+    depth = np.where(np.arange(W)[None, :] < W // 2, 10.0, 20.0) * np.ones((H, 1))
+    labels = np.where(np.arange(W)[None, :] < W // 2, 7, 11) * np.ones((H, 1), np.uint8)
+    normals = np.zeros((H, W, 3), np.float32)
+    normals[..., 2] = -1.0
+    protect = np.zeros((H, W), bool)
+    protect[10:14, 10:14] = True
+    noisy = clean * rng.gamma(4.0, 0.25, (H, W, 1)).astype(np.float32)      # MC-like multiplicative noise
+    noisy[protect] = clean[protect]
+    g = DenoiseGuides(np.full((H, W, 3), 0.5, np.float32), depth.astype(np.float32), normals,
+                      labels.astype(np.uint8), protect)
+    out = denoise(noisy, g)
+    err = lambda a: float(np.sqrt(np.mean((a - clean)[~protect] ** 2)))
+    assert err(out) < 0.4 * err(noisy)
+    np.testing.assert_array_equal(out[protect], noisy[protect])             # lights untouched
+    # Nothing of the lit wall leaks across the label/depth edge onto the road.
+    assert out[:, W // 2 - 3:W // 2].mean() < 0.05
+    assert np.isfinite(out).all() and out.dtype == np.float32
+    # Guides at full resolution serve a half-size preview; 0 iterations is a no-op.
+    small = noisy[::2, ::2].copy()
+    assert denoise(small, g).shape == small.shape
+    np.testing.assert_array_equal(denoise(noisy, g, DenoiseParams(iterations=0)), noisy)
+    with pytest.raises(NpsimInputError):
+        DenoiseParams(sigma_depth=0)
+
+
+def test_denoise_guides_from_the_mesh():
+    from npsim_core.render.denoise import denoise_guides
+
+    s = street_scene(64, 32)
+    mesh = grid_mesh(s.depth_gt, s.intrinsics, s.labels)
+    g = denoise_guides(mesh, s.intrinsics, s.albedo, s.labels, s.lights.class_map() > 0)
+    ok = np.isfinite(s.depth_gt) & (s.labels != 23)
+    np.testing.assert_allclose(g.depth[ok], s.depth_gt[ok], rtol=1e-3)
+    assert (np.abs(np.linalg.norm(g.normals[ok], axis=1) - 1) < 1e-3).mean() > 0.95
+    with pytest.raises(NpsimInputError):
+        denoise_guides(mesh, s.intrinsics, s.albedo[:10], s.labels)

@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-ego-lights", action="store_true", help="switch off the ego vehicle's headlights")
     p.add_argument("--group-all-together", action="store_true", help="each light group switches as one")
     p.add_argument("--motion-blur", type=int, default=0, help="horizontal blur (px) of moving vehicles")
+    p.add_argument("--no-denoise", action="store_true",
+                   help="keep the Monte Carlo noise (default: filtered, guided by the mesh's depth, normals and labels)")
     p.add_argument("--light-table", default=None, help="user light table JSON merged over the default")
     p.add_argument("--mesh", choices=["auto", "grid"], default="auto",
                    help="auto: refined depth + post-processed mesh (full chain); grid: plain grid mesh (fast)")
@@ -145,6 +147,13 @@ def run(args: argparse.Namespace) -> int:
                           camera_pitch=scene.camera_pitch, max_depth=args.max_depth)
     built = build_scene(mesh, intr, mats, table, scene.lights, None, bparams, variant=choice.name)
     _log(f"scene built in {built.build_seconds:.2f} s ({built.info['shapes']} shapes, {built.info['lights']} lights)")
+    guides = None
+    if not args.no_denoise:
+        from ..render.denoise import denoise_guides
+
+        t1 = time.perf_counter()
+        guides = denoise_guides(mesh, intr, mats.albedo, scene.labels, light_cls > 0)
+        _log(f"denoising guides (mesh seen through each pixel) in {time.perf_counter() - t1:.2f} s")
     for k in range(args.variants):
         seed = args.seed + k
         t1 = time.perf_counter()
@@ -152,8 +161,9 @@ def run(args: argparse.Namespace) -> int:
                                  image=scene.image)
         toggle_s = built.apply_lights(active)
         linear = render_final(built, spp=args.spp, seed=seed)
-        cam = CameraParams(exposure_ev=args.exposure, iso=args.iso or None, motion_blur_px=args.motion_blur, seed=seed)
-        srgb, _ = apply_camera(linear, cam, labels=scene.labels, light_classes=light_cls)
+        cam = CameraParams(exposure_ev=args.exposure, iso=args.iso or None, motion_blur_px=args.motion_blur, seed=seed,
+                           denoise=not args.no_denoise)
+        srgb, _ = apply_camera(linear, cam, labels=scene.labels, light_classes=light_cls, guides=guides)
         stem = f"{scene.name}_night_{k}"
         write_image(out / f"{stem}.png", srgb)
         write_npy(out / f"{stem}_linear.npy", linear)
@@ -162,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         write_json(out / f"{stem}_params.json", {
             "scene": str(args.scene), "name": scene.name, "night": k, "seed": seed, "width": scene.width,
             "height": scene.height, "scale": args.scale, "mesh": mesh_src, "faces": mesh.n_faces,
-            "variant": choice.name, "variant_reason": choice.reason, "spp": args.spp,
+            "variant": choice.name, "variant_reason": choice.reason, "spp": args.spp, "denoise": not args.no_denoise,
             "max_depth": bparams.max_depth, "ego_headlights": bparams.ego_headlights,
             "group_all_together": args.group_all_together, "light_table": table.source,
             "unit_scale": table.unit_scale, "materials": mats.source,

@@ -58,6 +58,7 @@ class CameraParams:
         its 3x3 median luminance (plus ``firefly_floor``) takes the median colour; light-source
         pixels are never touched (0 = off).
     firefly_floor : absolute luminance margin of that test (linear radiance units).
+    denoise : filter the Monte Carlo noise when :func:`apply_camera` gets guides (:mod:`.denoise`).
     seed : noise seed.
     """
 
@@ -69,6 +70,7 @@ class CameraParams:
     motion_blur_px: int = 0
     firefly_ratio: float = 4.0
     firefly_floor: float = 0.01
+    denoise: bool = True
     seed: int = 0
 
     def betas(self) -> tuple[float, float]:
@@ -140,7 +142,7 @@ def motion_blur(linear: np.ndarray, mask: np.ndarray, length: int) -> np.ndarray
 
 
 def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, labels: np.ndarray | None = None,
-                 light_classes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 light_classes: np.ndarray | None = None, guides=None) -> tuple[np.ndarray, np.ndarray]:
     """Linear render -> (8-bit sRGB image, noisy white-balanced linear image before clipping).
 
     Parameters
@@ -149,6 +151,9 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     params : exposure, noise, white balance, motion blur.
     labels, light_classes : (H, W) maps: motion blur needs both; ``light_classes`` also keeps
         light-source pixels out of the firefly removal (resized nearest when the render is smaller).
+    guides : :class:`~.denoise.DenoiseGuides`, optional
+        With them (and ``params.denoise``) the Monte Carlo noise is filtered after the firefly
+        removal and before the camera's own noise (:mod:`.denoise`).
     """
     lin = np.asarray(linear, dtype=np.float32)
     if lin.ndim != 3 or lin.shape[2] != 3:
@@ -163,6 +168,10 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
                 protect = cv2.resize(protect.astype(np.uint8), (lin.shape[1], lin.shape[0]),
                                      interpolation=cv2.INTER_NEAREST).astype(bool)
         lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, protect)
+    if guides is not None and params.denoise:
+        from .denoise import denoise
+
+        lin = denoise(lin, guides)
     x = lin * np.float32(2.0 ** float(params.exposure_ev))
     if params.motion_blur_px > 1 and labels is not None and light_classes is not None \
             and np.asarray(light_classes).shape == lin.shape[:2]:

@@ -1,0 +1,159 @@
+"""Monte Carlo noise removal for night renders, guided by what the camera sees.
+
+A path-traced night at 64 spp is speckled: each pixel averages a few dozen random
+light paths. Every night is rendered from the day photo's own viewpoint, so the
+surfaces behind each pixel are known exactly -- the mesh's depth and normal seen
+through the pixel, its label, its albedo -- and can steer an edge-avoiding filter
+(the à-trous wavelet filter of Dammertz et al., HPG 2010):
+
+* the render is divided by the albedo (texture is not noise; it is put back after);
+* five passes of a 5x5 B3-spline kernel with holes (step 1, 2, 4, 8, 16 px, so the
+  footprint grows to 65 px) average a pixel with neighbours that lie on the same
+  surface: same label, depth within ``sigma_depth`` (relative, per pixel of distance),
+  normals alike (``cos^sigma_normal``) and, to keep shadow edges and light pools, a
+  luminance within ``sigma_luminance`` times the local noise (the 5x5 spread);
+* light-source pixels (the annotation's masks) are left exactly as rendered and never
+  spread into their neighbours.
+
+It runs on the linear render before the camera simulation, so the camera's own
+(physical) noise is added to a clean image. Vectorised numpy: 125 shifted-array
+passes; about 0.5 s at 512x256.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics
+from ..errors import NpsimInputError
+
+__all__ = ["DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise"]
+
+_B3 = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16], np.float32)
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+@dataclass(frozen=True)
+class DenoiseParams:
+    """Edge-stopping strengths of :func:`denoise` (see module doc).
+
+    iterations : passes (footprint 4·2^iterations + 1 px); 0 = off.
+    sigma_depth : relative depth difference, per pixel of distance, that weighs e^-1.
+    sigma_normal : exponent on the normals' cosine.
+    sigma_luminance : luminance difference, in units of the local noise, that weighs e^-1.
+    min_albedo : albedo floor of the demodulation (dark surfaces would amplify noise).
+    """
+
+    iterations: int = 5
+    sigma_depth: float = 0.02
+    sigma_normal: float = 32.0
+    sigma_luminance: float = 2.0
+    min_albedo: float = 0.03
+
+    def __post_init__(self) -> None:
+        if not 0 <= int(self.iterations) <= 8:
+            raise NpsimInputError(f"denoise iterations must be in 0..8, got {self.iterations}")
+        for name in ("sigma_depth", "sigma_normal", "sigma_luminance", "min_albedo"):
+            if not getattr(self, name) > 0:
+                raise NpsimInputError(f"denoise {name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass
+class DenoiseGuides:
+    """Per-pixel guides at the image's full resolution (resized to the render when it is smaller).
+
+    albedo (H, W, 3) linear; depth (H, W) metres, NaN where the camera sees no surface;
+    normals (H, W, 3) unit; labels (H, W) labelIds; protect (H, W) bool light-source pixels.
+    """
+
+    albedo: np.ndarray
+    depth: np.ndarray
+    normals: np.ndarray
+    labels: np.ndarray
+    protect: np.ndarray
+
+    def at(self, height: int, width: int) -> "DenoiseGuides":
+        """The guides at a render size (nearest neighbour: labels and depths are not blended)."""
+        if self.depth.shape == (height, width):
+            return self
+
+        def rs(a):
+            return cv2.resize(np.ascontiguousarray(a), (width, height), interpolation=cv2.INTER_NEAREST)
+
+        return DenoiseGuides(rs(self.albedo.astype(np.float32)), rs(self.depth.astype(np.float32)),
+                             rs(self.normals.astype(np.float32)), rs(self.labels.astype(np.uint8)),
+                             rs(self.protect.astype(np.uint8)).astype(bool))
+
+
+def denoise_guides(mesh, intrinsics: Intrinsics, albedo: np.ndarray, labels: np.ndarray,
+                   protect: np.ndarray | None = None) -> DenoiseGuides:
+    """Guides from the scene mesh seen through each pixel centre (exact z-buffer, as rendered).
+
+    ``albedo`` is the materials' linear albedo, ``labels`` the day labels, ``protect`` the
+    light-source pixels (None = none).
+    """
+    from ..mesh.quality import rasterize
+
+    H, W = intrinsics.height, intrinsics.width
+    if np.shape(albedo) != (H, W, 3) or np.shape(labels) != (H, W):
+        raise NpsimInputError(f"denoise guides: albedo must be {H}x{W}x3 and labels {H}x{W}, "
+                              f"got {np.shape(albedo)} and {np.shape(labels)}")
+    ras = rasterize(mesh, intrinsics)
+    normals = np.full((H * W, 3), np.nan, np.float32)
+    pf, ff = ras.part.ravel(), ras.face.ravel()
+    for i, p in enumerate(mesh.parts):
+        sel = np.flatnonzero(pf == i)
+        if len(sel):
+            normals[sel] = p.face_normals()[ff[sel]]
+    prot = np.zeros((H, W), bool) if protect is None else np.asarray(protect, bool)
+    return DenoiseGuides(np.asarray(albedo, np.float32), ras.depth, normals.reshape(H, W, 3),
+                         np.asarray(labels, np.uint8), prot)
+
+
+def denoise(linear: np.ndarray, guides: DenoiseGuides, params: DenoiseParams = DenoiseParams()) -> np.ndarray:
+    """Edge-avoiding à-trous filter of a linear night render (module doc). Returns float32 (H, W, 3)."""
+    lin = np.asarray(linear, np.float32)
+    if lin.ndim != 3 or lin.shape[2] != 3:
+        raise NpsimInputError(f"denoise: linear image must be HxWx3, got {lin.shape}")
+    H, W = lin.shape[:2]
+    if params.iterations == 0 or H < 5 or W < 5:
+        return lin
+    g = guides.at(H, W)
+    alb = np.maximum(np.nan_to_num(g.albedo, nan=1.0), params.min_albedo).astype(np.float32)
+    seen = np.isfinite(g.depth) & np.isfinite(g.normals).all(2)
+    z = np.where(seen, g.depth, 0.0).astype(np.float32)
+    n = np.where(seen[..., None], g.normals, 0.0).astype(np.float32)
+    lab = g.labels.astype(np.int16)
+    src_ok = seen & ~g.protect                      # pixels that may smooth and be smoothed
+    x = lin / alb
+    for it in range(int(params.iterations)):
+        step = 1 << it
+        lum = x @ _LUMA
+        mean = cv2.blur(lum, (5, 5))
+        noise = np.sqrt(np.maximum(cv2.blur(lum * lum, (5, 5)) - mean * mean, 0.0)) + 1e-6
+        pad = 2 * step
+
+        def padded(a):
+            widths = ((pad, pad), (pad, pad)) + ((0, 0),) * (a.ndim - 2)
+            return np.pad(a, widths, mode="constant")
+
+        xp, zp, np_, lp, lup, okp = (padded(a) for a in (x, z, n, lab, lum, src_ok))
+        acc = np.zeros_like(x)
+        wsum = np.zeros((H, W), np.float32)
+        for i in range(5):
+            for j in range(5):
+                dy, dx = (i - 2) * step, (j - 2) * step
+                win = (slice(pad + dy, pad + dy + H), slice(pad + dx, pad + dx + W))
+                dist = max(abs(dy), abs(dx), 1)
+                w = _B3[i] * _B3[j] * okp[win] * (lp[win] == lab)
+                w = w * np.exp(-np.abs(zp[win] - z) / (params.sigma_depth * dist * np.maximum(z, 1e-3)))
+                w = w * np.maximum((np_[win] * n).sum(2), 0.0) ** params.sigma_normal
+                w = w * np.exp(-np.abs(lup[win] - lum) / (params.sigma_luminance * noise))
+                acc += w[..., None] * xp[win]
+                wsum += w
+        out = acc / np.maximum(wsum, 1e-12)[..., None]
+        x = np.where((src_ok & (wsum > 0))[..., None], out, x).astype(np.float32)
+    return np.where(src_ok[..., None], x * alb, lin).astype(np.float32)
