@@ -12,7 +12,8 @@ fixed night (seed 1). For each Mitsuba variant and resolution it measures
 * ``toggle``  switching to another night's lights in place (geometry reused),
 * ``preview`` progressive preview, 4 passes x 4 spp, direct light only (max_depth 2),
   *including* the scene build (the target: 512x256 at 16 spp <= 2 s),
-* ``final``   one-bounce path tracing (max_depth 3) at several spp,
+* ``final``   one-bounce path tracing (max_depth 3) at several spp, each also after the
+  guided denoiser (``npsim_core.render.denoise``; the time is the filter's alone),
 
 and the error against a high-spp (``--ref-spp``, default 256) one-bounce
 reference: RMSE in 8-bit sRGB levels (0..255) of the noise-free picture at
@@ -116,6 +117,10 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
         rows.append({"variant": variant, "size": f"{W}x{H}", "what": "preview 4+12 spp incl. build (app)",
                      "spp": 16, "time": t, "cpu": c, "err": err})
         log(f"  preview {t:.2f} s err {err:.3f}")
+    from npsim_core.render.denoise import denoise, denoise_guides
+
+    guides = denoise_guides(grid_mesh(s.depth_gt, s.intrinsics, s.labels), s.intrinsics, mats.albedo, s.labels,
+                            s.lights.class_map() > 0)
     for spp in final_spp:
         img, t, c = _timed(lambda: render_linear(built, spp=spp, seed=spp, crop=None))
         part = img if crop is None else img[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
@@ -123,14 +128,21 @@ def bench_resolution(W: int, H: int, variant: str, final_spp: list[int], ref_spp
         rows.append({"variant": variant, "size": f"{W}x{H}", "what": "final (render only)", "spp": spp,
                      "time": t, "cpu": c, "err": err})
         log(f"  final {spp} spp {t:.2f} s err {err:.3f}")
+        den, t, c = _timed(lambda: denoise(img, guides))
+        part = den if crop is None else den[crop[1]:crop[1] + crop[3], crop[0]:crop[0] + crop[2]]
+        err = _srgb_rmse(part, ref)
+        rows.append({"variant": variant, "size": f"{W}x{H}", "what": "  + denoise (time of the filter)", "spp": spp,
+                     "time": t, "cpu": c, "err": err})
+        log(f"  denoise {t:.2f} s err {err:.3f}")
     return rows
 
 
-def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 256, seeds=(0, 1, 2)) -> None:
+def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 64, seeds=(0, 1, 2)) -> None:
     """Day image + three nights of the synthetic street side by side (docs/img/night_triptych.png).
 
-    Uses the same path as ``npsim night``: the scene's *estimated* depth through the best
-    available mesh pipeline, default light table, camera post-processing at ISO 1600.
+    Uses the same path as ``npsim night`` with its defaults: the scene's *estimated* depth
+    through the best available mesh pipeline, default light table, 64 spp, the guided
+    denoiser, camera post-processing at ISO 1600.
     """
     import cv2
 
@@ -150,11 +162,15 @@ def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 256, seeds=(
                               light_classes=s.lights.class_map())
     built = build_scene(mesh, intr, mats, table, s.lights, None,
                         BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch))
+    from npsim_core.render.denoise import denoise_guides
+
+    guides = denoise_guides(mesh, intr, mats.albedo, s.labels, s.lights.class_map() > 0)
     tiles = [s.image]
     for seed in seeds:
         built.apply_lights(activate_lights(s.lights, table, seed, image=s.image))
         lin = render_final(built, spp=spp, seed=seed)
-        srgb, _ = apply_camera(lin, CameraParams(seed=seed))
+        srgb, _ = apply_camera(lin, CameraParams(seed=seed), labels=s.labels,
+                               light_classes=s.lights.class_map(), guides=guides)
         tiles.append(srgb)
         write_image(Path(path).with_name(f"night_{seed}.png"), srgb)
     gap = np.full((H, 4, 3), 255, np.uint8)
