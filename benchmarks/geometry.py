@@ -6,7 +6,7 @@ Rows: the semantic pop-up prior, a constant-depth baseline (median of the
 ground truth, fronto-parallel normals), the scene's simulated network
 prediction (ground truth with realistic errors, see npsim_core.synthetic) and,
 with ``--checkpoint``, a local depth network aligned on the pop-up prior.
-Errors over all pixels with valid ground truth (sky excluded), SPEC §8.
+Errors over all pixels with valid ground truth (sky excluded), docs/method.md §9.2.
 """
 
 from __future__ import annotations

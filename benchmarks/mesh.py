@@ -40,12 +40,13 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
+if str(ROOT) not in sys.path:  # run as a script from the checkout
     sys.path.insert(0, str(ROOT))
 
 
@@ -61,12 +62,82 @@ def _load() -> str:
         return "load ?"
 
 
+@dataclass
+class DepthStages:
+    """The depth maps along the chain (input, filtered, U, refined) and their times."""
+
+    predicted: np.ndarray
+    filtered: np.ndarray
+    uncertain: np.ndarray
+    refined: np.ndarray
+    timings: dict
+
+
+@dataclass
+class MeshVariant:
+    name: str
+    mesh: object
+    source_depth: np.ndarray
+    seconds: float
+    peak_mb: float
+    result: object = None
+
+
+def depth_stages(scene, refine: bool) -> DepthStages:
+    """The chain's depth stages of ``scene`` (refinement skipped when ``refine`` is False)."""
+    from npsim_core.chain import Chain, ChainParams
+
+    res = Chain(scene).compute(ChainParams(), until="refine" if refine else "uncertain")
+    refined = res.refine.depth if refine else res.filtered
+    return DepthStages(res.depth_in, res.filtered, res.uncertain, refined,
+                       {k: v for k, v in res.timings.items() if k != "geometry"})
+
+
+def _timed(fn, track_memory: bool):
+    """(result, seconds, peak MB). The time comes from an untraced run; with ``track_memory``
+    a second run under tracemalloc (which slows numpy allocations) gives the peak."""
+    import tracemalloc
+
+    t = time.perf_counter()
+    out = fn()
+    sec = time.perf_counter() - t
+    peak = 0.0
+    if track_memory:
+        tracemalloc.start()
+        fn()
+        peak = tracemalloc.get_traced_memory()[1] / 2**20
+        tracemalloc.stop()
+    return out, sec, peak
+
+
+def _light_ids(scene):
+    return None if scene.lights is None else scene.lights.instance_map
+
+
+def build_variants(scene, stages: DepthStages, *, track_memory: bool = False) -> dict:
+    """The thesis's ``raw`` (grid of the input depth) and ``filtered`` baselines and the ``npsim`` mesh.
+    ``seconds``/``peak_mb`` cover the meshing only."""
+    from npsim_core.chain import ChainParams
+    from npsim_core.mesh.grid import grid_mesh
+    from npsim_core.mesh.postprocess import postprocess_mesh
+
+    intr, labels, lights = scene.intrinsics, scene.labels, _light_ids(scene)
+    pp = ChainParams().postprocess
+    out = {}
+    for name, d in (("raw", stages.predicted), ("filtered", stages.filtered)):
+        m, sec, peak = _timed(lambda: grid_mesh(d, intr, labels, lights, far_limit=pp.far_limit), track_memory)
+        out[name] = MeshVariant(name, m, d, sec, peak)
+    r, sec, peak = _timed(lambda: postprocess_mesh(stages.refined, intr, labels, stages.uncertain, lights,
+                                                   params=pp, normals=scene.normals), track_memory)
+    out["npsim"] = MeshVariant("npsim", r.mesh, stages.refined, sec, peak, r)
+    return out
+
+
 def variants_table(scene, stages, refine: bool) -> tuple[list[str], dict]:
-    from npsim_core.mesh.pipeline import PipelineParams, build_variants
     from npsim_core.mesh.quality import mesh_quality, rasterize, reprojection_error
 
     intr = scene.intrinsics
-    vs = build_variants(scene, PipelineParams(refine=refine), stages, track_memory=True)
+    vs = build_variants(scene, stages, track_memory=True)
     rows = []
     for name, v in vs.items():
         ras = rasterize(v.mesh, intr)
@@ -109,7 +180,6 @@ def reduction_table(scene, npsim_variant, fractions, pymeshlab: bool) -> list[st
 
 def rules_table(scene, stages) -> list[str]:
     """Table 3: what U does to visible vertices (thesis rule / keep) x depth steps (bridged / cut + walls)."""
-    from npsim_core.mesh.pipeline import _light_ids
     from npsim_core.mesh.postprocess import PostprocessParams, postprocess_mesh
     from npsim_core.mesh.quality import mesh_quality, rasterize
 
@@ -195,7 +265,6 @@ def main(argv: list[str] | None = None) -> int:
         _render_child(Path(args.render_child[0]), Path(args.render_child[1]))
         return 0
 
-    from npsim_core.mesh.pipeline import PipelineParams, depth_stages
     from npsim_core.synthetic import street_scene
 
     fractions = [float(x) for x in args.fractions.split(",") if x.strip()]
@@ -205,10 +274,9 @@ def main(argv: list[str] | None = None) -> int:
         scene = street_scene(W, H)
         refine = not args.no_refine
         t = time.perf_counter()
-        stages = depth_stages(scene, PipelineParams(refine=refine))
+        stages = depth_stages(scene, refine)
         st = ", ".join(f"{a} {b:.2f} s" for a, b in stages.timings.items())
-        sk = ", ".join(f"{a}: {b}" for a, b in stages.skipped.items())
-        print(f"\n## {W}x{H}  (depth stages: {st}{'; skipped ' + sk if sk else ''})\n")
+        print(f"\n## {W}x{H}  (depth stages: {st}{'' if refine else '; refinement skipped'})\n")
         print("| variant | faces | stretched | edge-on | holes | reproj ≤1 % (source) | AbsRel vs GT | "
               "normal err | ≤11.25° | mesh time | peak mem |")
         print("|---|---|---|---|---|---|---|---|---|---|---|")

@@ -1,4 +1,4 @@
-"""Depth refinement kernel benchmark: speed against error on the synthetic street (SPEC §8).
+"""Depth refinement kernel benchmark: speed against error on the synthetic street (docs/method.md §9).
 
 For each size it prints markdown tables of
 

@@ -1,4 +1,4 @@
-"""Night-render benchmark: time and noise error of preview and final renders (issue 6).
+"""Night-render benchmark: time and noise error of preview and final renders (results: docs/relight.md).
 
 Usage::
 
@@ -146,40 +146,28 @@ def make_triptych(path: str, W: int = 512, H: int = 256, spp: int = 64, seeds=(0
     """
     import cv2
 
-    from npsim_core.commands.night import build_night_mesh
+    from npsim_core.chain import Chain, ChainParams
     from npsim_core.io import write_image
-    from npsim_core.render.camera_post import CameraParams, apply_camera
-    from npsim_core.render.lights import activate_lights, load_light_table
-    from npsim_core.render.materials import estimate_materials
-    from npsim_core.render.render import render_final
-    from npsim_core.render.scene_builder import BuildParams, build_scene
     from npsim_core.synthetic import street_scene
 
     s = street_scene(W, H)
-    mesh, intr, src = build_night_mesh(s)
-    table = load_light_table()
-    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
-                              light_classes=s.lights.class_map())
-    built = build_scene(mesh, intr, mats, table, s.lights, None,
-                        BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch))
-    from npsim_core.render.denoise import denoise_guides
-
-    guides = denoise_guides(mesh, intr, mats.albedo, s.labels, s.lights.class_map() > 0)
+    chain = Chain(s)
+    params = ChainParams().with_value("night", "final_spp", int(spp))
+    res = chain.compute(params)
+    src = f"{res.mesh.n_faces} faces from the refined depth"
     tiles = [s.image]
     for seed in seeds:
-        built.apply_lights(activate_lights(s.lights, table, seed, image=s.image))
-        lin = render_final(built, spp=spp, seed=seed)
-        srgb, _ = apply_camera(lin, CameraParams(seed=seed), labels=s.labels,
-                               light_classes=s.lights.class_map(), guides=guides)
-        tiles.append(srgb)
-        write_image(Path(path).with_name(f"night_{seed}.png"), srgb)
+        frame = chain.night_final(res, params, seed=seed)
+        tiles.append(frame.image)
+        write_image(Path(path).with_name(f"night_{seed}.png"), frame.image)
+    variant = frame.variant
     gap = np.full((H, 4, 3), 255, np.uint8)
     row = np.concatenate(sum(([t, gap] for t in tiles), [])[:-1], axis=1)
     labels = ["day (input)"] + [f"night seed {k}" for k in seeds]
     for i, text in enumerate(labels):
         cv2.putText(row, text, (i * (W + 4) + 6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
     write_image(path, row)
-    print(f"wrote {path} (mesh: {src}, variant {built.variant}, {spp} spp)", file=sys.stderr)
+    print(f"wrote {path} (mesh: {src}, variant {variant}, {spp} spp)", file=sys.stderr)
 
 
 def format_table(rows: list[dict]) -> str:
@@ -242,15 +230,15 @@ def fast_final(budget: int, size: tuple[int, int] = (2048, 1024), spp: int = 64)
     os.environ["NPSIM_MITSUBA_VARIANT"] = "scalar_rgb"
     from npsim_core.render.render import render_final
     from npsim_core.synthetic import street_scene
-    from npsim_core.workflow import Workflow, WorkflowParams
+    from npsim_core.chain import Chain, ChainParams
 
     scene = street_scene(*size)
-    wf = Workflow(scene)
-    params = WorkflowParams().with_value("mesh", "face_budget", int(budget))
+    chain = Chain(scene)
+    params = ChainParams().with_value("mesh", "face_budget", int(budget))
     load0 = os.getloadavg()[0]
-    res = wf.compute(params)
-    (built, t_build, _) = _timed(lambda: wf.night_scene(res, params))
-    built.apply_lights(wf.activate(params))
+    res = chain.compute(params)
+    (built, t_build, _) = _timed(lambda: chain.night_inputs(params)[0])
+    built.apply_lights(chain.activate(params))
     print(f"fast finals, {size[0]}x{size[1]}, {spp} spp, {built.variant}, mesh {res.mesh.n_faces} faces "
           f"(budget {budget}), scene build {t_build:.1f} s, load {load0:.1f}")
     print("| path length | time s | cpu s |")

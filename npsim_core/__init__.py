@@ -1,7 +1,7 @@
 """NPSim core library: day image + labels -> 3D scene mesh -> nighttime renders.
 
 No Qt is imported anywhere in this package (a test enforces it). Conventions
-(SPEC §0): OpenCV camera frame (x right, y down, z forward), z-depth in metres
+(docs/method.md §1): OpenCV camera frame (x right, y down, z forward), z-depth in metres
 as float32 HxW, pixel (u, v) = (column, row) with centres at integer
 coordinates, unit normals pointing toward the camera, Cityscapes labelIds.
 """

@@ -49,6 +49,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from pycocotools import mask as coco_mask
 
 from .errors import NpsimInputError
 from .io import atomic_path, read_image, read_json
@@ -256,25 +257,16 @@ def map_checksum(instance_map: np.ndarray) -> str:
 
 
 # --------------------------------------------------------------------------- COCO RLE
-def rle_encode(mask: np.ndarray) -> list[int]:
-    """COCO run lengths of a binary mask: column-major, first run counts zeros."""
-    flat = np.asarray(mask, dtype=bool).ravel(order="F")
-    if flat.size == 0:
-        return []
-    change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
-    bounds = np.r_[0, change, flat.size]
-    counts = np.diff(bounds).tolist()
-    if flat[0]:
-        counts = [0] + counts
-    return [int(c) for c in counts]
-
-
+# Runs are column-major and start with a run of zeros (COCO's convention). pycocotools does the
+# compressed-string coding and the decoding; only the sparse encoder below is ours, because building
+# a full-image mask per light for ``pycocotools.mask.encode`` is ~5x slower on a 2048x1024 export of
+# small lights (tests/test_annotation.py checks it against pycocotools).
 def rle_from_indices(index: np.ndarray, total: int) -> list[int]:
     """COCO run lengths from the sorted column-major flat indices of a mask's pixels.
 
-    Equals ``rle_encode(mask)`` with ``index = flatnonzero(mask.ravel(order="F"))``
-    but costs O(pixels in the mask), not O(image), so exporting hundreds of small
-    lights from a 2048x1024 map stays fast.
+    ``index = flatnonzero(mask.ravel(order="F"))`` gives the counts of
+    ``pycocotools.mask.encode(mask)``, but this costs O(pixels in the mask), not
+    O(image), so exporting hundreds of small lights from a 2048x1024 map stays fast.
     """
     idx = np.asarray(index, dtype=np.int64)
     if idx.size == 0:
@@ -289,7 +281,13 @@ def rle_from_indices(index: np.ndarray, total: int) -> list[int]:
     counts = out.tolist()
     if ends[-1] < total:
         counts.append(int(total - ends[-1]))
-    return [int(c) for c in counts]
+    return counts
+
+
+def rle_encode(mask: np.ndarray) -> list[int]:
+    """COCO run lengths (uncompressed ``counts``) of a binary HxW mask."""
+    m = np.asarray(mask, dtype=bool)
+    return rle_from_indices(np.flatnonzero(m.ravel(order="F")), m.size)
 
 
 def _column_major_pixels(ann: "LightAnnotation") -> dict[int, np.ndarray]:
@@ -308,58 +306,51 @@ def _column_major_pixels(ann: "LightAnnotation") -> dict[int, np.ndarray]:
     return {int(vals[a]): fidx[a:b] for a, b in zip(starts, ends)}
 
 
-def rle_decode(counts: list[int], height: int, width: int) -> np.ndarray:
-    """Inverse of :func:`rle_encode` -> HxW bool."""
-    c = np.asarray(counts, dtype=np.int64)
-    if c.size and (c.min() < 0 or c.sum() != height * width):
-        raise NpsimInputError(f"RLE counts sum to {int(c.sum())}, expected {height}x{width}={height * width}")
-    vals = (np.arange(c.size) % 2).astype(bool)
-    flat = np.repeat(vals, c)
-    if flat.size == 0:
-        flat = np.zeros(height * width, dtype=bool)
-    return flat.reshape((width, height)).T.copy()
-
-
 def rle_to_string(counts: list[int]) -> str:
-    """COCO's compressed RLE string (LEB128-like, 5 bits/char, deltas after the 2nd run)."""
-    out = []
-    for i, x in enumerate(counts):
-        x = int(x)
-        if i > 2:
-            x -= int(counts[i - 2])
-        more = True
-        while more:
-            ch = x & 0x1F
-            x >>= 5
-            more = (x != -1) if (ch & 0x10) else (x != 0)
-            if more:
-                ch |= 0x20
-            out.append(chr(ch + 48))
-    return "".join(out)
+    """COCO's compressed RLE string of uncompressed ``counts`` (pycocotools' coding)."""
+    counts = [int(c) for c in counts]
+    if not counts:
+        return ""
+    total = sum(counts)
+    return coco_mask.frPyObjects({"size": [1, total], "counts": counts}, 1, total)["counts"].decode("ascii")
 
 
-def rle_from_string(s: str) -> list[int]:
-    """Inverse of :func:`rle_to_string`."""
-    counts: list[int] = []
-    p = 0
-    while p < len(s):
-        x = 0
-        k = 0
-        more = True
-        while more:
-            if p >= len(s):
-                raise NpsimInputError("compressed RLE string ends inside a number")
-            c = ord(s[p]) - 48
-            x |= (c & 0x1F) << (5 * k)
-            more = bool(c & 0x20)
-            p += 1
-            k += 1
-            if not more and (c & 0x10):
-                x |= -1 << (5 * k)
-        if len(counts) > 2:
-            x += counts[-2]
-        counts.append(x)
-    return counts
+def rle_decode(counts: list[int] | str | bytes, height: int, width: int) -> np.ndarray:
+    """COCO RLE ``counts`` (a list of run lengths or the compressed string) -> HxW bool.
+
+    Malformed input raises :class:`NpsimInputError`: runs that do not cover the
+    image exactly, and strings that are truncated or not the canonical encoding
+    of an HxW mask (pycocotools itself pads short runs with zeros).
+    """
+    H, W = int(height), int(width)
+    if isinstance(counts, (str, bytes)):
+        try:
+            raw = counts.encode("ascii") if isinstance(counts, str) else bytes(counts)
+        except UnicodeEncodeError:
+            raise NpsimInputError("compressed RLE string has non-ASCII characters") from None
+        code = np.frombuffer(raw, np.uint8).astype(np.int16) - 48
+        if code.size and (code.min() < 0 or code.max() > 63):
+            raise NpsimInputError("compressed RLE string has characters outside COCO's alphabet")
+        if code.size and code[-1] & 0x20:
+            raise NpsimInputError("compressed RLE string ends inside a number")
+        rle = {"size": [H, W], "counts": raw}
+    else:
+        c = np.asarray(counts, dtype=np.int64).ravel()
+        if c.size and (c.min() < 0 or c.sum() != H * W):
+            raise NpsimInputError(f"RLE counts sum to {int(c.sum())}, expected {H}x{W}={H * W}")
+        if c.size == 0 or H * W == 0:
+            return np.zeros((H, W), dtype=bool)
+        rle = coco_mask.frPyObjects({"size": [H, W], "counts": c.tolist()}, H, W)
+        raw = None
+    if H * W == 0:
+        return np.zeros((H, W), dtype=bool)
+    try:
+        mask = coco_mask.decode(rle)
+    except ValueError as exc:  # runs past the end of the image
+        raise NpsimInputError(f"compressed RLE string does not fit {H}x{W} ({exc})") from None
+    if raw is not None and raw and coco_mask.encode(mask)["counts"] != raw:
+        raise NpsimInputError(f"compressed RLE string is not an exact {H}x{W} mask")
+    return mask.view(bool)  # Fortran-ordered HxW (no transposing copy)
 
 
 def to_coco(ann: LightAnnotation, *, file_name: str = "", image_id: int = 1, compressed: bool = True) -> dict:
@@ -412,10 +403,7 @@ def from_coco(doc: dict, source: str = "COCO JSON") -> LightAnnotation:
             if is_group_class(cid):
                 ann.groups[int(a["id"])] = GroupInstance(int(a["id"]), tuple(int(x) for x in a["members"]))
                 continue
-            counts = a["segmentation"]["counts"]
-            if isinstance(counts, str):
-                counts = rle_from_string(counts)
-            mask = rle_decode(counts, H, W)
+            mask = rle_decode(a["segmentation"]["counts"], H, W)
             if (m[mask] != 0).any():
                 raise NpsimInputError(f"{source}: light {a['id']} overlaps another light")
             m[mask] = int(a["id"])

@@ -1,4 +1,4 @@
-"""Pinhole camera: intrinsics, back-projection and normals from depth (SPEC §0).
+"""Pinhole camera: intrinsics, back-projection and normals from depth (docs/method.md §1).
 
 Conventions: OpenCV camera frame (x right, y down, z forward); pixel (u, v) =
 (column, row) with centres at integer coordinates; depth is z-depth in metres;
@@ -41,7 +41,7 @@ class Intrinsics:
 
     @classmethod
     def from_fov(cls, width: int, height: int, hfov_deg: float) -> "Intrinsics":
-        """Square pixels from a horizontal field of view in degrees (SPEC §0)."""
+        """Square pixels from a horizontal field of view in degrees (docs/method.md §1.2)."""
         if not (0.0 < hfov_deg < 180.0):
             raise NpsimInputError(f"horizontal field of view must be in (0, 180) degrees, got {hfov_deg}")
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
@@ -57,7 +57,7 @@ class Intrinsics:
 
     @classmethod
     def cityscapes(cls, width: int = 2048, height: int = 1024) -> "Intrinsics":
-        """Cityscapes' typical intrinsics (SPEC §0), rescaled to ``width`` x ``height``."""
+        """Cityscapes' typical intrinsics (docs/method.md §1.2), rescaled to ``width`` x ``height``."""
         return cls(2262.52, 2265.30, 1096.98, 513.14, 2048, 1024).resized(width, height)
 
     @property
@@ -134,7 +134,7 @@ def normals_from_depth(depth: np.ndarray, intr: Intrinsics) -> np.ndarray:
     """Unit normals (HxWx3, camera frame, toward the camera) from z-depth.
 
     ``T_u = P(u+1,v) - P(u,v)``, ``T_v = P(u,v+1) - P(u,v)``, ``n = normalize(T_v x T_u)``
-    (SPEC §0). Where the forward neighbour is invalid (last column/row, depth
+    (docs/method.md §1.3). Where the forward neighbour is invalid (last column/row, depth
     edge into sky) the backward difference is used; pixels with neither are NaN.
     """
     P = backproject(depth, intr).astype(np.float64)

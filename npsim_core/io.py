@@ -261,7 +261,7 @@ def write_depth_png(path: PathLike, depth: np.ndarray) -> None:
 
 
 def read_normals(path: PathLike) -> np.ndarray:
-    """Read normals as HxWx3 float32 unit vectors (camera frame, SPEC §0).
+    """Read normals as HxWx3 float32 unit vectors (camera frame, docs/method.md §1.3).
 
     ``.npy`` holds the vectors directly; an 8/16-bit RGB PNG encodes
     ``n = 2c/(2^b - 1) - 1`` per channel (x, y, z in R, G, B). Zero-length

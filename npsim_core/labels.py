@@ -53,7 +53,7 @@ class LabelTable:
 
     @property
     def foreground_ids(self) -> frozenset[int]:
-        """labelIds of the thesis's foreground classes (SPEC §0)."""
+        """labelIds of the thesis's foreground classes (docs/method.md §1.4)."""
         return frozenset(c.id for c in self.classes if c.foreground)
 
     @property
@@ -112,7 +112,7 @@ def cityscapes() -> LabelTable:
 
 @dataclass(frozen=True)
 class LightClass:
-    """One inactive-light-source class (SPEC §6): ids 1-12 lights, 13-21 groups."""
+    """One inactive-light-source class (docs/method.md §7.1): ids 1-12 lights, 13-21 groups."""
 
     id: int
     name: str

@@ -1,4 +1,4 @@
-"""Depth and normal error metrics (SPEC §8), masked to pixels valid in both maps."""
+"""Depth and normal error metrics (docs/method.md §9.2), masked to pixels valid in both maps."""
 
 from __future__ import annotations
 

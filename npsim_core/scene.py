@@ -33,7 +33,7 @@ from .io import (read_array, read_depth, read_image, read_json, read_label_image
 from .labels import cityscapes
 
 #: Camera height above the ground (m) and downward pitch (rad) when nothing else is known
-#: (Cityscapes' rig, SPEC §0).
+#: (Cityscapes' rig, docs/method.md §1.2).
 DEFAULT_CAMERA_HEIGHT = 1.22
 DEFAULT_CAMERA_PITCH = 0.038
 

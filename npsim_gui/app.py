@@ -24,7 +24,8 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
     from PySide6.QtWidgets import QApplication
 
     from npsim_core.errors import NpsimInputError
-    from npsim_core.workflow import load_any_scene, load_project
+    from npsim_core.chain import load_frame
+    from npsim_core.project import load_project
 
     from .main_window import MainWindow
 
@@ -37,7 +38,7 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
         elif (Path(path) / "project.json").exists():
             scene, params = load_project(path)
         else:
-            scene = load_any_scene(path)
+            scene = load_frame(path)
     except NpsimInputError as exc:
         print(f"npsim gui: error: {exc}", file=sys.stderr)
         return 2

@@ -1,7 +1,7 @@
 """The NPSim main window: annotation canvas with view modes, parameter panel,
 3D mesh viewer, night render preview, loss curve and a log strip.
 
-Everything computed comes from :class:`npsim_core.workflow.Workflow` in worker
+Everything computed comes from :class:`npsim_core.chain.Chain` in worker
 threads (:mod:`npsim_gui.workers`); this module only presents and edits.
 """
 
@@ -20,9 +20,11 @@ from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout,
 from npsim_core.annotation import find_recovery, load_recovery
 from npsim_core.errors import NpsimInputError
 from npsim_core.scene import Scene
-from npsim_core.workflow import VIEW_MODES, Workflow, WorkflowParams, view_image
+from npsim_core.chain import Chain, ChainParams
+from npsim_core.views import VIEW_MODES, view_image
 
 from .editor.editor import AnnotationEditor
+from .param_values import gui_values, with_gui_value
 from .params_panel import ParameterPanel
 from .render_panel import RenderPanel
 from .viewer3d import MeshViewer, build_display
@@ -39,8 +41,8 @@ class MainWindow(QMainWindow):
         super().__init__()
         self.setWindowTitle("NPSim")
         self.resize(1680, 1020)
-        self.workflow: Workflow | None = None
-        self.params = WorkflowParams()
+        self.chain: Chain | None = None
+        self.params = ChainParams()
         self.results = None
         self.light_override: dict[int, bool] | None = None
         self._t_change = 0.0
@@ -157,11 +159,11 @@ class MainWindow(QMainWindow):
         self.busy_label.setText(text)
 
     # ----------------------------------------------------------------- scene
-    def set_scene(self, scene: Scene, params: WorkflowParams | None = None) -> None:
+    def set_scene(self, scene: Scene, params: ChainParams | None = None) -> None:
         """Show ``scene`` and start computing its pipeline."""
         self.pipeline_jobs.cancel()
         self.render_jobs.cancel()
-        self.workflow = Workflow(scene)
+        self.chain = Chain(scene)
         if params is not None:
             self.params = params
         self.results = None
@@ -181,7 +183,7 @@ class MainWindow(QMainWindow):
                 rec.unlink(missing_ok=True)
         self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=scene.name, dirty=dirty)
         if ann is not scene.lights:
-            self.workflow.set_annotation(ann)
+            self.chain.set_annotation(ann)
         self.render_panel.set_day(scene.image)
         self._show_params()
         self.render_panel.seed.blockSignals(True)
@@ -195,21 +197,21 @@ class MainWindow(QMainWindow):
         self.recompute()
 
     def _show_params(self) -> None:
-        values = self.params.gui_values()
-        if self.workflow is not None and not values.get(("camera", "hfov_deg")):
+        values = gui_values(self.params)
+        if self.chain is not None and not values.get(("camera", "hfov_deg")):
             # 0 means "the scene's own intrinsics": show the field of view they imply
-            values[("camera", "hfov_deg")] = self.workflow.scene.intrinsics.hfov_deg
+            values[("camera", "hfov_deg")] = self.chain.scene.intrinsics.hfov_deg
         self.params_panel.set_values(values)
 
     def _update_title(self, *_a) -> None:
-        name = self.workflow.scene.name if self.workflow else "no scene"
+        name = self.chain.scene.name if self.chain else "no scene"
         dirty = " *" if self.editor.session.is_dirty else ""
         self.setWindowTitle(f"NPSim — {name}{dirty}")
 
     # ----------------------------------------------------------------- parameters
     def on_param_changed(self, section: str, field: str, value) -> None:
         try:
-            self.params = self.params.with_value(section, field, value)
+            self.params = with_gui_value(self.params, section, field, value)
         except NpsimInputError as exc:
             self.on_error(str(exc), "")
             return
@@ -224,14 +226,14 @@ class MainWindow(QMainWindow):
 
     def on_reset(self) -> None:
         seed = self.params.night.seed
-        self.params = WorkflowParams().with_value("night", "seed", seed)
+        self.params = ChainParams().with_value("night", "seed", seed)
         self._show_params()
         self._t_change = time.perf_counter()
         self.recompute()
 
     def _annotation_edited(self) -> None:
-        if self.workflow is not None:
-            self.workflow.set_annotation(self.editor.session.ann)
+        if self.chain is not None:
+            self.chain.set_annotation(self.editor.session.ann)
             self.recompute()
 
     #: Wall-clock budget of the quick refinement shown first after a change (s); the full
@@ -244,9 +246,9 @@ class MainWindow(QMainWindow):
         Two phases: a quick refinement with a time budget (shown at once), then the full
         refinement (shown when done), so a slider answers in well under a second.
         """
-        if self.workflow is None:
+        if self.chain is None:
             return
-        wf, params = self.workflow, self.params
+        chain, params = self.chain, self.params
         t0 = self._t_change or time.perf_counter()
         live = None
         if params.refine.optimizer == "fast" and params.refine.max_time_s is None:
@@ -258,18 +260,18 @@ class MainWindow(QMainWindow):
         def job(cancel: threading.Event, progress):
             # everything heavy happens here, off the GUI thread: stages, view images, 3D geometry
             if live is not None:
-                quick = wf.compute(live, until="refine", cancel=cancel, progress=progress)
+                quick = chain.compute(live, until="refine", cancel=cancel, progress=progress)
                 if "refine" in quick.recomputed:
-                    progress({"live_results": quick, "t0": t0, "view": view_image(wf.scene, quick, mode),
+                    progress({"live_results": quick, "t0": t0, "view": view_image(chain.scene, quick, mode),
                               "mode": mode})
-            res = wf.compute(params, until="mesh", cancel=cancel, progress=progress)
+            res = chain.compute(params, until="mesh", cancel=cancel, progress=progress)
             display = None
             if with_3d and res.mesh is not None:
                 fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error()))
                           if v is not None}
-                display = build_display(wf.display_mesh(res), wf.scene.image, removed=res.removed, fields=fields,
+                display = build_display(chain.display_mesh(res), chain.scene.image, removed=res.removed, fields=fields,
                                         fy=res.intrinsics.fy)
-            return res, t0, display, view_image(wf.scene, res, mode), mode
+            return res, t0, display, view_image(chain.scene, res, mode), mode
         self.pipeline_jobs.submit(job)
 
     def on_pipeline_progress(self, info) -> None:
@@ -309,9 +311,9 @@ class MainWindow(QMainWindow):
 
     def refresh_view(self) -> None:
         """Recompute the canvas image for the current view mode (in a worker)."""
-        if self.workflow is None:
+        if self.chain is None:
             return
-        scene, res, mode = self.workflow.scene, self.results, self.view_mode.currentText()
+        scene, res, mode = self.chain.scene, self.results, self.view_mode.currentText()
         self.view_jobs.submit(lambda cancel, progress: (mode, view_image(scene, res, mode)))
 
     def _on_view(self, payload) -> None:
@@ -325,15 +327,15 @@ class MainWindow(QMainWindow):
         self.request_render()
 
     def request_render(self) -> None:
-        if self.workflow is None or self.results is None or self.results.mesh is None \
+        if self.chain is None or self.results is None or self.results.mesh is None \
                 or not getattr(self, "results_final", True):
             return
-        wf, params, res, override = self.workflow, self.params, self.results, self.light_override
+        chain, params, res, override = self.chain, self.params, self.results, self.light_override
         t0 = self._t_change or time.perf_counter()
 
         def job(cancel: threading.Event, progress):
             last = None
-            for frame in wf.night_preview(res, params, light_override=override, cancel=cancel):
+            for frame in chain.night_preview(res, params, light_override=override, cancel=cancel):
                 progress(frame)
                 last = frame
             return last, t0
@@ -358,7 +360,7 @@ class MainWindow(QMainWindow):
                      f"{len(frame.active.on_ids) if frame.active else 0} lights on")
 
     def _fill_lights(self, active) -> None:
-        ann = self.workflow.annotation
+        ann = self.chain.annotation
         if ann is None:
             return
         grouped = {m for g in ann.groups.values() for m in g.members}
@@ -377,10 +379,10 @@ class MainWindow(QMainWindow):
             self.open_scene(folder)
 
     def open_scene(self, path: str | Path) -> None:
-        from npsim_core.workflow import load_any_scene
+        from npsim_core.chain import load_frame
 
         try:
-            self.set_scene(load_any_scene(path))
+            self.set_scene(load_frame(path))
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
 
@@ -398,7 +400,7 @@ class MainWindow(QMainWindow):
             self.open_project(folder)
 
     def open_project(self, folder: str | Path) -> None:
-        from npsim_core.workflow import load_project
+        from npsim_core.project import load_project
 
         try:
             scene, params = load_project(folder)
@@ -413,12 +415,12 @@ class MainWindow(QMainWindow):
             self.save_project(folder)
 
     def save_project(self, folder: str | Path) -> None:
-        from npsim_core.workflow import save_project
+        from npsim_core.project import save_project
 
-        if self.workflow is None:
+        if self.chain is None:
             return
         try:
-            save_project(folder, self.workflow.scene.with_(lights=self.editor.session.ann), self.params, self.results)
+            save_project(folder, self.chain.scene.with_(lights=self.editor.session.ann), self.params, self.results)
             self.log.log(f"project saved to {folder}")
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
@@ -437,11 +439,11 @@ class MainWindow(QMainWindow):
 
     def export(self, folder: str | Path, *, nights: int = 1, show_progress: bool = True) -> None:
         """Write masks, depth, normals, meshes and nights to ``folder`` in a worker, with progress."""
-        from npsim_core.workflow import export_scene
+        from npsim_core.chain import export_frame
 
-        if self.workflow is None:
+        if self.chain is None:
             return
-        wf, params = self.workflow, self.params
+        chain, params = self.chain, self.params
         dlg = None
         if show_progress:
             dlg = QProgressDialog("Exporting…", "Cancel", 0, 100, self)
@@ -451,7 +453,7 @@ class MainWindow(QMainWindow):
         self._export_dialog = dlg
 
         def job(cancel, progress):
-            return export_scene(wf, params, folder, nights=nights, cancel=cancel,
+            return export_frame(chain, params, folder, nights=nights, cancel=cancel,
                                 progress=lambda f, text: progress((f, text)))
 
         def on_progress(info):

@@ -1,7 +1,7 @@
 """Parameter panel: grouped sliders with numeric entry, presets and reset.
 
 The panel knows only *where* each value lives (``section.field`` of the core's
-:class:`~npsim_core.workflow.WorkflowParams`) and its range; it emits
+:class:`~npsim_core.chain.ChainParams`) and its range; it emits
 ``changed(section, field, value)`` and the window hands the new parameters to
 the core, which recomputes only the stages downstream of the change.
 """

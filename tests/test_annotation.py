@@ -10,7 +10,7 @@ import pytest
 from npsim_core import annotation as A
 from npsim_core.annotation import (LightAnnotation, autosave_path, discover_items, find_recovery,
                                    from_coco, load_annotation, load_coco, load_recovery, rle_decode, rle_encode,
-                                   rle_from_string, rle_to_string, save_annotation, to_coco, write_recovery)
+                                   rle_from_indices, rle_to_string, save_annotation, to_coco, write_recovery)
 from npsim_core.annotation_ops import (UndoStack, change_class, delete_instance, erase, group_lights, new_instance,
                                        paint, snap_to_superpixels, split_paint, ungroup)
 from npsim_core.errors import NpsimInputError
@@ -164,9 +164,8 @@ def test_rle_matches_coco_convention(compressed):
         mask = rng.random((int(rng.integers(1, 40)), int(rng.integers(1, 40)))) > rng.random()
         c = rle_encode(mask)
         if compressed:
-            s = rle_to_string(c)
-            assert isinstance(s, str)
-            c = rle_from_string(s)
+            c = rle_to_string(c)
+            assert isinstance(c, str)
         np.testing.assert_array_equal(rle_decode(c, *mask.shape), mask)
 
 
@@ -332,7 +331,7 @@ def test_default_region_size_scales_with_width():
 
 
 def test_cli_annotate_list(tmp_path, capsys):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
 
     img = np.zeros((4, 6, 3), np.uint8)
     write_image(tmp_path / "a.png", img)
@@ -346,15 +345,72 @@ def test_cli_annotate_list(tmp_path, capsys):
     assert main(["annotate", str(tmp_path / "nothing")]) == 2
 
 
-def test_sparse_rle_equals_dense():
-    from npsim_core.annotation import rle_from_indices
-
+def _reference_masks():
+    """Masks to check against pycocotools: 1x1, odd and even sizes, all-zero, all-one, sparse, dense, blocks."""
     rng = np.random.default_rng(3)
+    yield np.zeros((1, 1), bool)
+    yield np.ones((1, 1), bool)
+    for h, w in [(1, 7), (7, 1), (2, 2), (3, 5), (5, 3), (17, 31), (64, 48), (33, 129)]:
+        yield np.zeros((h, w), bool)
+        yield np.ones((h, w), bool)
+        for p in (0.02, 0.5, 0.98):
+            yield rng.random((h, w)) < p
+        m = np.zeros((h, w), bool)
+        m[h // 3:h // 3 + max(1, h // 2), w // 4:w // 4 + max(1, w // 3)] = True  # a light-like block
+        yield m
+        m = np.zeros((h, w), bool)
+        m[-1, -1] = True  # last pixel only: no trailing zero run
+        yield m
     for _ in range(30):
-        h, w = int(rng.integers(1, 30)), int(rng.integers(1, 30))
-        mask = rng.random((h, w)) > rng.random()
-        idx = np.flatnonzero(mask.ravel(order="F"))
-        assert rle_from_indices(idx, h * w) == rle_encode(mask)
+        h, w = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        yield rng.random((h, w)) > rng.random()
+
+
+def test_rle_matches_pycocotools():
+    from pycocotools import mask as coco_mask
+
+    n = 0
+    for mask in _reference_masks():
+        h, w = mask.shape
+        ref = coco_mask.encode(np.asfortranarray(mask, dtype=np.uint8))
+        assert ref["size"] == [h, w]
+        counts = rle_encode(mask)
+        assert counts == rle_from_indices(np.flatnonzero(mask.ravel(order="F")), h * w)  # the export's path
+        assert sum(counts) == h * w and counts[0] >= 0 and all(c > 0 for c in counts[1:])
+        assert rle_to_string(counts) == ref["counts"].decode("ascii"), (h, w)
+        assert coco_mask.area(ref) == mask.sum()
+        for enc in (counts, rle_to_string(counts), ref["counts"]):
+            back = rle_decode(enc, h, w)
+            assert back.dtype == bool and back.shape == (h, w)
+            np.testing.assert_array_equal(back, mask)
+        np.testing.assert_array_equal(coco_mask.decode(ref), mask)
+        n += 1
+    assert n > 60
+
+
+def test_coco_export_segmentations_match_pycocotools():
+    from pycocotools import mask as coco_mask
+
+    ann = sample_annotation()
+    doc = to_coco(ann)
+    plain = to_coco(ann, compressed=False)
+    H, W = ann.shape
+    for a, b in zip(doc["annotations"], plain["annotations"]):
+        i = a["id"]
+        members = ann.groups[i].members if i in ann.groups else (i,)
+        mask = np.isin(ann.instance_map, members)
+        ref = coco_mask.encode(np.asfortranarray(mask, dtype=np.uint8))
+        assert a["segmentation"] == {"size": [H, W], "counts": ref["counts"].decode("ascii")}
+        assert b["segmentation"] == {"size": [H, W], "counts": rle_encode(mask)}
+        assert a["area"] == int(coco_mask.area(ref))
+
+
+@pytest.mark.parametrize("counts", [[2, 1, 1, 1], [2, 1, 1, 3], [-1, 7], "52", "5220", "5\x7f", "52203\u00e9",
+                                    "522036", "b"])
+def test_malformed_rle_is_refused(counts):
+    # 4x4 image (16 px): short or long runs, negative runs, truncated numbers, foreign characters
+    with pytest.raises(NpsimInputError):
+        rle_decode(counts, 4, 4)
 
 
 def test_undo_stack_clean_marker():

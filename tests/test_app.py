@@ -16,7 +16,7 @@ os.environ.setdefault("XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="npsim-test-con
 
 
 from npsim_core.synthetic import street_scene  # noqa: E402
-from npsim_core.workflow import WorkflowParams  # noqa: E402
+from npsim_core.chain import ChainParams  # noqa: E402
 
 W, H = 128, 64
 
@@ -35,7 +35,7 @@ def window(qtbot, scene):
     qtbot.addWidget(win)
     win.show()
     # keep the test quick: a short refinement and a tiny preview
-    params = WorkflowParams().with_value("refine", "steps", 40).with_value("night", "spp", 4) \
+    params = ChainParams().with_value("refine", "steps", 40).with_value("night", "spp", 4) \
                              .with_value("night", "preview_scale", 1.0).with_value("night", "final_spp", 4)
     win.set_scene(scene, params)
     qtbot.waitUntil(lambda: win.results is not None and win.results.mesh is not None, timeout=120_000)
@@ -99,11 +99,11 @@ def test_filter_slider_recomputes_from_filter(window, qtbot):
 
 
 def test_view_modes_show_in_the_canvas(window, qtbot):
-    from npsim_core.workflow import view_image
+    from npsim_core.views import view_image
 
     for mode in ("refined depth", "uncertain map", "normal error vs GT"):
         window.view_mode.setCurrentText(mode)
-        want = view_image(window.workflow.scene, window.results, mode)
+        want = view_image(window.chain.scene, window.results, mode)
         qtbot.waitUntil(lambda: np.array_equal(window.editor.canvas.base.array[..., :3], want), timeout=30_000)
 
 
@@ -125,7 +125,7 @@ def test_export_writes_all_outputs(window, qtbot, tmp_path):
     window.export(tmp_path, nights=1, show_progress=False)
     qtbot.waitUntil(lambda: hasattr(window, "last_export"), timeout=180_000)
     names = {p.name for p in window.last_export}
-    n = window.workflow.scene.name
+    n = window.chain.scene.name
     for expected in (f"{n}_labelIds.png", f"{n}_depth_refined.npy", f"{n}_normals_refined.png",
                      f"{n}_mesh.ply", f"{n}_mesh.glb", f"{n}_night_0.png", f"{n}_night_0_labelIds.png",
                      f"{n}_lights_instanceIds.png", f"{n}_export.json"):
@@ -133,17 +133,17 @@ def test_export_writes_all_outputs(window, qtbot, tmp_path):
         assert (tmp_path / expected).stat().st_size > 0
     from npsim_core.io import read_label_image
 
-    assert np.array_equal(read_label_image(tmp_path / f"{n}_night_0_labelIds.png"), window.workflow.scene.labels)
+    assert np.array_equal(read_label_image(tmp_path / f"{n}_night_0_labelIds.png"), window.chain.scene.labels)
 
 
 def test_bad_scene_path_is_a_message_not_a_crash(window, tmp_path):
     window.open_scene(tmp_path / "does-not-exist")
     assert "not found" in window.last_error
-    assert window.workflow is not None  # the old scene stays open
+    assert window.chain is not None  # the old scene stays open
 
 
 def test_project_round_trip(window, qtbot, tmp_path):
-    from npsim_core.workflow import load_project
+    from npsim_core.project import load_project
 
     window.params_panel.sliders[("refine", "lambda3")].spin.setValue(2.5)
     qtbot.waitUntil(lambda: window.params.refine.lambdas[2] == 2.5, timeout=10_000)
@@ -151,8 +151,8 @@ def test_project_round_trip(window, qtbot, tmp_path):
     scene, params = load_project(tmp_path / "proj")
     assert params.refine.lambdas[2] == 2.5
     assert params.refine.steps == 40
-    assert np.array_equal(scene.labels, window.workflow.scene.labels)
-    assert scene.lights is not None and scene.lights.instance_ids() == window.workflow.scene.lights.instance_ids()
+    assert np.array_equal(scene.labels, window.chain.scene.labels)
+    assert scene.lights is not None and scene.lights.instance_ids() == window.chain.scene.lights.instance_ids()
 
 
 def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene):
@@ -182,11 +182,11 @@ def test_unsaved_annotation_is_recovered_after_a_crash(qtbot, tmp_path, scene):
     qtbot.addWidget(win)
     asked = []
     win.ask = lambda title, text, buttons: asked.append(title) or "Restore"
-    win.set_scene(load_scene(folder), WorkflowParams().with_value("refine", "steps", 5))
+    win.set_scene(load_scene(folder), ChainParams().with_value("refine", "steps", 5))
     assert asked == ["Recover unsaved edits"]
     assert victim not in win.editor.session.ann.instance_ids()
     assert win.editor.session.is_dirty and win.windowTitle().endswith("*")
-    assert victim not in win.workflow.annotation.instance_ids()
+    assert victim not in win.chain.annotation.instance_ids()
     win.confirm_close = lambda: True
     win.close()
 
@@ -201,7 +201,7 @@ def test_gui_commands_without_display_say_so(cmd, tmp_path):
 
     save_scene(street_scene(W, H), tmp_path)
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
-    r = subprocess.run([sys.executable, "-m", "npsim_core.cli", *cmd], cwd=tmp_path, env=env, capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "npsim_cli", *cmd], cwd=tmp_path, env=env, capture_output=True,
                        text=True, timeout=120)
     assert r.returncode == 2, r.stderr[-800:]
     assert "no display" in r.stderr
@@ -215,10 +215,10 @@ def test_last_scene_is_remembered_between_runs(qtbot, tmp_path, scene):
     first = MainWindow(with_3d=False)
     qtbot.addWidget(first)
     first.open_scene(folder)
-    assert first.workflow.scene.name == "remembered"
+    assert first.chain.scene.name == "remembered"
     first.close()
     second = MainWindow(with_3d=False)  # a new run of the app
     qtbot.addWidget(second)
     second.reopen_last()
-    assert second.workflow is not None and second.workflow.scene.name == "remembered"
+    assert second.chain is not None and second.chain.scene.name == "remembered"
     second.close()

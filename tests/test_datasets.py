@@ -1,4 +1,4 @@
-"""Dataset readers: Cityscapes, ACDC and plain folders, built as tiny fake trees (SPEC §1)."""
+"""Dataset readers: Cityscapes, ACDC and plain folders, built as tiny fake trees (docs/method.md §10)."""
 
 from __future__ import annotations
 
@@ -204,7 +204,7 @@ def test_dataset_errors_are_clear(tmp_path):
 
 
 def test_estimate_cli_on_a_dataset_image(cityscapes_root, tmp_path, capsys):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import load_scene
 
     img = cityscapes_root / "leftImg8bit" / "val" / "frankfurt" / "frankfurt_000000_000294_leftImg8bit.png"

@@ -7,15 +7,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QPoint, QPointF, Qt
-from PySide6.QtGui import QWheelEvent
-from PySide6.QtWidgets import QApplication
 
-from npsim_core import annotation as A
-from npsim_core.annotation import GroupInstance, LightAnnotation, discover_items, load_annotation
-from npsim_core.io import write_image
-from npsim_core.superpixels import disk_index, line_pixels, superpixel_index
-from npsim_gui.editor import EditorWindow, Tool
+# Importing Qt never needs a display (only creating the QApplication does, and tests/conftest.py skips
+# every test here when there is none); a missing or broken Qt install skips the module instead.
+pytest.importorskip("PySide6.QtWidgets", reason="PySide6 (Qt) is not importable")
+pytestmark = pytest.mark.gui
+
+from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
+from PySide6.QtGui import QWheelEvent  # noqa: E402
+from PySide6.QtWidgets import QApplication  # noqa: E402
+
+from npsim_core import annotation as A  # noqa: E402
+from npsim_core.annotation import GroupInstance, LightAnnotation, discover_items, load_annotation  # noqa: E402
+from npsim_core.io import write_image  # noqa: E402
+from npsim_core.superpixels import disk_index, line_pixels, superpixel_index  # noqa: E402
+from npsim_gui.editor import EditorWindow, Tool  # noqa: E402
 
 LEFT, RIGHT = Qt.MouseButton.LeftButton, Qt.MouseButton.RightButton
 NOMOD, SHIFT, CTRL = Qt.KeyboardModifier.NoModifier, Qt.KeyboardModifier.ShiftModifier, \

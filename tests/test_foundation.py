@@ -1,4 +1,4 @@
-"""Foundation: camera, scene model and its validation, file formats, atomic writes, metrics (SPEC §0, §1, §8)."""
+"""Foundation: camera, scene model and its validation, file formats, atomic writes, metrics (docs/method.md §1, §2, §9)."""
 
 from __future__ import annotations
 
@@ -254,7 +254,7 @@ def test_normals_npy_and_png_round_trips(tmp_path):
         back = nio.read_normals(tmp_path / f"n{bits}.png")
         err = angular_error_deg(back, n)
         assert np.nanmax(err) < tol_deg, bits
-        # n = 2c/(2^b - 1) - 1 exactly (SPEC §1): check one encoded pixel.
+        # n = 2c/(2^b - 1) - 1 exactly (docs/method.md §2.2): check one encoded pixel.
         c = raw[3, 4][::-1].astype(np.float64)  # BGR on disk
         v = 2 * c / (2 ** bits - 1) - 1
         np.testing.assert_allclose(back[3, 4], v / np.linalg.norm(v), atol=1e-6)

@@ -1,4 +1,4 @@
-"""Geometry estimators: semantic pop-up prior, files, local depth network (SPEC §1)."""
+"""Geometry estimators: semantic pop-up prior, files, local depth network (docs/method.md §2.2)."""
 
 from __future__ import annotations
 
@@ -90,7 +90,7 @@ def test_ground_plane_depth_and_horizon():
     intr = Intrinsics.cityscapes(2048, 1024)
     z = ground_plane_depth(intr, 1.22, 0.038, max_depth=1e9)
     horizon = intr.cy - intr.fy * np.tan(0.038)
-    assert 426 < horizon < 428  # SPEC §0
+    assert 426 < horizon < 428  # docs/method.md §1.2
     rows_inf = np.nonzero(z[:, 0] >= 1e9)[0]
     assert rows_inf.max() == int(np.floor(horizon))  # at and above the horizon: no ground
     # A point on the ground 10 m ahead (level distance) projects to the row whose depth is its z.
@@ -344,7 +344,7 @@ def test_network_errors_are_clear(tmp_path, tiny_checkpoint, monkeypatch):
 
 
 def test_estimate_cli_writes_scene_folder(tmp_path, capsys):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import load_scene, save_scene
 
     s = toy_street(pole=None)
@@ -366,7 +366,7 @@ def test_estimate_cli_writes_scene_folder(tmp_path, capsys):
 
 
 def test_estimate_cli_network(tmp_path, tiny_checkpoint, capsys):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import load_scene, save_scene
 
     save_scene(toy_street(pole=None), tmp_path / "scene")

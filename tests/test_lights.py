@@ -1,4 +1,4 @@
-"""Light table and probabilistic light activation (SPEC §5) -- statistics, no rendering."""
+"""Light table and probabilistic light activation (docs/method.md §6.2, §6.3) -- statistics, no rendering."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def test_default_table_complete_with_origins():
         assert spec.origin, f"class {spec.name} lacks an origin note"
         assert 0 <= spec.p[0] <= spec.p[1] <= 1
         assert spec.strength[0] <= spec.strength[1]
-    # SOLO reference values (SPEC §5)
+    # SOLO reference values (docs/method.md §6.2)
     assert t.spec(1).p == (0.3, 0.6) and t.spec(1).strength == (1, 20)
     assert t.spec(8).strength == (850, 1000) and t.spec(8).p == (1.0, 1.0)
     assert t.spec(5).p == (0.95, 1.0) and t.spec(4).strength == (60, 90)

@@ -1,4 +1,4 @@
-"""Scene mesh: grid, post-processing kernel, quality measures, reduction, export (issue 4)."""
+"""Scene mesh: grid, post-processing kernel, quality measures, reduction, export (docs/mesh.md)."""
 
 from __future__ import annotations
 
@@ -518,7 +518,7 @@ def test_empty_parts_are_skipped_in_export(tmp_path):
 # Command line
 
 def test_mesh_command(tmp_path, capsys):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import save_scene
     from npsim_core.synthetic import street_scene
 
@@ -609,20 +609,19 @@ def test_postprocess_choices_are_settable_and_saved():
     """`--set postprocess.step_cut=null` and the inf default survive the command line and a project file."""
     import json
 
-    from npsim_core.commands.run import _parse_value
-    from npsim_core.workflow import WorkflowParams
+    from npsim_core.chain import ChainParams
+    from npsim_core.chain.params import parse_value
 
-    assert _parse_value("null") is None and _parse_value("inf") == np.inf
-    p = WorkflowParams().with_value("postprocess", "step_cut", _parse_value("null"))
-    p = p.with_value("postprocess", "keep_consistent", _parse_value("none"))
+    assert parse_value("null") is None and parse_value("inf") == np.inf and parse_value("adam") == "adam"
+    p = ChainParams().with_sets(["postprocess.step_cut=null", "postprocess.keep_consistent=none"])
     assert p.postprocess.step_cut is None and p.postprocess.keep_consistent is None
-    d = WorkflowParams()
-    back = WorkflowParams.from_json(json.loads(json.dumps(d.to_json())))
+    d = ChainParams()
+    back = ChainParams.from_json(json.loads(json.dumps(d.to_json())))
     assert back.postprocess == d.postprocess and back.postprocess.keep_consistent == np.inf
     with pytest.raises(NpsimInputError):
-        WorkflowParams().with_value("postprocess", "step_cut", 2.0)
+        ChainParams().with_value("postprocess", "step_cut", 2.0)
     with pytest.raises(NpsimInputError, match="number"):
-        WorkflowParams().with_value("postprocess", "step_cut", "abc")
+        ChainParams().with_value("postprocess", "step_cut", "abc")
 
 
 def test_edge_on_faces_from_pixels_match_the_projection():

@@ -1,4 +1,4 @@
-"""``npsim_core`` must never import Qt or pyvistaqt (SPEC §7): checked statically and at run time."""
+"""``npsim_core`` must never import Qt or pyvistaqt (docs/method.md §8.1): checked statically and at run time."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import npsim_core
 
 CORE = Path(npsim_core.__file__).resolve().parent
-QT = ("PySide6", "PySide2", "PyQt5", "PyQt6", "shiboken6", "shiboken2", "pyvistaqt", "qtpy")
+QT = ("PySide6", "PySide2", "PyQt5", "PyQt6", "shiboken6", "shiboken2", "pyvistaqt", "qtpy", "superqt")
 #: The GUI package may be imported only lazily, inside a function of a CLI command
 #: (``npsim annotate`` / ``npsim gui`` open a window when they run), never at module level.
 GUI = ("npsim_gui",)

@@ -2,8 +2,8 @@
 
 import pytest
 
-from npsim_core.cli import main as cli_main
-from npsim_core.commands.bench import available, load_benchmark
+from npsim_cli.main import main as cli_main
+from npsim_cli.commands.bench import available, load_benchmark
 from npsim_core.errors import NpsimInputError
 
 

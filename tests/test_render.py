@@ -219,7 +219,7 @@ def test_variant_override_and_probe_cache(monkeypatch, tmp_path):
 
 
 def test_night_cli(tmp_path):
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import save_scene
 
     s = street_scene(64, 32)
@@ -298,7 +298,7 @@ def test_fireflies_removed_but_lights_kept():
 
 def test_night_cli_fast_final_settings(tmp_path):
     """Direct-light-only path length and a reduced mesh (the fast full-resolution setting)."""
-    from npsim_core.cli import main
+    from npsim_cli.main import main
     from npsim_core.scene import save_scene
 
     s = street_scene(96, 48)
@@ -321,14 +321,14 @@ def test_night_cli_fast_final_settings(tmp_path):
 def test_label_render_of_the_postprocessed_mesh_matches_labels():
     """The whole chain's mesh (filtered depth, U, post-processing kernel) rendered with label colours:
     every sheet ends half a pixel beyond its border pixels, so even 1-3 px poles keep their outline."""
-    from npsim_core.mesh.pipeline import PipelineParams, depth_stages
+    from npsim_core.chain import Chain, ChainParams
     from npsim_core.mesh.postprocess import PostprocessParams, postprocess_mesh
 
     s = street_scene(256, 128)
-    st = depth_stages(s, PipelineParams(refine=False))
+    st = Chain(s).compute(ChainParams(), until="uncertain")
     ious = {}
     for ext in (True, False):
-        r = postprocess_mesh(st.refined, s.intrinsics, s.labels, st.uncertain, s.lights.instance_map,
+        r = postprocess_mesh(st.filtered, s.intrinsics, s.labels, st.uncertain, s.lights.instance_map,
                              normals=s.normals, params=PostprocessParams(extend_edges=ext))
         got = render_labels(build_label_scene(r.mesh, s.intrinsics, s.labels, variant=SCALAR))
         got = np.where(got < 0, 23, got)

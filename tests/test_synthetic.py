@@ -7,7 +7,7 @@ import pytest
 
 from npsim_core.annotation import class_of
 from npsim_core.camera import backproject, normals_from_depth
-from npsim_core.cli import main as cli_main
+from npsim_cli.main import main as cli_main
 from npsim_core.labels import cityscapes
 from npsim_core.metrics import angular_error_deg, depth_metrics, normal_metrics
 from npsim_core.scene import load_scene
@@ -268,11 +268,22 @@ def test_street_scene_cache(tmp_path, monkeypatch):
     assert np.array_equal(first.image, second.image)
 
 
+def test_suite_uses_a_private_cache():
+    """tests/conftest.py points NPSIM_CACHE at a per-session folder, so tests never touch ~/.cache/npsim."""
+    import os
+    from pathlib import Path
+
+    from npsim_core.synthetic import cache_dir
+
+    assert os.environ.get("NPSIM_CACHE")
+    assert cache_dir().resolve() != (Path.home() / ".cache" / "npsim").resolve()
+
+
 def test_import_is_cheap():
     import subprocess
     import sys
 
-    code = "import sys, npsim_core.synthetic, npsim_core.commands.sample; print('mitsuba' in sys.modules)"
+    code = "import sys, npsim_core.synthetic, npsim_cli.commands.sample; print('mitsuba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -1,4 +1,4 @@
-"""Geometry estimators: the method's input depth D and normals N for a scene (SPEC §1).
+"""Geometry estimators: the method's input depth D and normals N for a scene (docs/method.md §2.2).
 
 One interface, three methods::
 
@@ -8,7 +8,7 @@ One interface, three methods::
 
 Every method returns a :class:`GeometryEstimate`: z-depth in metres (HxW
 float32, NaN = invalid, sky always invalid) and unit normals in the camera
-frame pointing toward the camera (HxWx3 float32, NaN = invalid), SPEC §0.
+frame pointing toward the camera (HxWx3 float32, NaN = invalid), docs/method.md §1.1, §1.3.
 """
 
 from __future__ import annotations

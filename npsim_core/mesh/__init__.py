@@ -1,4 +1,4 @@
-"""Scene meshes: Worldsheet grid, post-processing, reduction, quality, export (SPEC §3-4).
+"""Scene meshes: Worldsheet grid, post-processing, reduction, quality, export (docs/method.md §4, §5).
 
 Import the stage modules directly (``npsim_core.mesh.grid``, ``.postprocess``,
 ``.reduce``, ``.quality``, ``.export``); the most used names are re-exported here.

@@ -1,7 +1,7 @@
-"""Worldsheet grid mesh from a depth map (SPEC §3, thesis §3.3).
+"""Worldsheet grid mesh from a depth map (docs/method.md §4, thesis §3.3).
 
 One vertex per pixel (or per ``stride`` pixels) at ``P(u, v) = d(u, v) K^-1 (u, v, 1)^T``,
-two triangles per 2x2 quad of vertices. Conventions (SPEC §0):
+two triangles per 2x2 quad of vertices. Conventions (docs/method.md §1):
 
 * winding: the geometric normal ``(v1 - v0) x (v2 - v0)`` points toward the
   camera (``n . P < 0``). With corners ``a=(u,v)``, ``b=(u+1,v)``, ``c=(u,v+1)``,
@@ -55,7 +55,7 @@ def grid_axes(width: int, height: int, stride: int) -> tuple[np.ndarray, np.ndar
 
 
 def pixel_uv(u: np.ndarray, v: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(N, 2) float32 texture coordinates ``((u + 0.5) / W, 1 - (v + 0.5) / H)`` (SPEC §3)."""
+    """(N, 2) float32 texture coordinates ``((u + 0.5) / W, 1 - (v + 0.5) / H)`` (docs/method.md §4)."""
     uv = np.empty((len(u), 2), dtype=np.float32)
     uv[:, 0] = (np.asarray(u, dtype=np.float64) + 0.5) / width
     uv[:, 1] = 1.0 - (np.asarray(v, dtype=np.float64) + 0.5) / height
@@ -194,7 +194,7 @@ def quad_faces(index: np.ndarray, points: np.ndarray, group: np.ndarray | None =
 def grid_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, light_ids: np.ndarray | None = None,
               *, stride: int = 1, exclude: Iterable[int] | None = None, far_limit: float | None = None,
               name: str = "grid") -> SceneMesh:
-    """Worldsheet grid mesh of a depth map (SPEC §3): one sheet, every usable pixel a vertex.
+    """Worldsheet grid mesh of a depth map (docs/method.md §4): one sheet, every usable pixel a vertex.
 
     Parameters
     ----------

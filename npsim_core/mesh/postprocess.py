@@ -1,4 +1,4 @@
-"""Mesh post-processing kernel (SPEC §4, thesis §3.5 and Algorithm 1).
+"""Mesh post-processing kernel (docs/method.md §5, thesis §3.5 and Algorithm 1).
 
 Everything happens on the pixel grid, so each step is a handful of whole-image
 array operations; the sheets are triangulated at the end with the same
@@ -11,8 +11,8 @@ array operations; the sheets are triangulated at the end with the same
    R = U ∪ (foreground segments adjacent to U) ∪ (non-sky pixels with invalid
    depth). Foreground = the thesis's classes plus ``occluders`` (default
    vegetation, see :class:`PostprocessParams`). In the default ``complete_behind="all"`` mode *every* foreground
-   segment is in R, so every object becomes its own sheet as SPEC §4's result
-   asks ("background sheet + foreground sheets"); ``"adjacent"`` is the thesis's
+   segment is in R, so every object becomes its own sheet as the method's result
+   asks ("background sheet + foreground sheets", docs/method.md §5.6); ``"adjacent"`` is the thesis's
    literal rule, where objects untouched by U stay welded into the background
    sheet. For each row, each run of R pixels is filled from the pixels just left
    and right of it: if both are background vertices, *depth* (or inverse depth,
@@ -109,7 +109,7 @@ class PostprocessParams:
         vertex keeps its depth (depth steps are cut by ``step_cut`` instead, module doc 4-5).
         None = the thesis's rule: every U vertex is replaced by completed depth.
     interpolation : "depth" | "inverse_depth"
-        Quantity interpolated along a row run (SPEC: depth).
+        Quantity interpolated along a row run (default depth, as docs/method.md §5.2 states).
     vertical_pass : bool
         Also fill runs with background above and below that the row pass left empty.
     behind_margin : float
@@ -335,7 +335,7 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
                      light_ids: np.ndarray | None = None, instance_ids: np.ndarray | None = None,
                      params: PostprocessParams = PostprocessParams(),
                      normals: np.ndarray | None = None) -> PostprocessResult:
-    """Build the post-processed scene mesh (SPEC §4) directly from the depth map and U.
+    """Build the post-processed scene mesh (docs/method.md §5) directly from the depth map and U.
 
     Parameters
     ----------
@@ -345,7 +345,7 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     labels : (H, W) int
         Cityscapes labelIds.
     uncertain : (H, W) bool
-        Uncertain map U (SPEC §2.2).
+        Uncertain map U (docs/method.md §3.2).
     light_ids : (H, W) int, optional
         Light instance map (0 = none).
     instance_ids : (H, W) int, optional

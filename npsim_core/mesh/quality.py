@@ -1,4 +1,4 @@
-"""Mesh quality measures (SPEC §4, §8): stretched faces, holes, reprojection error, normal error.
+"""Mesh quality measures (docs/method.md §9.3): stretched faces, holes, reprojection error, normal error.
 
 Ray casting is done by an exact z-buffer rasteriser in numpy (:func:`rasterize`):
 for every triangle the pixel centres inside its projected bounding box are

@@ -1,6 +1,6 @@
 """Reduced scene mesh for a face budget, built directly on the depth map (quadtree of flat cells).
 
-"Model only what a scene needs" (SPEC §4). Instead of decimating the full
+"Model only what a scene needs" (docs/method.md §5.7). Instead of decimating the full
 grid (pymeshlab's quadric edge collapse, kept as the comparison in
 :func:`decimate_pymeshlab`), the post-processed sheets are re-triangulated
 from a quadtree of square cells on the pixel grid:

@@ -1,4 +1,4 @@
-"""Depth steps inside one sheet: cut sides, and walls that keep the sheet closed (SPEC §4).
+"""Depth steps inside one sheet: cut sides, and walls that keep the sheet closed (docs/method.md §5.5).
 
 The post-processing kernel separates objects from the background, but depth steps
 remain *inside* a sheet: a façade in front of another façade, the boxes of one car,

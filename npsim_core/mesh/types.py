@@ -3,7 +3,7 @@
 All coordinates are in the OpenCV camera frame (x right, y down, z forward),
 metres. Faces are wound so that the geometric normal
 ``(v1 - v0) x (v2 - v0)`` points toward the camera (n·P < 0), i.e. the front
-face looks at the camera, matching the normal convention of SPEC §0.
+face looks at the camera, matching the normal convention of docs/method.md §1.3.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
-"""Depth refinement kernel (SPEC §2, thesis §3.4).
+"""Depth refinement kernel (docs/method.md §3, thesis §3.4).
 
 * :mod:`.bilateral` -- dual-reference cross-bilateral filter (exact reference and fast).
 * :mod:`.uncertainty` -- dual-reference variance filter -> uncertain map U.
 * :mod:`.optimize` -- normal-guided depth refinement (faithful Adam, fast L-BFGS).
 
-The cached chain filter -> uncertain -> refine is :func:`npsim_core.pipeline.refinement_pipeline`.
+The cached chain filter -> uncertain -> refine is :class:`npsim_core.chain.Chain`.
 """
 
 from .bilateral import FilterParams, cross_bilateral, cross_bilateral_reference

@@ -1,10 +1,10 @@
-"""Normal-guided depth refinement (SPEC §2.3, thesis eqs. 3.4-3.9).
+"""Normal-guided depth refinement (docs/method.md §3.3, thesis eqs. 3.4-3.9).
 
 Minimises ``L = λ1 L_normal + λ2 L_continuity + λ3 L_depth`` over the depth map.
 
 With ``P(p) = d(p) r(p)``, ``r = K^-1 (u, v, 1)``, forward tangents
 ``T_u(p) = P(p+x) − P(p)``, ``T_v(p) = P(p+y) − P(p)`` and the current normal
-``n̂(p) = normalize(T_v × T_u)`` (SPEC §0, toward the camera):
+``n̂(p) = normalize(T_v × T_u)`` (docs/method.md §1.3, toward the camera):
 
 * ``L_normal = Σ_{p∈Ω_n} ‖n̂(p) − N(p)‖² / |Ω_n|``, Ω_n = pixels whose depth, right
   and lower neighbours' depth and normal N are valid (the last row/column has no
@@ -69,7 +69,7 @@ from ._inputs import as_depth, as_mask, as_normals, check_positive
 #: The two λ = (λ1 normal, λ2 continuity, λ3 depth) sets the thesis states.
 PRESETS: dict[str, tuple[float, float, float]] = {
     "appendix_b": (1.0, 5.0, 1.0),      # appendix B grid search result (default)
-    "section_3_4_3": (1.0, 1.0, 5.0),   # as printed in §3.4.3
+    "section_3_4_3": (1.0, 1.0, 5.0),   # as printed in the thesis's §3.4.3
 }
 
 _DEFAULT_STEPS = {"adam_faithful": 1000, "fast": 100}
@@ -228,7 +228,7 @@ def _is_cancelled(cancel) -> bool:
 
 
 class RefinementProblem:
-    """The loss of SPEC §2.3 on fixed inputs, as torch tensors (built once, evaluated many times).
+    """The loss of docs/method.md §3.3 on fixed inputs, as torch tensors (built once, evaluated many times).
 
     ``terms(d)`` returns the three unweighted terms for a full HxW depth tensor;
     ``total(d)`` their λ-weighted sum. Invalid pixels hold placeholder depth 1 and

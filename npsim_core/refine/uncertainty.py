@@ -1,4 +1,4 @@
-"""Dual-reference variance filter -> uncertain map U (SPEC §2.2, thesis eq. 3.3).
+"""Dual-reference variance filter -> uncertain map U (docs/method.md §3.2, thesis eq. 3.3).
 
 A region r(p, l) is the l x l square with p as its upper-left corner (clipped
 at the image's bottom/right border, so every pixel starts a region and images
@@ -64,7 +64,7 @@ class UncertaintyParams:
     tau : float
         Relative variance threshold (dimensionless).
     foreground : frozenset of int
-        labelIds of the foreground classes (default: Cityscapes' foreground set, SPEC §0).
+        labelIds of the foreground classes (default: Cityscapes' foreground set, docs/method.md §1.4).
     """
 
     l: int = 8

@@ -1,4 +1,4 @@
-"""Nighttime relighting (SPEC §5): light table and activation, materials, Mitsuba scene, rendering, camera.
+"""Nighttime relighting (docs/method.md §6): light table and activation, materials, Mitsuba scene, rendering, camera.
 
 Typical use::
 

@@ -1,4 +1,4 @@
-"""Camera post-processing of the linear night render (SPEC §5, thesis §3.6 "Image Post-processing").
+"""Camera post-processing of the linear night render (docs/method.md §6.6, thesis §3.6 "Image Post-processing").
 
 Order (a simple camera pipeline): firefly removal (isolated Monte Carlo outliers,
 light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
@@ -54,12 +54,10 @@ class CameraParams:
     iso : noise preset (None = no noise); ``beta1``/``beta2`` override it when both given.
     white_balance : per-channel gains (R, G, B) applied after the noise.
     motion_blur_px : horizontal blur length for vehicles carrying moving lights (0 = off).
-    firefly_ratio : remove path-tracing fireflies first: a pixel brighter than this multiple of
-        its 3x3 median luminance (plus ``firefly_floor``) takes the median colour; light-source
-        pixels are never touched (0 = off).
-    firefly_floor : absolute luminance margin of that test (linear radiance units).
-    denoise : filter the Monte Carlo noise when :func:`apply_camera` gets guides (:mod:`.denoise`).
     seed : noise seed.
+
+    The render's own Monte Carlo noise (fireflies, speckle) is removed before the camera by
+    :func:`.denoise.denoise_night`, so the camera's physical noise is added to a clean image.
     """
 
     exposure_ev: float = 0.0
@@ -68,9 +66,6 @@ class CameraParams:
     beta2: float | None = None
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     motion_blur_px: int = 0
-    firefly_ratio: float = 4.0
-    firefly_floor: float = 0.01
-    denoise: bool = True
     seed: int = 0
 
     def betas(self) -> tuple[float, float]:
@@ -142,36 +137,20 @@ def motion_blur(linear: np.ndarray, mask: np.ndarray, length: int) -> np.ndarray
 
 
 def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, labels: np.ndarray | None = None,
-                 light_classes: np.ndarray | None = None, guides=None) -> tuple[np.ndarray, np.ndarray]:
+                 light_classes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Linear render -> (8-bit sRGB image, noisy white-balanced linear image before clipping).
 
     Parameters
     ----------
     linear : (H, W, 3) float32 linear RGB (Mitsuba radiance units).
     params : exposure, noise, white balance, motion blur.
-    labels, light_classes : (H, W) maps: motion blur needs both; ``light_classes`` also keeps
-        light-source pixels out of the firefly removal (resized nearest when the render is smaller).
-    guides : :class:`~.denoise.DenoiseGuides`, optional
-        With them (and ``params.denoise``) the Monte Carlo noise is filtered after the firefly
-        removal and before the camera's own noise (:mod:`.denoise`).
+    labels, light_classes : (H, W) maps of the render's size: motion blur needs both.
     """
     lin = np.asarray(linear, dtype=np.float32)
     if lin.ndim != 3 or lin.shape[2] != 3:
         raise NpsimInputError(f"linear image must be HxWx3, got shape {lin.shape}")
     if not np.isfinite(lin).all():
         raise NpsimInputError("linear image contains NaN/inf; the render failed")
-    if params.firefly_ratio > 0 and lin.shape[0] >= 3 and lin.shape[1] >= 3:
-        protect = None
-        if light_classes is not None:
-            protect = np.asarray(light_classes) > 0
-            if protect.shape != lin.shape[:2]:  # preview renders are smaller than the annotation
-                protect = cv2.resize(protect.astype(np.uint8), (lin.shape[1], lin.shape[0]),
-                                     interpolation=cv2.INTER_NEAREST).astype(bool)
-        lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, protect)
-    if guides is not None and params.denoise:
-        from .denoise import denoise
-
-        lin = denoise(lin, guides)
     x = lin * np.float32(2.0 ** float(params.exposure_ev))
     if params.motion_blur_px > 1 and labels is not None and light_classes is not None \
             and np.asarray(light_classes).shape == lin.shape[:2]:

@@ -30,7 +30,7 @@ import numpy as np
 from ..camera import Intrinsics
 from ..errors import NpsimInputError
 
-__all__ = ["DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise"]
+__all__ = ["DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise", "denoise_night"]
 
 _B3 = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16], np.float32)
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -45,6 +45,10 @@ class DenoiseParams:
     sigma_normal : exponent on the normals' cosine.
     sigma_luminance : luminance difference, in units of the local noise, that weighs e^-1.
     min_albedo : albedo floor of the demodulation (dark surfaces would amplify noise).
+    firefly_ratio : before filtering, a pixel brighter than this multiple of its 3x3 median
+        luminance (plus ``firefly_floor``) takes the median colour; light-source pixels are
+        never touched (0 = off). Applied even when the filter is off.
+    firefly_floor : absolute luminance margin of that test (linear radiance units).
     """
 
     iterations: int = 5
@@ -52,10 +56,15 @@ class DenoiseParams:
     sigma_normal: float = 32.0
     sigma_luminance: float = 2.0
     min_albedo: float = 0.03
+    firefly_ratio: float = 4.0
+    firefly_floor: float = 0.01
 
     def __post_init__(self) -> None:
         if not 0 <= int(self.iterations) <= 8:
             raise NpsimInputError(f"denoise iterations must be in 0..8, got {self.iterations}")
+        if not (self.firefly_ratio >= 0 and self.firefly_floor >= 0):
+            raise NpsimInputError(f"denoise firefly_ratio and firefly_floor must be >= 0, "
+                                  f"got {self.firefly_ratio}, {self.firefly_floor}")
         for name in ("sigma_depth", "sigma_normal", "sigma_luminance", "min_albedo"):
             if not getattr(self, name) > 0:
                 raise NpsimInputError(f"denoise {name} must be > 0, got {getattr(self, name)}")
@@ -157,3 +166,28 @@ def denoise(linear: np.ndarray, guides: DenoiseGuides, params: DenoiseParams = D
         out = acc / np.maximum(wsum, 1e-12)[..., None]
         x = np.where((src_ok & (wsum > 0))[..., None], out, x).astype(np.float32)
     return np.where(src_ok[..., None], x * alb, lin).astype(np.float32)
+
+
+def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: DenoiseParams = DenoiseParams(),
+                  protect: np.ndarray | None = None) -> np.ndarray:
+    """A linear night render cleaned of its Monte Carlo noise: fireflies removed, then (with
+    ``guides``) the edge-avoiding filter of :func:`denoise`. ``protect`` (H, W) bool: light-source
+    pixels at any resolution (resized nearest to the render). Returns float32 (H, W, 3)."""
+    from .camera_post import remove_fireflies
+
+    lin = np.asarray(linear, np.float32)
+    if lin.ndim != 3 or lin.shape[2] != 3:
+        raise NpsimInputError(f"denoise: linear image must be HxWx3, got {lin.shape}")
+    if not np.isfinite(lin).all():
+        raise NpsimInputError("linear image contains NaN/inf; the render failed")
+    H, W = lin.shape[:2]
+    if params.firefly_ratio > 0 and H >= 3 and W >= 3:
+        prot = None
+        if protect is not None:
+            prot = np.asarray(protect, bool)
+            if prot.shape != (H, W):  # preview renders are smaller than the annotation
+                prot = cv2.resize(prot.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+        lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, prot)
+    if guides is not None:
+        lin = denoise(lin, guides, params)
+    return lin

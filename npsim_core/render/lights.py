@@ -1,4 +1,4 @@
-"""Night light table and probabilistic light activation (SPEC §5).
+"""Night light table and probabilistic light activation (docs/method.md §6.2, §6.3).
 
 Light table
 -----------
@@ -10,7 +10,7 @@ the lamp also *throws* light into the scene through a spot emitter, and an
 ``origin`` note saying where each number comes from. A user table with the same
 layout overrides any field (merged per class) -- :func:`load_light_table`.
 
-Units: Mitsuba radiance = ``unit_scale * s * (r/g, 1, b/g)`` (SPEC §5 with one
+Units: Mitsuba radiance = ``unit_scale * s * (r/g, 1, b/g)`` (docs/method.md §6.2, with one
 global scale), so SOLO's relative strengths hold.
 
 Activation

@@ -1,4 +1,4 @@
-"""Surface materials for the night render (SPEC §5).
+"""Surface materials for the night render (docs/method.md §6.1).
 
 When the scene carries albedo / roughness maps (the thesis's inverse-rendering
 network F_ir, or ground truth of the synthetic scene) they are used as given.

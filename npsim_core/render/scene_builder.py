@@ -1,4 +1,4 @@
-"""Mitsuba 3 scene from a :class:`~npsim_core.mesh.types.SceneMesh` (SPEC §5).
+"""Mitsuba 3 scene from a :class:`~npsim_core.mesh.types.SceneMesh` (docs/method.md §6.4).
 
 Design
 ------

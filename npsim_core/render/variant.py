@@ -1,4 +1,4 @@
-"""Choosing the Mitsuba variant safely (STACK.md).
+"""Choosing the Mitsuba variant safely (docs/stack.md §2).
 
 ``llvm_ad_rgb`` is several times faster than ``scalar_rgb`` but, with an LLVM
 that Dr.Jit cannot use (e.g. LLVM 15/16 here), the *first render aborts the

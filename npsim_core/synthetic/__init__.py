@@ -1,4 +1,4 @@
-"""The built-in synthetic street scene with exact ground truth (issue 2, item 5).
+"""The built-in synthetic street scene with exact ground truth: the input of every test and benchmark (docs/synthetic.md).
 
 ``make_street_scene(W, H, seed)`` lays out a seeded street (:mod:`.street`) as
 axis-aligned primitives, computes depth / normals / labels / light instances /

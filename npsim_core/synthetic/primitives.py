@@ -13,7 +13,7 @@ The camera sits at ``(0, camera_height, 0)`` looking along +z, pitched down by
     z_c = (0, -sin p,  cos p)       optical axis
 
 so a world direction ``d`` has camera coordinates ``R_cw d`` with the rows of
-``R_cw`` = (x_c, y_c, z_c), and the horizon row is ``cy - fy tan p`` (SPEC §0).
+``R_cw`` = (x_c, y_c, z_c), and the horizon row is ``cy - fy tan p`` (docs/method.md §1.2).
 
 Ground truth is computed by casting one ray per pixel centre ``K^-1 (u, v, 1)``
 (z = 1 in the camera frame, so the ray parameter *is* the z-depth) against every

@@ -1,4 +1,4 @@
-"""Light-source annotation editor (SPEC §6): canvas, tools, palette, instance list, window.
+"""Light-source annotation editor (docs/method.md §7, docs/annotation.md): canvas, tools, palette, instance list, window.
 
 ``AnnotationEditor`` is the embeddable widget (canvas + side panels; ``canvas``
 is the ``EditorCanvas`` with ``set_base_image``); ``EditorWindow`` wraps it with

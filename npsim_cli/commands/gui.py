@@ -21,8 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_gui(args: argparse.Namespace) -> int:
-    from ..errors import NpsimInputError
-    from .sample import parse_size
+    from npsim_core.errors import NpsimInputError
+
+    from ..options import parse_size
 
     size = parse_size(args.size)
     try:
@@ -37,7 +38,8 @@ def run_gui(args: argparse.Namespace) -> int:
 
 
 def run_start(args: argparse.Namespace) -> int:
-    from npsim_core.commands.run import run_sample_headless
+    from ..options import parse_size
+    from .run import run_sample_headless
 
     try:
         from npsim_gui.app import has_display
@@ -48,4 +50,4 @@ def run_start(args: argparse.Namespace) -> int:
         return run_gui(argparse.Namespace(path=None, size=args.size, screenshot=None, quit_after=None))
     print("npsim start: no display here, so running the whole pipeline headless on the sample scene "
           "(open the app with 'npsim gui' on a desktop)", file=sys.stderr)
-    return run_sample_headless(args.out, args.size)
+    return run_sample_headless(args.out, parse_size(args.size))

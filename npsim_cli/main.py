@@ -1,7 +1,9 @@
 """The ``npsim`` command line.
 
-Sub-commands live in ``npsim_core/commands/<name>.py``; each module defines
+Sub-commands live in ``npsim_cli/commands/<name>.py``; each module defines
 ``register(subparsers)`` which adds its parser and sets ``func(args) -> int``.
+Errors in the input (:class:`~npsim_core.errors.NpsimInputError`) and in the file
+system (a folder that cannot be written, ...) print one line and exit 2.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import importlib
 import pkgutil
 import sys
 
-from .errors import NpsimInputError
+from npsim_core.errors import NpsimCancelled, NpsimInputError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,7 +39,12 @@ def main(argv: list[str] | None = None) -> int:
     except NpsimInputError as exc:
         print(f"npsim {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except OSError as exc:  # unwritable output folder, a file where a folder should be, disk full
+        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+        print(f"npsim {args.command}: error: {exc.strerror or exc}{where}; choose another output path or fix "
+              "its permissions", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, NpsimCancelled):
         print(f"npsim {args.command}: interrupted", file=sys.stderr)
         return 130
 

@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..annotation import discover_items
+    from npsim_core.annotation import discover_items
 
     items = discover_items(args.path)  # raises NpsimInputError before any window opens
     if args.list:
@@ -29,9 +29,9 @@ def run(args: argparse.Namespace) -> int:
             flag = "done" if it.is_done() else ("started" if it.has_annotation() else "-")
             print(f"{it.name}\t{flag}\t{it.image_path}")
         return 0
-    # The GUI is loaded only when the command runs, so npsim_core itself never imports Qt.
+    # The GUI is loaded only when the command runs: the other commands never import Qt.
     if not importlib.import_module("npsim_gui.app").has_display():
-        from ..errors import NpsimInputError
+        from npsim_core.errors import NpsimInputError
 
         raise NpsimInputError("no display to open the editor on (DISPLAY is not set): run it on a desktop or "
                               "under 'xvfb-run -a npsim annotate …'; 'npsim annotate PATH --list' works without one")

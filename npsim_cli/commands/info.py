@@ -8,13 +8,13 @@ import numpy as np
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("info", help="describe a scene folder")
-    p.add_argument("path", help="scene folder (as written by 'npsim sample')")
+    p = sub.add_parser("info", help="describe a frame (scene folder, project, dataset image)")
+    p.add_argument("path", help="scene folder, project folder, or a dataset image with its labels")
     p.set_defaults(func=run)
 
 
 def describe_scene(scene) -> str:
-    from ..labels import cityscapes, light_class
+    from npsim_core.labels import cityscapes, light_class
 
     table = cityscapes()
     lines = [f"scene {scene.name}: {scene.width}x{scene.height}",
@@ -50,7 +50,7 @@ def describe_scene(scene) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..scene import load_scene
+    from npsim_core.chain import load_frame
 
-    print(describe_scene(load_scene(args.path)))
+    print(describe_scene(load_frame(args.path)))
     return 0

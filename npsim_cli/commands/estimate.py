@@ -13,6 +13,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from npsim_core.chain import load_frame
+from npsim_core.errors import NpsimInputError
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("estimate", help="estimate depth and normals (pop-up prior, files, or a local network)",
@@ -33,33 +36,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load(args: argparse.Namespace):
-    from ..datasets import iter_dataset
-    from ..errors import NpsimInputError
-    from ..scene import load_scene
-
     path = Path(args.scene)
-    if path.is_dir():
-        if args.fov is not None:
-            raise NpsimInputError("--fov applies to dataset images; a scene folder has intrinsics.json")
-        return load_scene(path), path
-    if not path.exists():
-        raise NpsimInputError(f"{path}: not found; give a scene folder or a labelled image")
-    # An image inside a dataset: list its folder with the dataset readers and pick it.
-    for src in iter_dataset(path.parent, trainids=args.trainids, hfov_deg=args.fov):
-        if src.image_path.resolve() == path.resolve():
-            return src.load(), None
-    raise NpsimInputError(f"{path}: no label file found for this image (expected e.g. "
-                          f"{path.stem}_labelIds.png next to it, or the Cityscapes/ACDC gtFine/gt file)")
+    if path.is_dir() and args.fov is not None:
+        raise NpsimInputError("--fov applies to dataset images; a scene folder has intrinsics.json")
+    return load_frame(path, hfov_deg=args.fov, trainids=args.trainids), (path if path.is_dir() else None)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import NpsimInputError
-    from ..geometry import estimate_geometry
-    from ..geometry.files import FilesParams
-    from ..geometry.network import NetworkParams
-    from ..geometry.popup import PopupParams
-    from ..metrics import depth_metrics, normal_metrics
-    from ..scene import save_scene
+    from npsim_core.geometry import estimate_geometry
+    from npsim_core.geometry.files import FilesParams
+    from npsim_core.geometry.network import NetworkParams
+    from npsim_core.geometry.popup import PopupParams
+    from npsim_core.metrics import depth_metrics, normal_metrics
+    from npsim_core.scene import save_scene
 
     scene, folder = _load(args)
     out = Path(args.output) if args.output else folder

@@ -3,25 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from npsim_core.errors import NpsimInputError
 
-from ..errors import NpsimInputError
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """``"WxH"`` -> (W, H); raises NpsimInputError with the expected form."""
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text))
-    if not m:
-        raise NpsimInputError(f"--size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. --size 512x256")
-    w, h = int(m.group(1)), int(m.group(2))
-    if not (2 <= w <= 16384 and 2 <= h <= 16384):
-        raise NpsimInputError(f"--size {text!r}: width and height must be between 2 and 16384 pixels")
-    return w, h
+from ..options import parse_size
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,34 +28,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def overview_image(scene) -> np.ndarray:
-    """2x3 panel: RGB | GT depth | GT normals / labels | lights over RGB | predicted depth (uint8 RGB)."""
-    from ..io import depth_to_rgb, normals_to_rgb
-    from ..labels import cityscapes, light_class
-
-    rgb = scene.image
-    vmax = float(np.nanpercentile(scene.depth_gt, 99)) if np.isfinite(scene.depth_gt).any() else None
-    lights = rgb.copy() // 3
-    if scene.lights is not None:
-        inst = scene.lights.instance_map
-        cls = inst // 1000
-        lut = np.zeros((256, 3), dtype=np.uint8)
-        for c in range(1, 13):
-            lut[c] = light_class(c).color
-        on = inst > 0
-        lights[on] = lut[cls[on]]
-    panels = [rgb, depth_to_rgb(scene.depth_gt, vmax), normals_to_rgb(scene.normals_gt),
-              cityscapes().colorize(scene.labels), lights,
-              depth_to_rgb(scene.depth, vmax) if scene.depth is not None else np.zeros_like(rgb)]
-    top = np.concatenate(panels[:3], axis=1)
-    bottom = np.concatenate(panels[3:], axis=1)
-    return np.concatenate([top, bottom], axis=0)
-
-
 def run(args: argparse.Namespace) -> int:
-    from ..io import write_image
-    from ..scene import save_scene
-    from ..synthetic import auto_spp, make_street_scene
+    from npsim_core.io import write_image
+    from npsim_core.scene import save_scene
+    from npsim_core.synthetic import auto_spp, make_street_scene
+    from npsim_core.views import scene_overview
 
     w, h = parse_size(args.size)
     if args.spp is not None and args.spp < 1:
@@ -86,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     save_scene(scene, out)
     if not args.no_preview:
         preview = Path(args.preview) if args.preview else out / "overview.png"
-        write_image(preview, overview_image(scene))
+        write_image(preview, scene_overview(scene))
         print(f"npsim sample: overview -> {preview}", file=sys.stderr)
     n_lights = len(scene.lights.instance_ids()) if scene.lights is not None else 0
     print(f"npsim sample: wrote {out} ({n_lights} light instances) in {time.perf_counter() - t0:.1f} s total",

@@ -1,0 +1,67 @@
+"""Options shared by the commands that run the chain, and the progress log."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+
+from npsim_core.chain import ChainParams
+from npsim_core.errors import NpsimInputError
+
+
+def log(cmd: str, msg: str) -> None:
+    print(f"[npsim {cmd}] {msg}", file=sys.stderr, flush=True)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"WxH"`` -> (W, H); raises NpsimInputError with the expected form."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text))
+    if not m:
+        raise NpsimInputError(f"--size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. --size 512x256")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (2 <= w <= 16384 and 2 <= h <= 16384):
+        raise NpsimInputError(f"--size {text!r}: width and height must be between 2 and 16384 pixels")
+    return w, h
+
+
+def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> None:
+    """--params, --preset, --set, --seed, --spp, --fov (and --nights when ``nights`` is not None)."""
+    p.add_argument("--params", help="JSON file of parameters (a project.json 'params', an export manifest, "
+                                    "or the sections themselves)")
+    p.add_argument("--preset", choices=["appendix_b", "section_3_4_3"], help="λ preset (default appendix_b)")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                   help="override one parameter (value as JSON), e.g. --set refine.optimizer=adam_faithful "
+                        "--set filter.sigma_s=8 --set refine.lambdas=[1,5,1]")
+    if nights is not None:
+        p.add_argument("--nights", type=int, default=nights, help=f"number of night images (default {nights})")
+    p.add_argument("--seed", type=int, default=None, help="seed of the first night (night k uses seed+k)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel of the nights (default 64)")
+    p.add_argument("--fov", type=float, default=None, help="horizontal field of view in degrees (overrides intrinsics)")
+
+
+def params_from_args(args: argparse.Namespace) -> ChainParams:
+    from npsim_core.io import read_json
+
+    params = ChainParams()
+    if args.params:
+        doc = read_json(args.params)
+        if isinstance(doc, dict) and "params" in doc:
+            doc = doc["params"]
+        params = ChainParams.from_json(doc, args.params)
+    if args.preset:
+        params = params.with_preset(args.preset)
+    params = params.with_sets(args.set)
+    if args.seed is not None:
+        params = params.with_value("night", "seed", int(args.seed))
+    if args.spp is not None:
+        if args.spp < 1:
+            raise NpsimInputError(f"--spp must be >= 1, got {args.spp}")
+        params = params.with_value("night", "final_spp", int(args.spp))
+    if args.fov is not None:
+        if not 0 < args.fov < 180:
+            raise NpsimInputError(f"--fov must be a horizontal field of view in (0, 180) degrees, got {args.fov}")
+        params = params.with_value("camera", "hfov_deg", float(args.fov))
+    if getattr(args, "nights", 0) is not None and getattr(args, "nights", 0) < 0:
+        raise NpsimInputError(f"--nights must be >= 0, got {args.nights}")
+    return params

@@ -1,0 +1,262 @@
+"""One frame's chain: the stages of :mod:`.stages` on the :class:`~.engine.Engine`, plus the
+per-night steps. The app, every command, the batch and the sweep go through it.
+
+A change of one parameter reruns its stage and what reads it: λ reruns refine → mesh,
+σs reruns filter and everything after it, an annotation edit reruns the mesh (light ids
+per vertex), materials and the night scene, and a new seed only re-activates lights in
+the already built night scene.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Iterator
+
+import numpy as np
+
+from ..camera import Intrinsics, valid_depth_mask
+from ..errors import NpsimInputError
+from ..mesh.types import MeshPart, SceneMesh
+from ..scene import Scene
+from .engine import Engine, content_key
+from .params import ChainParams
+from .stages import STAGES, GeometryResult, MeshResult, mesh_needs, light_table
+
+__all__ = ["Chain", "ChainResults", "NightFrame", "DEPTH_STAGES"]
+
+#: Stages a :meth:`Chain.compute` may stop at.
+DEPTH_STAGES = ("geometry", "filter", "uncertain", "refine", "mesh")
+
+ProgressFn = Callable[[dict], None] | None
+
+
+@dataclass
+class ChainResults:
+    """What :meth:`Chain.compute` produced (None for stages not run).
+
+    timings : seconds each result took to compute (also when it came from the cache);
+    recomputed : the stages computed by this call.
+    """
+
+    intrinsics: Intrinsics
+    depth_in: np.ndarray | None = None
+    normals_in: np.ndarray | None = None
+    depth_source: str = ""
+    filtered: np.ndarray | None = None
+    uncertain: np.ndarray | None = None
+    refine: Any = None
+    mesh_result: MeshResult | None = None
+    mesh_key: str = ""
+    scene: Scene | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    recomputed: list[str] = field(default_factory=list)
+
+    @property
+    def mesh(self) -> SceneMesh | None:
+        return self.mesh_result.mesh if self.mesh_result is not None else None
+
+    @property
+    def removed(self) -> MeshPart | None:
+        return self.mesh_result.removed if self.mesh_result is not None else None
+
+    @property
+    def layers(self):
+        return self.mesh_result.layers if self.mesh_result is not None else None
+
+    @property
+    def depth(self) -> np.ndarray | None:
+        """The best depth available: refined, else filtered, else the input."""
+        if self.refine is not None:
+            return self.refine.depth
+        return self.filtered if self.filtered is not None else self.depth_in
+
+    def refine_history(self) -> dict[str, list[float]]:
+        if self.refine is None:
+            return {}
+        h = self.refine.history
+        return {k: list(np.asarray(h[k], dtype=float)) for k in ("total", "normal", "continuity", "depth") if k in h}
+
+    def depth_error(self) -> np.ndarray | None:
+        """|d − d_gt| / d_gt per pixel (NaN where either is invalid), when ground truth exists."""
+        if self.scene is None or self.scene.depth_gt is None or self.depth is None:
+            return None
+        d, g = self.depth.astype(np.float64), self.scene.depth_gt.astype(np.float64)
+        ok = valid_depth_mask(d) & valid_depth_mask(g)
+        out = np.full(d.shape, np.nan, np.float32)
+        out[ok] = (np.abs(d[ok] - g[ok]) / g[ok]).astype(np.float32)
+        return out
+
+
+@dataclass
+class NightFrame:
+    """A night: 8-bit sRGB ``image``, the ``linear`` render, ``spp`` so far, ``elapsed`` seconds,
+    the Mitsuba ``variant``, the light states ``active`` and per-step ``timings`` (s)."""
+
+    image: np.ndarray
+    linear: np.ndarray
+    spp: int
+    elapsed: float
+    variant: str
+    active: Any = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+class Chain:
+    """The staged, cached chain of one frame (module doc).
+
+    ``compute`` serialises callers with a lock; a cancelled run leaves its finished
+    stages cached.
+    """
+
+    def __init__(self, frame: Scene, *, cache_size: int = 4):
+        self.scene = frame
+        self.annotation = frame.lights
+        self._annotation_version = 0
+        self._lock = threading.RLock()
+        self.engine = Engine(STAGES, cache_size=cache_size)
+        self.engine.set_source("frame", frame, key=content_key(frame.with_(lights=None)))
+        self.engine.set_source("annotation", self.annotation, key="ann-0")
+        self._display: dict[str, Any] = {}
+
+    # ------------------------------------------------------------------ annotation edits
+    def set_annotation(self, ann) -> None:
+        """Use an edited light annotation (invalidates the mesh and the night scene)."""
+        with self._lock:
+            self.annotation = ann
+            self._annotation_version += 1
+            self.engine.set_source("annotation", ann, key=f"ann-{self._annotation_version}")
+
+    # ------------------------------------------------------------------ depth and mesh
+    def compute(self, params: ChainParams, until: str = "mesh", *, cancel: threading.Event | None = None,
+                progress: ProgressFn = None) -> ChainResults:
+        """Run (or reuse) every stage ``until`` needs; returns the results and what was recomputed.
+
+        ``progress`` receives dicts: ``{"stage": name}`` when a stage starts, ``{"stage", "done",
+        "seconds"}`` when it ends and, during refinement, ``{"stage": "refine", "step", "of",
+        "history"}`` (the loss curves so far).
+        """
+        if until not in DEPTH_STAGES:
+            raise NpsimInputError(f"unknown stage {until!r}; stages are {DEPTH_STAGES}")
+        targets = set(DEPTH_STAGES[:DEPTH_STAGES.index(until) + 1])
+        if until == "mesh":  # only what the mesh reads (e.g. no refinement for a mesh of the input depth)
+            needs = set(mesh_needs(params))
+            targets = {"geometry", "mesh"} | (needs & set(DEPTH_STAGES)) | ({"filter"} if "uncertain" in needs else set())
+        targets = tuple(st for st in DEPTH_STAGES if st in targets)
+        with self._lock:
+            run = self.engine.run(targets, params, cancel=cancel, progress=_progress_adapter(progress))
+        out = run.results
+        geo: GeometryResult = out["geometry"]
+        return ChainResults(intrinsics=geo.scene.intrinsics, depth_in=geo.scene.depth, normals_in=geo.scene.normals,
+                            depth_source=geo.source, filtered=out.get("filter"), uncertain=out.get("uncertain"),
+                            refine=out.get("refine"), mesh_result=out.get("mesh"),
+                            mesh_key=run.keys.get("mesh", "") if "mesh" in out else "", scene=self.scene,
+                            timings=dict(run.timings), recomputed=list(run.recomputed))
+
+    def display_mesh(self, results: ChainResults, max_faces: int = 150_000) -> SceneMesh:
+        """A lighter version of ``results.mesh`` for interactive 3D display (quadtree reduction to
+        about ``max_faces``, cached per mesh); the full mesh when it is small enough."""
+        mesh = results.mesh
+        if mesh is None or mesh.n_faces <= max_faces:
+            return mesh
+        key = (results.mesh_key, int(max_faces))
+        if self._display.get("key") != key:
+            if results.layers is not None:
+                from ..mesh.reduce import ReduceParams, reduce_mesh
+
+                shown = reduce_mesh(results.layers, results.intrinsics, ReduceParams(budget=int(max_faces))).mesh
+            else:
+                from ..mesh.grid import grid_mesh
+
+                stride = int(np.ceil(np.sqrt(mesh.n_faces / max_faces)))
+                ann = self.annotation
+                shown = grid_mesh(results.mesh_result.depth, results.intrinsics, self.scene.labels,
+                                  ann.instance_map if ann is not None else None, stride=stride)
+            self._display = {"key": key, "mesh": shown}
+        return self._display["mesh"]
+
+    # ------------------------------------------------------------------ night
+    def night_inputs(self, params: ChainParams, *, cancel=None, progress: ProgressFn = None):
+        """(built Mitsuba scene, denoise guides or None, materials result), built once per mesh."""
+        targets = ("night_scene", "materials") + (("guides",) if params.night.denoise else ())
+        with self._lock:
+            run = self.engine.run(targets, params, cancel=cancel, progress=_progress_adapter(progress))
+        built = run.results["night_scene"]
+        built.set_ego_headlights(params.night.ego_headlights)
+        return built, run.results.get("guides"), run.results["materials"], run
+
+    def activate(self, params: ChainParams, light_override: dict[int, bool] | None = None):
+        """One night's light states for ``params.night.seed`` (``light_override``: forced on/off)."""
+        from ..render.lights import activate_lights
+
+        return activate_lights(self.annotation, light_table(params.night), params.night.seed,
+                               group_all_together=params.night.group_all_together, image=self.scene.image,
+                               force=light_override)
+
+    def finish(self, linear: np.ndarray, params: ChainParams, guides, materials, *,
+               labels: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, float]]:
+        """Linear render -> denoised (docs/method.md §6.5) -> camera -> 8-bit sRGB; returns it and the
+        seconds of each step."""
+        from ..render.camera_post import CameraParams, apply_camera
+        from ..render.denoise import denoise_night
+
+        n = params.night
+        t0 = time.perf_counter()
+        clean = denoise_night(linear, guides if n.denoise else None, params.denoise, materials.light_classes > 0)
+        t1 = time.perf_counter()
+        cam = CameraParams(exposure_ev=n.exposure, iso=(n.iso or None) if n.noise else None, seed=n.seed,
+                           motion_blur_px=int(n.motion_blur_px))
+        same = labels is not None and labels.shape == clean.shape[:2]
+        srgb, _ = apply_camera(clean, cam, labels=labels if same else None,
+                               light_classes=materials.light_classes if same else None)
+        return srgb, {"denoise": t1 - t0, "camera": time.perf_counter() - t1}
+
+    def night_preview(self, results: ChainResults | None, params: ChainParams, *,
+                      light_override: dict[int, bool] | None = None,
+                      cancel: threading.Event | None = None) -> Iterator[NightFrame]:
+        """Progressive night preview: yields post-processed frames as passes accumulate."""
+        from ..render.render import PreviewParams, render_preview
+
+        t0 = time.perf_counter()
+        built, guides, mats, _ = self.night_inputs(params, cancel=cancel)
+        active = self.activate(params, light_override)
+        built.apply_lights(active)
+        n = params.night
+        first = min(4, int(n.spp))  # a quick first frame, then the rest in one pass
+        pp = PreviewParams(scale=n.preview_scale, schedule=(first,) + ((int(n.spp) - first,) if n.spp > first else ()),
+                           seed=n.seed)
+        for frame in render_preview(built, pp, cancel=cancel):
+            srgb, tm = self.finish(frame.image, params, guides, mats)
+            yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm)
+
+    def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
+                    cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
+        """A full-resolution night (``params.night.final_spp``) with denoising and camera."""
+        from ..render.render import render_final
+
+        t0 = time.perf_counter()
+        if seed is not None:
+            params = replace(params, night=replace(params.night, seed=int(seed)))
+        n = params.night
+        built, guides, mats, run = self.night_inputs(params, cancel=cancel)
+        t1 = time.perf_counter()
+        active = self.activate(params)
+        built.apply_lights(active)
+        t2 = time.perf_counter()
+        linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
+                              passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
+        t3 = time.perf_counter()
+        srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels)
+        timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
+        return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings)
+
+
+def _progress_adapter(progress: ProgressFn):
+    if progress is None:
+        return None
+
+    def on_progress(stage: str, fraction: float, info: Any) -> None:
+        progress(info if isinstance(info, dict) else {"stage": stage, "fraction": fraction, "text": info})
+
+    return on_progress

@@ -1,0 +1,222 @@
+"""Every parameter of the chain: one frozen section per stage, presets and JSON.
+
+The sections are the stage packages' own parameter objects (``FilterParams``,
+``UncertaintyParams``, ``RefineParams``, ``PostprocessParams``, ``DenoiseParams``)
+plus the chain-level ones defined here. Names shown by the app's sliders (λ1..λ3,
+per-class probabilities) are the GUI's business (``npsim_gui.param_values``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from ..errors import NpsimInputError
+from ..mesh.postprocess import PostprocessParams
+from ..refine.bilateral import FilterParams
+from ..refine.optimize import PRESETS, RefineParams
+from ..refine.uncertainty import UncertaintyParams
+from ..render.denoise import DenoiseParams
+
+__all__ = ["CameraSetup", "MeshParams", "NightParams", "ChainParams", "MESH_DEPTHS", "parse_value"]
+
+#: Which depth the mesh is built from: the refined depth (the method), or one of the
+#: thesis's baselines -- the cross-bilateral-filtered depth or the input depth.
+MESH_DEPTHS = ("refined", "filtered", "input")
+
+
+@dataclass(frozen=True)
+class CameraSetup:
+    """hfov_deg: horizontal field of view in degrees; 0 keeps the frame's intrinsics."""
+
+    hfov_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class MeshParams:
+    """Meshing.
+
+    stride : vertex spacing in pixels (> 1 meshes a subsampled grid, for previews).
+    far_limit : metres; no vertex deeper.
+    postprocess : the post-processing kernel (deletion, completion, step walls) on/off;
+        off gives the plain Worldsheet grid.
+    face_budget : 0 keeps every face; else the quadtree-reduced mesh of about that many faces.
+    depth : ``refined`` (default), ``filtered`` or ``input`` -- the depth meshed (see MESH_DEPTHS).
+    """
+
+    stride: int = 1
+    far_limit: float = 300.0
+    postprocess: bool = True
+    face_budget: int = 0
+    depth: str = "refined"
+
+    def __post_init__(self) -> None:
+        if int(self.stride) < 1:
+            raise NpsimInputError(f"mesh stride must be >= 1 pixel, got {self.stride}")
+        if int(self.face_budget) < 0:
+            raise NpsimInputError(f"face budget must be >= 0 (0 = no reduction), got {self.face_budget}")
+        if not self.far_limit > 0:
+            raise NpsimInputError(f"far limit must be > 0 m, got {self.far_limit}")
+        if self.depth not in MESH_DEPTHS:
+            raise NpsimInputError(f"mesh.depth must be one of {MESH_DEPTHS}, got {self.depth!r}")
+
+
+@dataclass(frozen=True)
+class NightParams:
+    """Night rendering and camera.
+
+    seed : light activation and noise seed (night k of an export uses seed + k).
+    spp : preview samples per pixel (a 4-spp first frame, then the rest).
+    preview_scale : preview resolution as a fraction of the image.
+    final_spp : samples per pixel of exported nights.
+    final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct
+        light only (about half the time), 4 = two bounces.
+    iso : camera noise preset (0 = no noise); exposure : stops.
+    ego_headlights, group_all_together, noise : switches.
+    probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
+    denoise : filter the Monte Carlo noise before the camera noise (strengths: the ``denoise`` section).
+    motion_blur_px : horizontal blur (px) of moving vehicles.
+    light_table : a user light table JSON merged over the default ('' = the default).
+    variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
+    """
+
+    seed: int = 0
+    spp: int = 16
+    preview_scale: float = 0.5
+    final_spp: int = 64
+    final_max_depth: int = 3
+    iso: int = 1600
+    exposure: float = 0.0
+    ego_headlights: bool = True
+    group_all_together: bool = False
+    noise: bool = True
+    probabilities: tuple = ()
+    denoise: bool = True
+    motion_blur_px: int = 0
+    light_table: str = ""
+    variant: str = ""
+
+    def __post_init__(self) -> None:
+        if int(self.final_max_depth) not in (2, 3, 4):
+            raise NpsimInputError(f"night.final_max_depth must be 2 (direct light), 3 (one bounce) or 4, "
+                                  f"got {self.final_max_depth}")
+        if int(self.spp) < 1 or int(self.final_spp) < 1:
+            raise NpsimInputError(f"night.spp and night.final_spp must be >= 1, got {self.spp}, {self.final_spp}")
+        if not 0 < float(self.preview_scale) <= 1:
+            raise NpsimInputError(f"night.preview_scale must be in (0, 1], got {self.preview_scale}")
+        if int(self.iso) < 0:
+            raise NpsimInputError(f"night.iso must be >= 0 (0 = no noise), got {self.iso}")
+        if int(self.motion_blur_px) < 0:
+            raise NpsimInputError(f"night.motion_blur_px must be >= 0, got {self.motion_blur_px}")
+        if self.variant not in ("", "scalar_rgb", "llvm_ad_rgb"):
+            raise NpsimInputError(f"night.variant must be '', 'scalar_rgb' or 'llvm_ad_rgb', got {self.variant!r}")
+
+    def probability(self, class_id: int) -> float | None:
+        return dict(self.probabilities).get(int(class_id))
+
+
+@dataclass(frozen=True)
+class ChainParams:
+    """Every parameter of the chain, one frozen section per stage."""
+
+    camera: CameraSetup = CameraSetup()
+    filter: FilterParams = FilterParams()
+    uncertainty: UncertaintyParams = UncertaintyParams()
+    refine: RefineParams = RefineParams()
+    mesh: MeshParams = MeshParams()
+    postprocess: PostprocessParams = PostprocessParams()
+    night: NightParams = NightParams()
+    denoise: DenoiseParams = DenoiseParams()
+
+    # ------------------------------------------------------------------ edits
+    def with_value(self, section: str, name: str, value: Any) -> "ChainParams":
+        """A copy with ``section.name`` set to ``value`` (errors name the field and the fix)."""
+        if section not in {f.name for f in fields(self)}:
+            raise NpsimInputError(f"unknown parameter section {section!r}; sections are "
+                                  f"{', '.join(f.name for f in fields(self))}")
+        sec = getattr(self, section)
+        names = {f.name for f in fields(sec)}
+        if name not in names:
+            raise NpsimInputError(f"unknown parameter {section}.{name}; {section} has {', '.join(sorted(names))}")
+        cur = getattr(sec, name)
+        if isinstance(cur, tuple) and isinstance(value, list):
+            value = tuple(tuple(x) if isinstance(x, list) else x for x in value)
+        elif isinstance(cur, frozenset) and isinstance(value, (list, tuple, set)):
+            value = frozenset(value)
+        try:
+            return replace(self, **{section: replace(sec, **{name: value})})
+        except (TypeError, ValueError) as exc:
+            raise NpsimInputError(f"bad value {value!r} for {section}.{name}: {exc}") from None
+
+    def with_lambdas(self, l1: float, l2: float, l3: float) -> "ChainParams":
+        """The refinement's loss weights λ1 (normal), λ2 (continuity), λ3 (depth)."""
+        return replace(self, refine=replace(self.refine, lambdas=(float(l1), float(l2), float(l3))))
+
+    def with_preset(self, name: str) -> "ChainParams":
+        """A named λ preset (``appendix_b`` or ``section_3_4_3``, docs/method.md)."""
+        if name not in PRESETS:
+            raise NpsimInputError(f"unknown λ preset {name!r}; choose one of {sorted(PRESETS)}")
+        return replace(self, refine=replace(self.refine, lambdas=PRESETS[name]))
+
+    def with_sets(self, items: list[str], source: str = "--set") -> "ChainParams":
+        """Apply ``SECTION.FIELD=VALUE`` strings (values: JSON, or a bare string)."""
+        out = self
+        for item in items:
+            if "=" not in item or "." not in item.split("=", 1)[0]:
+                raise NpsimInputError(f"{source} {item!r}: use SECTION.FIELD=VALUE, e.g. refine.n_steps=200")
+            key, raw = item.split("=", 1)
+            section, name = key.strip().split(".", 1)
+            out = out.with_value(section, name, parse_value(raw))
+        return out
+
+    # ------------------------------------------------------------------ JSON
+    def to_json(self) -> dict:
+        d = {}
+        for f in fields(self):
+            sec = asdict(getattr(self, f.name))
+            for k, v in list(sec.items()):
+                if isinstance(v, (set, frozenset)):
+                    sec[k] = sorted(v)
+            d[f.name] = sec
+        return d
+
+    @classmethod
+    def from_json(cls, doc: Any, source: str = "parameters") -> "ChainParams":
+        """Parameters from a JSON object; unknown sections or fields are errors naming ``source``."""
+        if not isinstance(doc, dict):
+            raise NpsimInputError(f"{source}: parameters must be a JSON object of sections "
+                                  f"({', '.join(f.name for f in fields(cls))}), got {type(doc).__name__}")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(doc) - known)
+        if unknown:
+            raise NpsimInputError(f"{source}: unknown parameter sections {unknown}; known: {sorted(known)}")
+        out = cls()
+        for section, values in doc.items():
+            if not isinstance(values, dict):
+                raise NpsimInputError(f"{source}: section '{section}' must be a JSON object, "
+                                      f"got {type(values).__name__}")
+            for name, v in values.items():
+                try:
+                    out = out.with_value(section, name, v)
+                except NpsimInputError as exc:
+                    raise NpsimInputError(f"{source}: {exc}") from None
+        return out
+
+
+def parse_value(raw: str) -> Any:
+    """A ``--set`` value: JSON (numbers, true/false, null, lists, quoted strings), else a float
+    (``inf``), else the raw string. ``none`` is accepted for null."""
+    text = raw.strip()
+    if text.lower() == "none":
+        return None
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    try:
+        return json.loads(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)  # inf, nan, 1e-3
+    except ValueError:
+        return text

@@ -1,0 +1,110 @@
+"""A frame's inputs: one loader for every source the chain reads.
+
+* a scene folder (``scene.json`` + arrays, as written by ``npsim sample`` / ``npsim estimate``);
+* a project folder (``project.json``; its parameters come with it, :mod:`npsim_core.project`);
+* one image inside a dataset (Cityscapes, ACDC, or a plain folder with ``x_labelIds.png``
+  beside ``x.png``): its labels, camera and disparity are found by the dataset readers;
+* a dataset root or a folder of scene folders: :func:`iter_frames` lists its frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from ..errors import NpsimInputError
+from ..scene import Scene
+
+__all__ = ["FrameSource", "load_frame", "iter_frames", "scaled_frame"]
+
+
+@dataclass(frozen=True)
+class FrameSource:
+    """One frame of a dataset root: its name and how to load it."""
+
+    name: str
+    path: Path
+    load: Callable[[], Scene]
+
+
+def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: bool = False,
+               scale: float = 1.0, with_ground_truth: bool = True) -> Scene:
+    """The frame at ``path``: a scene folder, a project folder, or one dataset image.
+
+    ``scale`` resamples it (:func:`scaled_frame`); ``hfov_deg`` sets the intrinsics of a
+    dataset image; ``with_ground_truth=False`` drops a scene folder's ground truth.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise NpsimInputError(f"{path}: not found; give a scene folder (see 'npsim sample'), a project folder "
+                              "or a labelled image")
+    if path.is_dir():
+        if (path / "project.json").exists():
+            from ..project import load_project
+
+            scene = load_project(path)[0]
+        else:
+            from ..scene import load_scene
+
+            scene = load_scene(path, with_ground_truth=with_ground_truth)
+    else:
+        scene = _dataset_image(path, hfov_deg, trainids)
+    return scaled_frame(scene, scale)
+
+
+def _dataset_image(path: Path, hfov_deg: float | None, trainids: bool) -> Scene:
+    from ..datasets import iter_dataset
+
+    for src in iter_dataset(path.parent, trainids=trainids, hfov_deg=hfov_deg):
+        if Path(src.image_path).resolve() == path.resolve():
+            return src.load()
+    raise NpsimInputError(f"{path}: no labels found for this image; put {path.stem}_labelIds.png beside it or use "
+                          "a Cityscapes/ACDC folder layout")
+
+
+def iter_frames(root: str | Path, *, trainids: bool = False, hfov_deg: float | None = None) -> list[FrameSource]:
+    """Every frame under ``root``: its scene folders, else its dataset images (Cityscapes, ACDC,
+    plain folder). Raises a clear error when there are none."""
+    root = Path(root)
+    if not root.is_dir():
+        raise NpsimInputError(f"{root}: dataset folder not found" if not root.exists() else
+                              f"{root}: is a file; give the dataset folder")
+    scene_dirs = sorted(p.parent for p in root.glob("*/scene.json"))
+    if scene_dirs:
+        from ..scene import load_scene
+
+        return [FrameSource(d.name, d, lambda d=d: load_scene(d)) for d in scene_dirs]
+    from ..datasets import open_dataset
+
+    return [FrameSource(s.name, Path(s.image_path), s.load)
+            for s in open_dataset(root, trainids=trainids, hfov_deg=hfov_deg)]
+
+
+def scaled_frame(scene: Scene, scale: float) -> Scene:
+    """The frame resampled to ``scale`` (image INTER_AREA; labels, depth, normals, lights nearest)."""
+    if scale == 1.0:
+        return scene
+    if not (0.05 <= scale <= 1.0):
+        raise NpsimInputError(f"scale must be in [0.05, 1], got {scale}")
+    W, H = max(2, round(scene.width * scale)), max(2, round(scene.height * scale))
+
+    def near(a):
+        return None if a is None else cv2.resize(a, (W, H), interpolation=cv2.INTER_NEAREST)
+
+    lights = None
+    if scene.lights is not None:
+        from ..annotation import LightAnnotation
+
+        lights = LightAnnotation(near(scene.lights.instance_map.astype(np.int32)), dict(scene.lights.groups))
+        present = set(lights.instance_ids())
+        lights.groups = {gid: type(g)(g.id, tuple(m for m in g.members if m in present))
+                         for gid, g in lights.groups.items() if any(m in present for m in g.members)}
+    return scene.with_(image=cv2.resize(scene.image, (W, H), interpolation=cv2.INTER_AREA),
+                       labels=near(scene.labels), intrinsics=scene.intrinsics.resized(W, H),
+                       depth=near(scene.depth), normals=near(scene.normals), depth_gt=near(scene.depth_gt),
+                       normals_gt=near(scene.normals_gt), lights=lights, albedo=near(scene.albedo),
+                       roughness=near(scene.roughness))

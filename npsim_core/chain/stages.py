@@ -1,0 +1,247 @@
+"""The chain's stages: each a pure function ``run(inputs, params, ctx) -> result``.
+
+Data flow (names are the engine's; ``frame`` and ``annotation`` are sources)::
+
+    frame ─► geometry ─► filter ─► uncertain ─► refine ─► mesh ─► night_scene
+                │                       │                  │  └─► guides
+    annotation ─┴──────────► materials ─┴──────────────────┘
+
+``geometry`` gives the camera and the input depth and normals (the frame's own, or the
+semantic pop-up prior when it has none); ``filter``, ``uncertain`` and ``refine`` are
+the depth refinement (docs/method.md §3); ``mesh`` is the Worldsheet grid plus the
+post-processing kernel (§4–§5); ``materials``, ``night_scene`` and ``guides`` prepare the
+night (§6). The per-night steps -- light activation, render, denoise, camera -- are
+functions here too, run by :class:`~npsim_core.chain.chain.Chain` for each seed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ..camera import Intrinsics, normals_from_depth
+from ..errors import NpsimInputError
+from ..mesh.types import MeshPart, SceneMesh
+from ..scene import Scene
+from .engine import Stage
+from .params import ChainParams
+
+__all__ = ["GeometryResult", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
+           "uncertain_stage", "refine_stage", "mesh_stage", "materials_stage", "night_scene_stage",
+           "guides_stage", "removed_faces", "light_table", "mesh_needs"]
+
+
+# --------------------------------------------------------------------------- results
+@dataclass
+class GeometryResult:
+    """The frame as the refinement reads it: intrinsics (or the FOV override), input depth and
+    normals. ``source`` says where the depth came from."""
+
+    scene: Scene
+    source: str
+
+
+@dataclass
+class MeshResult:
+    """The scene mesh. ``removed``: the grid faces post-processing replaced (for display);
+    ``layers``: the post-processed sheets per pixel (for reduction); ``counts``: what
+    post-processing did; ``depth``: the depth meshed; ``reduced``: how a face budget applied."""
+
+    mesh: SceneMesh
+    depth: np.ndarray
+    intrinsics: Intrinsics
+    removed: MeshPart | None = None
+    layers: Any = None
+    counts: dict = field(default_factory=dict)
+    reduced: str = ""
+
+
+@dataclass
+class MaterialsResult:
+    """Albedo, roughness and BSDF kinds, and the light-class map (0 = no light) they were made with."""
+
+    materials: Any
+    light_classes: np.ndarray
+
+
+# --------------------------------------------------------------------------- depth
+def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
+    """Intrinsics (FOV override) and input depth/normals: the frame's, else the pop-up prior."""
+    s: Scene = inputs["frame"]
+    hfov = float(params.hfov_deg or 0.0)
+    intr = Intrinsics.from_fov(s.width, s.height, hfov) if hfov > 0 else s.intrinsics
+    s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
+    if s.depth is None:
+        from ..geometry import estimate_geometry
+
+        return GeometryResult(estimate_geometry(s, "popup").apply(s), "semantic pop-up prior")
+    if s.normals is None:
+        s = s.with_(normals=normals_from_depth(s.depth, intr))
+        return GeometryResult(s, "the frame's depth (normals from it)")
+    return GeometryResult(s, "the frame's depth and normals")
+
+
+def filter_stage(inputs: dict, params, ctx) -> np.ndarray:
+    """Dual-reference cross-bilateral filter of the input depth (docs/method.md §3.1); (H, W) float32 m."""
+    from ..refine.bilateral import cross_bilateral
+
+    s = inputs["geometry"].scene
+    return cross_bilateral(s.depth, s.image, s.labels, params).astype(np.float32)
+
+
+def uncertain_stage(inputs: dict, params, ctx) -> np.ndarray:
+    """Uncertain map U of the *filtered* depth (docs/method.md §3.2); (H, W) bool."""
+    from ..refine.uncertainty import uncertain_map
+
+    return uncertain_map(inputs["filter"], inputs["geometry"].scene.labels, params)
+
+
+def refine_stage(inputs: dict, params, ctx):
+    """Normal-guided refinement (docs/method.md §3.3); reports its loss curves as it runs."""
+    from ..refine.optimize import refine_depth
+
+    s = inputs["geometry"].scene
+    hist: dict[str, list[float]] = {"total": [], "normal": [], "continuity": [], "depth": []}
+    last = [0.0]
+
+    def on_step(step: int, total: int, losses: dict) -> None:
+        for k in hist:
+            if k in losses:
+                hist[k].append(float(losses[k]))
+        now = time.perf_counter()
+        if now - last[0] > 0.1 or step == total:
+            last[0] = now
+            ctx.progress(step / max(total, 1), {"stage": "refine", "step": step, "of": total,
+                                                "history": {k: list(v) for k, v in hist.items()}})
+
+    return refine_depth(inputs["filter"], s.normals, s.intrinsics, inputs["uncertain"], params,
+                        progress=on_step, cancel=ctx.cancel_flag)
+
+
+# --------------------------------------------------------------------------- mesh
+def mesh_needs(params: ChainParams) -> tuple[str, ...]:
+    """The inputs the mesh stage reads for ``params`` (the depth it meshes, U only when post-processing)."""
+    base = ("geometry", "annotation")
+    if params.mesh.stride == 1 and params.mesh.postprocess:
+        base += ("uncertain",)
+    return base + {"refined": ("refine",), "filtered": ("filter",), "input": ()}[params.mesh.depth]
+
+
+def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
+    """Worldsheet grid of the chosen depth + post-processing kernel, light ids per vertex
+    (docs/method.md §4–§5). ``stride`` > 1 gives a strided grid without post-processing."""
+    from ..mesh.grid import grid_mesh
+
+    mp, pp = params
+    s = inputs["geometry"].scene
+    depth = {"refined": lambda: inputs["refine"].depth, "filtered": lambda: inputs["filter"],
+             "input": lambda: s.depth}[mp.depth]().astype(np.float32)
+    ann = inputs.get("annotation")
+    light_ids = ann.instance_map if ann is not None else None
+    intr = s.intrinsics
+    if mp.postprocess and mp.stride == 1:
+        from ..mesh.postprocess import postprocess_mesh
+
+        res = postprocess_mesh(depth, intr, s.labels, inputs["uncertain"], light_ids=light_ids,
+                               params=replace(pp, far_limit=mp.far_limit), normals=s.normals)
+        ctx.cancel()
+        out = MeshResult(res.mesh, depth, intr, removed_faces(depth, intr, s.labels, res.layers), res.layers,
+                         dict(res.counts))
+        if mp.face_budget and res.mesh.n_faces > mp.face_budget:
+            from ..mesh.reduce import ReduceParams, reduce_mesh
+
+            red = reduce_mesh(res.layers, intr, ReduceParams(budget=int(mp.face_budget)))
+            out.mesh, out.reduced = red.mesh, red.steps
+        return out
+    mesh = grid_mesh(depth, intr, s.labels, light_ids, stride=int(mp.stride), far_limit=mp.far_limit)
+    return MeshResult(mesh, depth, intr, counts={"faces": mesh.n_faces})
+
+
+def removed_faces(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, layers) -> MeshPart:
+    """The Worldsheet grid faces of ``depth`` the post-processing kernel did not keep, as one part
+    (see :func:`npsim_core.mesh.postprocess.replaced_grid_faces`)."""
+    from ..mesh.grid import grid_mesh
+    from ..mesh.postprocess import replaced_grid_faces
+
+    parts = [p for p in grid_mesh(depth, intrinsics, labels).parts if p.n_faces]
+    if not parts:
+        return MeshPart("removed", np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64),
+                        np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32), np.zeros(0, np.uint8),
+                        np.zeros(0, np.int32))
+    p = parts[0]
+    keep = replaced_grid_faces(p, layers)
+    return MeshPart("removed", p.vertices, p.faces[keep], p.uv, p.pixel, p.label, p.light_id)
+
+
+# --------------------------------------------------------------------------- night
+def light_table(night):
+    """The light table (``night.light_table`` merged over the default) with the per-class
+    probability overrides of ``night.probabilities``."""
+    from ..render.lights import load_light_table
+
+    table = load_light_table(night.light_table or None)
+    if not night.probabilities:
+        return table
+    specs = dict(table.classes)
+    for cid, p in night.probabilities:
+        specs[int(cid)] = replace(specs[int(cid)], p=(float(p), float(p)))
+    return replace(table, classes=specs)
+
+
+def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
+    """Albedo/roughness from the frame's maps or the per-class fallback (docs/method.md §6.1)."""
+    from ..render.materials import estimate_materials
+
+    s, ann = inputs["frame"], inputs.get("annotation")
+    light_cls = ann.class_map() if ann is not None else np.zeros(s.labels.shape, np.uint8)
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness, light_classes=light_cls)
+    return MaterialsResult(mats, light_cls)
+
+
+def night_scene_stage(inputs: dict, params, ctx):
+    """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place)."""
+    from ..render.scene_builder import BuildParams, build_scene
+
+    light_table_path, variant = params
+    m: MeshResult = inputs["mesh"]
+    s = inputs["geometry"].scene
+    if m.mesh.width != s.width or m.mesh.height != s.height:
+        raise NpsimInputError(f"nights are rendered from a full-resolution mesh; this one is "
+                              f"{m.mesh.width}x{m.mesh.height} for a {s.width}x{s.height} frame (set mesh.stride=1)")
+    if m.mesh.n_faces == 0:
+        raise NpsimInputError(f"scene {s.name!r}: the mesh has no faces (all sky, or no valid depth), "
+                              "so there is nothing to render")
+    from ..chain.params import NightParams
+
+    table = light_table(NightParams(light_table=light_table_path))
+    bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch)
+    return build_scene(m.mesh, m.intrinsics, inputs["materials"].materials, table, inputs.get("annotation"), None,
+                       bp, variant=variant or None)
+
+
+def guides_stage(inputs: dict, params, ctx):
+    """Denoising guides: albedo, and the mesh's depth, normal and label seen through each pixel."""
+    from ..render.denoise import denoise_guides
+
+    m: MeshResult = inputs["mesh"]
+    mats: MaterialsResult = inputs["materials"]
+    return denoise_guides(m.mesh, m.intrinsics, mats.materials.albedo, inputs["frame"].labels,
+                          mats.light_classes > 0)
+
+
+# --------------------------------------------------------------------------- the graph
+STAGES: tuple[Stage, ...] = (
+    Stage("geometry", geometry_stage, ("frame",), lambda p: p.camera),
+    Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
+    Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
+    Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),
+    Stage("mesh", mesh_stage, ("geometry", "annotation", "uncertain", "filter", "refine"),
+          lambda p: (p.mesh, p.postprocess), needs=mesh_needs),
+    Stage("materials", materials_stage, ("frame", "annotation")),
+    Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "annotation"),
+          lambda p: (p.night.light_table, p.night.variant)),
+    Stage("guides", guides_stage, ("frame", "mesh", "materials")),
+)

@@ -1,0 +1,96 @@
+"""Suite-wide set-up: a private scene cache per session, and GUI tests skipped (not crashed) without a display.
+
+GUI tests are the ones that use pytest-qt's ``qtbot``/``qapp`` fixtures or carry the ``gui`` marker.
+Qt's xcb platform aborts the whole interpreter ("Fatal Python error") when it cannot open a display,
+so whether one is usable is decided once, before any QApplication exists, and GUI items are skipped
+with the reason otherwise (the napari / pyvistaqt practice).
+
+Environment:
+  ``NPSIM_TEST_SUBSET=headless``  skip the GUI tests even when a display is available.
+  ``NPSIM_TEST_CACHE=<folder>``   keep the scene cache there between sessions (default: a temporary
+                                  folder removed at the end of the session; never ``~/.cache/npsim``).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import pytest
+
+GUI_FIXTURES = frozenset({"qtbot", "qapp", "qtmodeltester"})
+NO_DISPLAY = "no display: GUI tests need X (run 'bash npsim.sh test', which starts Xvfb)"
+_cache_key = pytest.StashKey[str]()
+_saved_cache_key = pytest.StashKey["str | None"]()
+
+# Opening the platform plugin is the only reliable test: a stale DISPLAY aborts Qt just like a missing one.
+_PROBE = "from PySide6.QtGui import QGuiApplication; QGuiApplication([]); print('ok')"
+
+
+def gui_skip_reason() -> str | None:
+    """Why GUI tests cannot run in this process, or None when they can. Never creates a QApplication."""
+    if os.environ.get("NPSIM_TEST_SUBSET", "").strip().lower() == "headless":
+        return "NPSIM_TEST_SUBSET=headless: GUI tests skipped"
+    platform = os.environ.get("QT_QPA_PLATFORM", "").split(":")[0].strip().lower()
+    if platform in ("offscreen", "minimal"):
+        return None  # explicitly chosen, needs no display
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return NO_DISPLAY
+    try:
+        r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"cannot check the display ({exc}); {NO_DISPLAY}"
+    if r.returncode != 0 or "ok" not in r.stdout:
+        if "No module named" in r.stderr:
+            return "PySide6 is not importable: GUI tests skipped"
+        shown = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+        detail = next((ln.strip() for ln in r.stderr.splitlines() if "could not connect" in ln.lower()),
+                      r.stderr.strip().splitlines()[-1] if r.stderr.strip() else f"exit {r.returncode}")
+        return f"display {shown!r} cannot be opened by Qt ({detail}); {NO_DISPLAY}"
+    return None
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "gui: needs a Qt display (skipped without one, or with NPSIM_TEST_SUBSET=headless)")
+    # Session-wide private scene cache (npsim_core.synthetic.cache_dir reads NPSIM_CACHE). Set here rather
+    # than in a fixture so collection-time code and subprocesses started by tests see it too.
+    keep = os.environ.get("NPSIM_TEST_CACHE")
+    if keep:
+        os.makedirs(keep, exist_ok=True)
+        folder = keep
+    else:
+        folder = tempfile.mkdtemp(prefix="npsim-test-cache-")
+        config.stash[_cache_key] = folder
+    config.stash[_saved_cache_key] = os.environ.get("NPSIM_CACHE")
+    os.environ["NPSIM_CACHE"] = folder
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if _saved_cache_key in config.stash:
+        saved = config.stash[_saved_cache_key]
+        if saved is None:
+            os.environ.pop("NPSIM_CACHE", None)
+        else:
+            os.environ["NPSIM_CACHE"] = saved
+    if _cache_key in config.stash:
+        shutil.rmtree(config.stash[_cache_key], ignore_errors=True)
+
+
+def _is_gui(item: pytest.Item) -> bool:
+    return bool(GUI_FIXTURES.intersection(getattr(item, "fixturenames", ()))) or \
+        item.get_closest_marker("gui") is not None
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    gui = [it for it in items if _is_gui(it)]
+    if not gui:
+        return  # no probe when no GUI test was selected
+    reason = gui_skip_reason()
+    if reason is None:
+        return
+    skip = pytest.mark.skip(reason=reason)
+    for it in gui:
+        it.add_marker(skip)
