@@ -57,7 +57,9 @@ case "$verb" in
     exec "$VENV/bin/npsim" start "$@" ;;
   test)
     setup
-    # Xvfb: the pyvista 3D view only renders on a real X display (STACK.md).
+    # the layers first: core, app and command line keep to their import contracts (pyproject.toml)
+    "$VENV/bin/lint-imports" --config pyproject.toml
+    # Xvfb: the pyvista 3D view only renders on a real X display (docs/stack.md §3).
     exec xvfb-run -a -s "-screen 0 1280x1024x24" "$VENV/bin/python" -m pytest -q "$@" ;;
   *) echo "usage: bash npsim.sh [start|test|setup] [args...]" >&2; exit 2 ;;
 esac

@@ -25,7 +25,7 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
 
     from npsim_core.errors import NpsimInputError
     from npsim_core.chain import load_frame
-    from npsim_core.project import load_project
+    from npsim_core.chain.project import load_project
 
     from .main_window import MainWindow
 

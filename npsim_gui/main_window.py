@@ -400,7 +400,7 @@ class MainWindow(QMainWindow):
             self.open_project(folder)
 
     def open_project(self, folder: str | Path) -> None:
-        from npsim_core.project import load_project
+        from npsim_core.chain.project import load_project
 
         try:
             scene, params = load_project(folder)
@@ -415,7 +415,7 @@ class MainWindow(QMainWindow):
             self.save_project(folder)
 
     def save_project(self, folder: str | Path) -> None:
-        from npsim_core.project import save_project
+        from npsim_core.chain.project import save_project
 
         if self.chain is None:
             return

@@ -25,6 +25,9 @@ def gui_values(params: ChainParams) -> dict[tuple[str, str], Any]:
             if isinstance(v, (int, float, str, bool)) or v is None:
                 out[(sec_name, f.name)] = v
     out.update({("refine", f"lambda{i + 1}"): params.refine.lambdas[i] for i in range(3)})
+    # None means "the optimiser's default": show the value it stands for
+    out[("refine", "steps")] = params.refine.n_steps
+    out[("refine", "lr")] = params.refine.learning_rate
     table = light_table(replace(params.night, probabilities=()))
     for cid in range(1, 13):
         p = params.night.probability(cid)

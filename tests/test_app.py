@@ -143,7 +143,7 @@ def test_bad_scene_path_is_a_message_not_a_crash(window, tmp_path):
 
 
 def test_project_round_trip(window, qtbot, tmp_path):
-    from npsim_core.project import load_project
+    from npsim_core.chain.project import load_project
 
     window.params_panel.sliders[("refine", "lambda3")].spin.setValue(2.5)
     qtbot.waitUntil(lambda: window.params.refine.lambdas[2] == 2.5, timeout=10_000)
@@ -162,7 +162,7 @@ def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene)
     fov.spin.setValue(70.0)
     qtbot.waitUntil(lambda: bool(seen) and seen[-1][1] and not window.pipeline_jobs.is_busy, timeout=120_000)
     assert window.results.intrinsics.hfov_deg == pytest.approx(70.0)
-    assert seen[0][0] == ["filter", "uncertain", "refine"]  # new camera: everything is recomputed
+    assert seen[0][0] == ["geometry", "filter", "uncertain", "refine"]  # new camera: everything is recomputed
 
 
 def test_unsaved_annotation_is_recovered_after_a_crash(qtbot, tmp_path, scene):

@@ -218,5 +218,5 @@ def test_estimate_cli_on_a_dataset_image(cityscapes_root, tmp_path, capsys):
     lonely = tmp_path / "lonely.png"
     write_image(lonely, _img(3))
     assert main(["estimate", str(lonely), "-o", str(tmp_path / "o2")]) == 2
-    assert "no label file found" in capsys.readouterr().err
+    assert "no labels found" in capsys.readouterr().err
     assert list(iter_dataset(cityscapes_root / "leftImg8bit" / "test"))[:1] == []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import trimesh
@@ -531,7 +533,8 @@ def test_mesh_command(tmp_path, capsys):
     rc = main(["mesh", str(folder), "-o", str(out), "--format", "ply,glb", "--no-refine", "--budget", str(budget)])
     assert rc == 0
     text = capsys.readouterr().out
-    assert "mesh+postprocess" in text and "reduce" in text and "export" in text
+    assert "mesh " in text and "filter" in text and "refine" not in text and "wrote" in text
+    assert json.loads(next(out.glob("*_export.json")).read_text())["mesh"]["faces"] <= budget * 1.06
     plys = list(out.glob("*.ply"))
     assert len(plys) == 1 and len(list(out.glob("*.glb"))) == 1
     assert len(trimesh.load(plys[0], process=False).faces) <= budget * 1.06

@@ -148,3 +148,32 @@ def test_inverse_domain_is_exact_on_a_ground_plane_rows():
     np.testing.assert_allclose(cross_bilateral(d, img, lab, p_inv), out_inv, rtol=1e-4)
     with pytest.raises(NpsimInputError, match="domain"):
         cross_bilateral(d, img, lab, FilterParams(domain="log"))
+
+
+def test_fast_filter_is_deterministic_across_calls_and_threads():
+    """The guide colours come from cv2.kmeans seeded per call: OpenCV's (per-thread) RNG state never leaks in."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import cv2
+
+    d, img, lab = blocks_scene(seed=5)
+    first = cross_bilateral(d, img, lab, SMALL)
+    cv2.setRNGSeed(12345)
+    cv2.randu(np.empty(64, np.float32), 0.0, 1.0)  # someone else used OpenCV's RNG in between
+    np.testing.assert_array_equal(cross_bilateral(d, img, lab, SMALL), first)
+    with ThreadPoolExecutor(2) as ex:
+        for out in ex.map(lambda _: cross_bilateral(d, img, lab, SMALL), range(4)):
+            np.testing.assert_array_equal(out, first)
+
+
+def test_guide_colour_clusters():
+    from npsim_core.refine.bilateral import _kmeans
+
+    rng = np.random.default_rng(0)
+    blobs = np.array([[20, 0, 0], [50, 40, -30], [80, -20, 60]], np.float32)
+    x = np.concatenate([b + rng.normal(0, 1.0, (300, 3)) for b in blobs]).astype(np.float32)
+    C = _kmeans(x, 3)
+    assert C.shape == (3, 3) and C.dtype == np.float32
+    np.testing.assert_allclose(C[np.argsort(C[:, 0])], blobs, atol=0.5)  # one centre per blob
+    few = np.repeat(blobs[:2], 10, axis=0)  # fewer distinct colours than clusters: returned as they are
+    np.testing.assert_array_equal(_kmeans(few, 16), np.unique(few, axis=0))

@@ -234,8 +234,8 @@ def test_night_cli(tmp_path):
         assert np.array_equal(read_label_image(f"{stem}_labelIds.png"), s.labels)
         assert np.load(f"{stem}_linear.npy").shape == (32, 64, 3)
         lights = json.loads(open(f"{stem}_lights.json").read())
-        params = json.loads(open(f"{stem}_params.json").read())
-        assert lights["seed"] == 5 + k and params["seed"] == 5 + k and params["variant"] == "scalar_rgb"
+        night = json.loads((tmp_path / "out" / f"{s.name}_export.json").read_text())["nights"][k]
+        assert lights["seed"] == 5 + k and night["seed"] == 5 + k and night["variant"] == "scalar_rgb"
         assert img.mean() < 100  # a night, not a day
     assert main(["night", str(tmp_path / "nope"), "-o", str(tmp_path / "o2")]) == 2
 
@@ -307,10 +307,10 @@ def test_night_cli_fast_final_settings(tmp_path):
             "--iso", "0"]
     assert main(args + ["-o", str(tmp_path / "one"), "--max-depth", "3"]) == 0
     assert main(args + ["-o", str(tmp_path / "fast"), "--max-depth", "2", "--face-budget", "4000"]) == 0
-    full = json.loads(open(tmp_path / "one" / f"{s.name}_night_0_params.json").read())
-    fast = json.loads(open(tmp_path / "fast" / f"{s.name}_night_0_params.json").read())
-    assert full["max_depth"] == 3 and fast["max_depth"] == 2
-    assert fast["faces"] < full["faces"]
+    full = json.loads((tmp_path / "one" / f"{s.name}_export.json").read_text())
+    fast = json.loads((tmp_path / "fast" / f"{s.name}_export.json").read_text())
+    assert full["params"]["night"]["final_max_depth"] == 3 and fast["params"]["night"]["final_max_depth"] == 2
+    assert fast["mesh"]["faces"] < full["mesh"]["faces"]
     lin_fast = np.load(tmp_path / "fast" / f"{s.name}_night_0_linear.npy")
     assert lin_fast.shape == (48, 96, 3) and np.isfinite(lin_fast).all()
     assert read_image(tmp_path / "fast" / f"{s.name}_night_0.png").mean() < 100  # a night

@@ -22,6 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                             "without post-processing, for previews)")
     p.add_argument("--budget", type=int, default=None, help="reduce to about this many faces (quadtree)")
     p.add_argument("--far", type=float, default=None, help="no geometry beyond this depth (metres; default 300)")
+    p.add_argument("--no-refine", action="store_true", help="mesh the filtered depth (skip the refinement)")
+    p.add_argument("--no-filter", action="store_true",
+                   help="mesh the input depth (skip filter and refinement; U still comes from the filtered depth)")
     p.add_argument("--variant", choices=("npsim", "raw", "filtered"), default="npsim",
                    help="npsim (default), or one of the thesis's baselines: the grid of the input depth (raw) "
                         "or of the filtered depth")
@@ -34,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
     for name, value in (("stride", args.stride), ("face_budget", args.budget), ("far_limit", args.far)):
         if value is not None:
             params = params.with_value("mesh", name, value)
+    if args.no_refine or args.no_filter:
+        params = params.with_value("mesh", "depth", "input" if args.no_filter else "filtered")
     if args.variant != "npsim":
         params = params.with_value("mesh", "depth", "input" if args.variant == "raw" else "filtered") \
                        .with_value("mesh", "postprocess", False)

@@ -3,7 +3,7 @@
 The sections are the stage packages' own parameter objects (``FilterParams``,
 ``UncertaintyParams``, ``RefineParams``, ``PostprocessParams``, ``DenoiseParams``)
 plus the chain-level ones defined here. Names shown by the app's sliders (λ1..λ3,
-per-class probabilities) are the GUI's business (``npsim_gui.param_values``).
+per-class probabilities) are the app's business.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """A frame's inputs: one loader for every source the chain reads.
 
 * a scene folder (``scene.json`` + arrays, as written by ``npsim sample`` / ``npsim estimate``);
-* a project folder (``project.json``; its parameters come with it, :mod:`npsim_core.project`);
+* a project folder (``project.json``; its parameters come with it, :mod:`npsim_core.chain.project`);
 * one image inside a dataset (Cityscapes, ACDC, or a plain folder with ``x_labelIds.png``
   beside ``x.png``): its labels, camera and disparity are found by the dataset readers;
 * a dataset root or a folder of scene folders: :func:`iter_frames` lists its frames.
@@ -44,7 +44,7 @@ def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: boo
                               "or a labelled image")
     if path.is_dir():
         if (path / "project.json").exists():
-            from ..project import load_project
+            from .project import load_project
 
             scene = load_project(path)[0]
         else:

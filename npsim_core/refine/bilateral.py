@@ -214,27 +214,20 @@ def _semantic_term(dz: np.ndarray, w: np.ndarray, h: np.ndarray, sigma_s: float,
     return num, den
 
 
-def _kmeans(x: np.ndarray, k: int, rng: np.random.Generator, iters: int = 8) -> np.ndarray:
-    """Plain Lloyd k-means (k-means++ seeding) on a small sample; returns (k', 3) centres."""
+def _kmeans(x: np.ndarray, k: int, iters: int = 8) -> np.ndarray:
+    """k-means (k-means++ seeding, ``iters`` Lloyd steps) of (N, 3) colours -> (k', 3) float32 centres.
+
+    ``cv2.kmeans`` seeded with ``cv2.setRNGSeed(0)`` (OpenCV's RNG is per thread), so equal
+    inputs give equal centres; fewer distinct colours than ``k`` are returned as they are.
+    """
     uniq = np.unique(x, axis=0)
     if len(uniq) <= k:
         return uniq.astype(np.float32)
-    centres = [x[rng.integers(len(x))]]
-    d2 = np.sum((x - centres[0]) ** 2, axis=1)
-    for _ in range(1, k):
-        p = d2 / d2.sum() if d2.sum() > 0 else None
-        c = x[rng.choice(len(x), p=p)]
-        centres.append(c)
-        d2 = np.minimum(d2, np.sum((x - c) ** 2, axis=1))
-    C = np.array(centres, np.float64)
-    for _ in range(iters):
-        a = np.argmin(((x[:, None, :] - C[None]) ** 2).sum(-1), axis=1)
-        sums = np.zeros_like(C)
-        np.add.at(sums, a, x)
-        cnt = np.bincount(a, minlength=len(C))
-        nz = cnt > 0
-        C[nz] = sums[nz] / cnt[nz, None]
-    return C.astype(np.float32)
+    cv2.setRNGSeed(0)
+    criteria = (cv2.TERM_CRITERIA_MAX_ITER | cv2.TERM_CRITERIA_EPS, int(iters), 1e-3)
+    _, _, centres = cv2.kmeans(np.ascontiguousarray(x, dtype=np.float32), int(k), None, criteria, 1,
+                               cv2.KMEANS_PP_CENTERS)
+    return centres
 
 
 def _lab_from_rgb_u8(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -265,8 +258,8 @@ def _colour_term_fast(dz: np.ndarray, valid: np.ndarray, rgb: np.ndarray, params
     # 1. Guide colours: k-means on a seeded sample of valid pixels.
     rng = np.random.default_rng(0)
     idx = np.flatnonzero(vflat)
-    sample = lab.reshape(-1, 3)[rng.choice(idx, size=min(len(idx), 4096), replace=False)].astype(np.float64)
-    C = _kmeans(sample, int(params.clusters), rng)
+    sample = lab.reshape(-1, 3)[rng.choice(idx, size=min(len(idx), 4096), replace=False)]
+    C = _kmeans(sample, int(params.clusters))
     K = len(C)
     M = min(int(params.neighbours), K)
     # 2. Nearest clusters per pixel through a LUT on uint8 Lab codes (bins of 4 codes, 64^3 entries);

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain.params import ChainParams
-from .errors import NpsimInputError
-from .io import read_json, write_json, write_npy
-from .scene import Scene, load_scene, save_scene
+from .params import ChainParams
+from ..errors import NpsimInputError
+from ..io import read_json, write_json, write_npy
+from ..scene import Scene, load_scene, save_scene
 
 __all__ = ["PROJECT_VERSION", "save_project", "load_project"]
 
