@@ -134,7 +134,10 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
         from ..mesh.export import export_mesh
 
         out = export_mesh(res.mesh, folder, stem=f"{n}_mesh", formats=tuple(mesh_formats), image=s.image)
-        written += list(out.values()) if isinstance(out, dict) else list(out)
+        written += list(out.values())
+        if "obj" in out:  # its material and texture files beside it
+            written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{n}_mesh_texture.png"))
+                        if p.exists()]
     nights_info = []
     for k in range(n_nights):
         step(f"rendering night {k + 1}/{n_nights}")
@@ -146,8 +149,11 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
         put(folder / f"{stem}_labelIds.png", write_image, s.labels)
         put(folder / f"{stem}_lights.json", write_json, frame.active.to_json())
         on = len(frame.active.on_ids)
+        built = chain.night_inputs(params)[0]
         nights_info.append({"night": k, "seed": seed, "spp": frame.spp, "variant": frame.variant,
                             "lights_on": on, "lights": len(frame.active.lights),
+                            "lights_without_faces": sorted(int(i) for i in set(frame.active.lights)
+                                                           - set(built.area_keys)),
                             "seconds": round(frame.elapsed, 3),
                             "timings": {k2: round(v, 3) for k2, v in frame.timings.items()}})
     # The night stages' times when they ran (their results are cached in the chain).

@@ -1,4 +1,4 @@
-"""Dual-reference cross-bilateral depth filter (SPEC §2.1, thesis eq. 3.2).
+"""Dual-reference cross-bilateral depth filter (docs/method.md §3.1, thesis eq. 3.2).
 
     d(p) = Σ_q G_σs(|q−p|) [δ(h_q = h_p) + μ G_σc(|J_q − J_p|)] w_q d̂(q)
            ------------------------------------------------------------
