@@ -1,4 +1,4 @@
-"""Inactive light-source annotation: light instances, groups, and their files (SPEC §6).
+"""Inactive light-source annotation: light instances, groups, and their files (docs/method.md §7, docs/annotation.md).
 
 Data model
 ----------

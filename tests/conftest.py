@@ -7,8 +7,10 @@ with the reason otherwise (the napari / pyvistaqt practice).
 
 Environment:
   ``NPSIM_TEST_SUBSET=headless``  skip the GUI tests even when a display is available.
-  ``NPSIM_TEST_CACHE=<folder>``   keep the scene cache there between sessions (default: a temporary
-                                  folder removed at the end of the session; never ``~/.cache/npsim``).
+  ``NPSIM_TEST_CACHE=<folder>``   keep the caches there between sessions (default: a temporary folder
+                                  removed at the end of the session). Either way the scene cache
+                                  (``NPSIM_CACHE``) and the Mitsuba variant probe's cache (under
+                                  ``XDG_CACHE_HOME``) stay out of the user's ``~/.cache/npsim``.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ import pytest
 
 GUI_FIXTURES = frozenset({"qtbot", "qapp", "qtmodeltester"})
 NO_DISPLAY = "no display: GUI tests need X (run 'bash npsim.sh test', which starts Xvfb)"
-_cache_key = pytest.StashKey[str]()
-_saved_cache_key = pytest.StashKey["str | None"]()
+_tmp_key = pytest.StashKey[str]()
+_saved_env_key = pytest.StashKey["dict[str, str | None]"]()
 
 # Opening the platform plugin is the only reliable test: a stale DISPLAY aborts Qt just like a missing one.
 _PROBE = "from PySide6.QtGui import QGuiApplication; QGuiApplication([]); print('ok')"
@@ -54,29 +56,31 @@ def gui_skip_reason() -> str | None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", "gui: needs a Qt display (skipped without one, or with NPSIM_TEST_SUBSET=headless)")
-    # Session-wide private scene cache (npsim_core.synthetic.cache_dir reads NPSIM_CACHE). Set here rather
-    # than in a fixture so collection-time code and subprocesses started by tests see it too.
+    config.addinivalue_line("markers", "gui: needs a Qt display (skipped without one, or NPSIM_TEST_SUBSET=headless)")
+    # Session-wide private caches: npsim_core.synthetic.cache_dir() reads NPSIM_CACHE, and
+    # npsim_core.render.variant caches its probe under XDG_CACHE_HOME (read at import, so set it here,
+    # before collection imports anything; subprocesses started by tests inherit both).
     keep = os.environ.get("NPSIM_TEST_CACHE")
     if keep:
-        os.makedirs(keep, exist_ok=True)
-        folder = keep
+        root = os.path.abspath(keep)
     else:
-        folder = tempfile.mkdtemp(prefix="npsim-test-cache-")
-        config.stash[_cache_key] = folder
-    config.stash[_saved_cache_key] = os.environ.get("NPSIM_CACHE")
-    os.environ["NPSIM_CACHE"] = folder
+        root = tempfile.mkdtemp(prefix="npsim-test-cache-")
+        config.stash[_tmp_key] = root
+    env = {"NPSIM_CACHE": os.path.join(root, "scenes"), "XDG_CACHE_HOME": os.path.join(root, "xdg")}
+    config.stash[_saved_env_key] = {k: os.environ.get(k) for k in env}
+    for k, v in env.items():
+        os.makedirs(v, exist_ok=True)
+        os.environ[k] = v
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    if _saved_cache_key in config.stash:
-        saved = config.stash[_saved_cache_key]
-        if saved is None:
-            os.environ.pop("NPSIM_CACHE", None)
+    for k, v in config.stash.get(_saved_env_key, {}).items():
+        if v is None:
+            os.environ.pop(k, None)
         else:
-            os.environ["NPSIM_CACHE"] = saved
-    if _cache_key in config.stash:
-        shutil.rmtree(config.stash[_cache_key], ignore_errors=True)
+            os.environ[k] = v
+    if _tmp_key in config.stash:
+        shutil.rmtree(config.stash[_tmp_key], ignore_errors=True)
 
 
 def _is_gui(item: pytest.Item) -> bool:

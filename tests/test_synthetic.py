@@ -269,14 +269,17 @@ def test_street_scene_cache(tmp_path, monkeypatch):
 
 
 def test_suite_uses_a_private_cache():
-    """tests/conftest.py points NPSIM_CACHE at a per-session folder, so tests never touch ~/.cache/npsim."""
+    """tests/conftest.py points the caches at a per-session folder, so tests never touch ~/.cache/npsim."""
     import os
     from pathlib import Path
 
+    from npsim_core.render.variant import CACHE_FILE
     from npsim_core.synthetic import cache_dir
 
+    user = (Path.home() / ".cache" / "npsim").resolve()
     assert os.environ.get("NPSIM_CACHE")
-    assert cache_dir().resolve() != (Path.home() / ".cache" / "npsim").resolve()
+    assert cache_dir().resolve() != user
+    assert user not in CACHE_FILE.resolve().parents  # the Mitsuba variant probe's cache too
 
 
 def test_import_is_cheap():
