@@ -159,6 +159,8 @@ def read_label_image(path: PathLike, *, trainids: bool = False) -> np.ndarray:
     if trainids:
         img = table.trainid_to_labelid()[img]
     table.validate(img, str(path))
+    if not trainids:
+        table.check_not_trainids(img, str(path))
     return img
 
 

@@ -97,6 +97,24 @@ class LabelTable:
                 f"{source}: label values {unknown[:10]} are not Cityscapes labelIds (0..33). "
                 "If the file holds trainIds, pass trainids=True (CLI: --trainids).")
 
+    def check_not_trainids(self, labels: np.ndarray, source: str = "labels") -> None:
+        """Refuse a labelIds map that looks like trainIds (docs/method.md §10.6).
+
+        trainIds 0..18 are also valid labelIds, so a trainIds file without the 255 ignore
+        value passes :meth:`validate` -- and reads road as "unlabeled" and building as
+        "rectification border". A labelIds map whose ids all lie in 0..18 and a third or more
+        of whose pixels are ids 0-3 (unlabeled, ego vehicle, borders: a thin band in real
+        frames) is that case.
+        """
+        if labels.size < 64 or int(labels.max()) > 18:
+            return
+        frac = float(np.isin(labels, (0, 1, 2, 3)).mean())
+        if frac >= 1 / 3:
+            raise NpsimInputError(
+                f"{source}: looks like trainIds, not labelIds ({100 * frac:.0f}% of pixels would be unlabeled, "
+                "ego vehicle or border, and no id is above 18): pass --trainids (trainids=True), or convert "
+                "the file to labelIds")
+
 
 @lru_cache(maxsize=1)
 def cityscapes() -> LabelTable:

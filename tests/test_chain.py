@@ -212,6 +212,6 @@ def test_night_command_and_run_write_identical_nights(street, tmp_path):
 def test_empty_mesh_is_a_clear_error_before_any_file(tmp_path):
     s = small_scene()
     sky = s.with_(labels=np.full_like(s.labels, 23), depth=np.full_like(s.depth, np.nan))
-    with pytest.raises(NpsimInputError, match="no faces"):
+    with pytest.raises(NpsimInputError, match="no valid depth"):
         export_frame(Chain(sky), ChainParams().with_value("refine", "steps", 2), tmp_path / "out")
     assert not any((tmp_path / "out").iterdir())

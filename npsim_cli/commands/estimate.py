@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import load_frame
+from npsim_core.chain import check_output_folder, load_frame
 from npsim_core.errors import NpsimInputError
 
 
@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else folder
     if out is None:
         raise NpsimInputError("-o DIR is required when SCENE is an image (it names the scene folder to write)")
+    check_output_folder(out)
     popup = PopupParams(camera_height=args.camera_height, camera_pitch=args.pitch)
     if args.method == "popup":
         params = popup
@@ -67,6 +68,10 @@ def run(args: argparse.Namespace) -> int:
             raise NpsimInputError("--method network needs --checkpoint DIR (a local transformers checkpoint)")
         params = NetworkParams(checkpoint=args.checkpoint, popup=popup)
     est = estimate_geometry(scene, args.method, params)
+    valid = float(((est.depth == est.depth) & (est.depth > 0)).mean())
+    if valid == 0:
+        raise NpsimInputError(f"{scene.name}: the {args.method} depth has no valid pixel (all NaN, <= 0 or sky); "
+                              "nothing written -- check the depth file and its units")
     result = est.apply(scene)
     save_scene(result, out)
     print(f"{scene.name}: {args.method} depth/normals -> {out}/depth_pred.npy, normals_pred.npy "

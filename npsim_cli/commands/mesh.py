@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import Chain, export_frame, load_frame
+from npsim_core.chain import Chain, check_output_folder, export_frame, load_frame
+from npsim_core.chain.export import check_mesh_formats
 
 from ..options import add_param_options, params_from_args
 
@@ -43,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
         params = params.with_value("mesh", "depth", "input" if args.variant == "raw" else "filtered") \
                        .with_value("mesh", "postprocess", False)
     formats = tuple(f.strip().lower() for f in args.format.split(",") if f.strip())
+    check_mesh_formats(formats)
+    check_output_folder(args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, with_ground_truth=False)
     chain = Chain(scene)
     res = chain.compute(params)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import load_frame
+from npsim_core.chain import check_output_folder, load_frame
 from npsim_core.errors import NpsimInputError
 
 from ..options import add_param_options, params_from_args
@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if args.variants < 1:
         raise NpsimInputError(f"--variants must be >= 1, got {args.variants}")
     params = params_from_args(args)
+    check_output_folder(args.out)
     night = {"iso": args.iso, "exposure": args.exposure, "motion_blur_px": args.motion_blur,
              "light_table": args.light_table, "variant": args.variant, "final_max_depth": args.max_depth}
     for name, value in night.items():

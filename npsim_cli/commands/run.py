@@ -9,7 +9,8 @@ import sys
 import time
 from pathlib import Path
 
-from npsim_core.chain import Chain, ChainParams, export_frame, frame_errors, iter_frames, load_frame
+from npsim_core.chain import (Chain, ChainParams, check_output_folder, export_frame, frame_errors, iter_frames,
+                              load_frame, verify_frame)
 from npsim_core.errors import NpsimInputError
 
 from ..options import add_param_options, log, params_from_args
@@ -58,9 +59,15 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     chain = Chain(scene)
     t0 = time.perf_counter()
 
+    last = [time.perf_counter()]
+
     def on_stage(info: dict) -> None:
         if info.get("stage") and "done" not in info and "step" not in info:
             log(cmd, f"{scene.name}: {info['stage']}…")
+            last[0] = time.perf_counter()
+        elif "step" in info and time.perf_counter() - last[0] > 5.0:  # long stages report every 5 s
+            last[0] = time.perf_counter()
+            log(cmd, f"{scene.name}: {info['stage']} step {info['step']}/{info['of']}")
 
     log(cmd, f"{scene.name}: {scene.width}x{scene.height}")
     if scene.lights is None:
@@ -69,6 +76,8 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     res = chain.compute(params, progress=on_stage)
     log(cmd, f"{scene.name}: depth from {res.depth_source}; stages "
         + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()) + f"; mesh {res.mesh.n_faces} faces")
+    if res.refine is not None and res.refine.diverged:
+        log(cmd, f"{scene.name}: WARNING: the refinement diverged: {res.refine.message}")
 
     def progress(frac: float, text: str) -> None:
         log(cmd, f"{scene.name}: {100 * frac:3.0f}% {text}")
@@ -84,6 +93,7 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
 
 def run_one(args: argparse.Namespace) -> int:
     params = params_from_args(args)
+    check_output_folder(args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, trainids=args.trainids)
     written = process_frame(scene, params, Path(args.out), args.nights, "run", inputs={"scene": str(args.scene)})
     print(f"wrote {len(written)} files to {args.out}")
@@ -106,23 +116,44 @@ def run_sample_headless(out: str, size: tuple[int, int]) -> int:
 
 def run_batch(args: argparse.Namespace) -> int:
     params = params_from_args(args)
+    if args.limit is not None and args.limit < 1:
+        raise NpsimInputError(f"--limit must be >= 1, got {args.limit}")
+    check_output_folder(args.out)
     sources = iter_frames(args.dataset, trainids=args.trainids, hfov_deg=args.fov)
     if args.limit is not None:
         sources = sources[: args.limit]
-    failed = []
+    failed, skipped, done = [], 0, []
     t0 = time.perf_counter()
     for i, src in enumerate(sources):
         out = Path(args.out) / src.name
-        if args.skip_existing and list(out.glob("*_export.json")):
-            log("batch", f"[{i + 1}/{len(sources)}] {src.name}: exists, skipped")
-            continue
-        log("batch", f"[{i + 1}/{len(sources)}] {src.name}")
+        head = f"[{i + 1}/{len(sources)}] {src.name}"
+        if args.skip_existing:
+            why = verify_frame(out) if out.is_dir() else "no output yet"
+            if why is None:
+                log("batch", f"{head}: complete (manifest and checksums verified), skipped")
+                skipped += 1
+                continue
+            if why != "no output yet":
+                log("batch", f"{head}: previous output incomplete ({why}), recomputing")
+        eta = ""
+        if done:
+            left = (len(sources) - i) * sum(done) / len(done)
+            eta = f", about {left / 60:.1f} min left"
+        log("batch", f"{head}{eta}")
+        t1 = time.perf_counter()
         try:
             process_frame(src.load(), params, out, args.nights, "batch", inputs={"frame": str(src.path)})
+            done.append(time.perf_counter() - t1)
         except (NpsimInputError, OSError) as exc:  # one bad frame must not stop a dataset run
             failed.append((src.name, str(exc)))
             log("batch", f"{src.name}: FAILED: {exc}")
-    log("batch", f"{len(sources) - len(failed)}/{len(sources)} frames done in {time.perf_counter() - t0:.1f} s")
+        except Exception as exc:  # noqa: BLE001 -- an unforeseen failure is reported, the batch goes on
+            failed.append((src.name, f"{type(exc).__name__}: {exc}"))
+            log("batch", f"{src.name}: FAILED with an internal error ({type(exc).__name__}: {exc}); "
+                         "please report it with this frame")
+    ok = len(sources) - len(failed) - skipped
+    log("batch", f"{ok} frames done, {skipped} skipped as complete, {len(failed)} failed, of {len(sources)}, "
+                 f"in {time.perf_counter() - t0:.1f} s")
     for name, err in failed:
         print(f"failed: {name}: {err}", file=sys.stderr)
     return 1 if failed else 0
@@ -133,8 +164,8 @@ def _values(text: str, name: str) -> list[float]:
         vals = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
         raise NpsimInputError(f"--{name} {text!r}: give comma-separated numbers") from None
-    if not vals or any(v < 0 for v in vals):
-        raise NpsimInputError(f"--{name}: need at least one value, all >= 0")
+    if not vals or not all(0 <= v < float("inf") for v in vals):
+        raise NpsimInputError(f"--{name}: need at least one value, all finite and >= 0")
     return vals
 
 
@@ -142,6 +173,11 @@ def run_sweep(args: argparse.Namespace) -> int:
     from npsim_core.io import atomic_write_text
 
     params = params_from_args(args)
+    if args.out:
+        out = Path(args.out)
+        if out.is_dir():
+            raise NpsimInputError(f"-o {out}: is a folder; give the CSV file to write, e.g. {out / 'sweep.csv'}")
+        check_output_folder(out.parent if str(out.parent) else ".")
     grid = list(itertools.product(_values(args.lambda1, "lambda1"), _values(args.lambda2, "lambda2"),
                                   _values(args.lambda3, "lambda3")))
     scene = load_frame(args.scene, hfov_deg=args.fov)

@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from npsim_core.chain import check_output_folder
     from npsim_core.io import write_image
     from npsim_core.scene import save_scene
     from npsim_core.synthetic import auto_spp, make_street_scene
@@ -37,9 +38,7 @@ def run(args: argparse.Namespace) -> int:
     w, h = parse_size(args.size)
     if args.spp is not None and args.spp < 1:
         raise NpsimInputError(f"--spp {args.spp}: must be at least 1")
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise NpsimInputError(f"-o {out}: exists and is not a folder; choose another output path")
+    out = check_output_folder(args.output)
     spp = args.spp if args.spp is not None else auto_spp(w, h)
     print(f"npsim sample: generating {w}x{h} street (seed {args.seed}, {spp} spp) ...", file=sys.stderr, flush=True)
     t0 = time.perf_counter()

@@ -9,10 +9,10 @@
 """
 
 from .chain import DEPTH_STAGES, Chain, ChainResults, NightFrame
-from .export import EXPORT_KINDS, export_frame, frame_errors
+from .export import EXPORT_KINDS, check_output_folder, export_frame, frame_errors, verify_frame
 from .params import CameraSetup, ChainParams, MeshParams, NightParams
 from .session import FrameSource, iter_frames, load_frame, scaled_frame
 
 __all__ = ["Chain", "ChainResults", "NightFrame", "DEPTH_STAGES", "ChainParams", "CameraSetup", "MeshParams",
-           "NightParams", "EXPORT_KINDS", "export_frame", "frame_errors", "FrameSource", "iter_frames", "load_frame",
+           "NightParams", "EXPORT_KINDS", "export_frame", "frame_errors", "check_output_folder", "verify_frame", "FrameSource", "iter_frames", "load_frame",
            "scaled_frame"]

@@ -9,14 +9,23 @@ File names (``<name>`` = the frame's name)::
     <name>_night_<k>.png, _linear.npy, _labelIds.png, _lights.json       night k (seed = night.seed + k)
     <name>_export.json                                                   manifest
 
-Every file is written atomically (a temporary file renamed into place). The manifest --
-inputs, parameters, the depth source, each stage's real compute time, each night's
-seed, spp, variant, light counts and step times, the files, library versions -- is
-written last, so a folder with a manifest is complete.
+A frame's outputs are committed as a whole: everything is written into a staging folder
+inside the output folder (``.<name>.partial-*``), and only when all of it is there are the
+files moved into place -- the previous manifest removed first, files of the previous
+result that the new one does not write removed after, the new manifest last. A failed or
+cancelled export leaves the previous result untouched. The manifest -- inputs,
+parameters, the depth source, each stage's real compute time, each night's seed, spp,
+variant, light counts and step times, the files with their checksums, library versions --
+makes a folder complete: :func:`verify_frame` checks it (``npsim batch --skip-existing``).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import shutil
+import tempfile
 import threading
 from pathlib import Path
 from typing import Callable
@@ -28,7 +37,8 @@ from ..errors import NpsimCancelled, NpsimInputError
 from .chain import Chain, ChainResults
 from .params import ChainParams
 
-__all__ = ["EXPORT_KINDS", "export_frame", "frame_errors", "versions"]
+__all__ = ["EXPORT_KINDS", "export_frame", "frame_errors", "versions", "check_output_folder", "verify_frame",
+           "file_checksum", "check_mesh_formats"]
 
 EXPORT_KINDS = ("masks", "depth", "normals", "mesh", "nights")
 
@@ -63,6 +73,82 @@ def frame_errors(chain: Chain, res: ChainResults) -> dict[str, dict[str, float]]
     return out
 
 
+def check_mesh_formats(formats) -> None:
+    """Raise :class:`NpsimInputError` unless ``formats`` is a non-empty subset of ply, obj, glb."""
+    from ..mesh.export import FORMATS
+
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        raise NpsimInputError(f"mesh formats: unknown {bad or 'empty'}; choose from {', '.join(FORMATS)}")
+
+
+def check_output_folder(folder: str | Path) -> Path:
+    """Create ``folder`` if needed and make sure files can be written there -- before any
+    computation, so a bad ``-o`` costs nothing. Raises :class:`NpsimInputError` naming the path."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise NpsimInputError(f"{folder}: exists and is not a folder; choose another output folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".npsim-write-test-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise NpsimInputError(f"{folder}: cannot write there ({exc.strerror or exc}); choose another output "
+                              "folder or fix its permissions") from None
+    return folder
+
+
+def file_checksum(path: str | Path) -> str:
+    """BLAKE2b-128 of a file's bytes (hex), read in 1 MiB blocks."""
+    h = hashlib.blake2b(digest_size=16)
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def verify_frame(folder: str | Path, name: str | None = None) -> str | None:
+    """None when ``folder`` holds a complete export (of frame ``name``, or of its one manifest):
+    the manifest and every file it lists, with matching checksums; else the reason."""
+    folder = Path(folder)
+    manifests = [folder / f"{name}_export.json"] if name else sorted(folder.glob("*_export.json"))
+    if not manifests or not manifests[0].is_file():
+        return "no manifest"
+    try:
+        doc = json.loads(manifests[0].read_text())
+        sums = doc["checksums"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"{manifests[0].name} is unreadable or has no checksums"
+    for fname in doc.get("files", []):
+        p = folder / fname
+        if not p.is_file():
+            return f"{fname} is missing"
+        if sums.get(fname) != file_checksum(p):
+            return f"{fname} differs from the manifest's checksum"
+    return None
+
+
+def _commit(staging: Path, folder: Path, names: list[str], manifest_name: str, manifest: dict) -> None:
+    """Move the staged files into ``folder``: old manifest out first, new manifest in last."""
+    from ..io import write_json
+
+    old_manifest = folder / manifest_name
+    old_files: list[str] = []
+    if old_manifest.is_file():
+        try:
+            old_files = list(json.loads(old_manifest.read_text()).get("files", []))
+        except (OSError, ValueError, AttributeError):
+            old_files = []
+        old_manifest.unlink()
+    for fname in names:
+        os.replace(staging / fname, folder / fname)
+    for fname in set(old_files) - set(names) - {manifest_name}:
+        if "/" not in fname and "\\" not in fname:
+            (folder / fname).unlink(missing_ok=True)
+    write_json(old_manifest, manifest)
+
+
 def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, nights: int = 1,
                  kinds: tuple[str, ...] = EXPORT_KINDS, mesh_formats: tuple[str, ...] = ("ply", "glb"),
                  cancel: threading.Event | None = None, progress: Callable[[float, str], None] | None = None,
@@ -71,28 +157,17 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
 
     Returns the written paths, the manifest ``<name>_export.json`` last. ``progress(fraction,
     text)`` reports as it goes; ``inputs`` (e.g. the command line's paths) goes into the manifest.
+    All or nothing: see the module doc.
     """
-    from ..annotation import save_annotation
-    from ..io import depth_to_rgb, normals_to_rgb, write_depth_png, write_image, write_json, write_npy
-    from ..io import write_normals_png
-
     bad = [k for k in kinds if k not in EXPORT_KINDS]
     if bad:
         raise NpsimInputError(f"unknown export kinds {bad}; choose from {EXPORT_KINDS}")
     if nights < 0:
         raise NpsimInputError(f"nights must be >= 0, got {nights}")
     if "mesh" in kinds:
-        from ..mesh.export import FORMATS
-
-        badf = [f for f in mesh_formats if f not in FORMATS]
-        if badf or not mesh_formats:
-            raise NpsimInputError(f"mesh formats: unknown {badf or 'empty'}; choose from {', '.join(FORMATS)}")
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise NpsimInputError(f"{folder}: exists and is not a folder; choose another output folder")
-    folder.mkdir(parents=True, exist_ok=True)
-    s, n = chain.scene, chain.scene.name
-    written: list[Path] = []
+        check_mesh_formats(mesh_formats)
+    folder = check_output_folder(folder)
+    n = chain.scene.name
     n_nights = nights if "nights" in kinds else 0
     steps, done = 2 + n_nights, [0]
 
@@ -108,6 +183,23 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
     if res.mesh.n_faces == 0 and ("mesh" in kinds or n_nights):
         raise NpsimInputError(f"{n}: the mesh has no faces (all sky, or no valid depth within "
                               f"{params.mesh.far_limit:g} m), so there is no mesh or night to write")
+    staging = Path(tempfile.mkdtemp(prefix=f".{n}.partial-", dir=folder))
+    try:
+        return _export_staged(chain, params, res, folder, staging, nights=n_nights, kinds=kinds,
+                              mesh_formats=mesh_formats, cancel=cancel, step=step, progress=progress, inputs=inputs)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder: Path, staging: Path, *,
+                   nights: int, kinds, mesh_formats, cancel, step, progress, inputs) -> list[Path]:
+    from ..annotation import save_annotation
+    from ..io import depth_to_rgb, normals_to_rgb, write_depth_png, write_image, write_json, write_npy
+    from ..io import write_normals_png
+
+    s, n = chain.scene, chain.scene.name
+    n_nights = nights
+    written: list[Path] = []
     step("writing masks, depth, normals, mesh")
 
     def put(path: Path, write, data) -> None:
@@ -115,25 +207,25 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
         written.append(path)
 
     if "masks" in kinds:
-        put(folder / f"{n}_labelIds.png", write_image, s.labels)
+        put(staging / f"{n}_labelIds.png", write_image, s.labels)
         if res.uncertain is not None:
-            put(folder / f"{n}_uncertain.png", write_image, res.uncertain.astype(np.uint8) * 255)
+            put(staging / f"{n}_uncertain.png", write_image, res.uncertain.astype(np.uint8) * 255)
         if chain.annotation is not None:
-            written += list(save_annotation(chain.annotation, folder, n).values())
+            written += list(save_annotation(chain.annotation, staging, n).values())
     if "depth" in kinds:
         for tag, d in (("input", res.depth_in), ("refined", res.depth)):
-            put(folder / f"{n}_depth_{tag}.npy", write_npy, d.astype(np.float32))
-            put(folder / f"{n}_depth_{tag}.png", write_depth_png, d)
-            put(folder / f"{n}_depth_{tag}_vis.png", write_image, depth_to_rgb(d))
+            put(staging / f"{n}_depth_{tag}.npy", write_npy, d.astype(np.float32))
+            put(staging / f"{n}_depth_{tag}.png", write_depth_png, d)
+            put(staging / f"{n}_depth_{tag}_vis.png", write_image, depth_to_rgb(d))
     if "normals" in kinds:
         nr = normals_from_depth(res.depth, res.intrinsics)
-        put(folder / f"{n}_normals_refined.npy", write_npy, nr)
-        put(folder / f"{n}_normals_refined.png", write_normals_png, nr)
-        put(folder / f"{n}_normals_refined_vis.png", write_image, normals_to_rgb(nr))
+        put(staging / f"{n}_normals_refined.npy", write_npy, nr)
+        put(staging / f"{n}_normals_refined.png", write_normals_png, nr)
+        put(staging / f"{n}_normals_refined_vis.png", write_image, normals_to_rgb(nr))
     if "mesh" in kinds:
         from ..mesh.export import export_mesh
 
-        out = export_mesh(res.mesh, folder, stem=f"{n}_mesh", formats=tuple(mesh_formats), image=s.image)
+        out = export_mesh(res.mesh, staging, stem=f"{n}_mesh", formats=tuple(mesh_formats), image=s.image)
         written += list(out.values())
         if "obj" in out:  # its material and texture files beside it
             written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{n}_mesh_texture.png"))
@@ -144,10 +236,10 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
         seed = params.night.seed + k
         frame = chain.night_final(res, params, seed=seed, cancel=cancel)
         stem = f"{n}_night_{k}"
-        put(folder / f"{stem}.png", write_image, frame.image)
-        put(folder / f"{stem}_linear.npy", write_npy, frame.linear)
-        put(folder / f"{stem}_labelIds.png", write_image, s.labels)
-        put(folder / f"{stem}_lights.json", write_json, frame.active.to_json())
+        put(staging / f"{stem}.png", write_image, frame.image)
+        put(staging / f"{stem}_linear.npy", write_npy, frame.linear)
+        put(staging / f"{stem}_labelIds.png", write_image, s.labels)
+        put(staging / f"{stem}_lights.json", write_json, frame.active.to_json())
         on = len(frame.active.on_ids)
         built = chain.night_inputs(params)[0]
         nights_info.append({"night": k, "seed": seed, "spp": frame.spp, "variant": frame.variant,
@@ -161,18 +253,23 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
     if n_nights:
         run = chain.engine.run(("night_scene", "materials") + (("guides",) if params.night.denoise else ()), params)
         timings.update(run.timings)
-    manifest = folder / f"{n}_export.json"
-    write_json(manifest, {
+    names = [p.name for p in written]
+    manifest = {
         "format": "npsim-export", "scene": n, "size": [s.width, s.height], "inputs": inputs or {},
         "provenance": {k: str(v) for k, v in s.provenance.items() if k != "files"},
         "depth_source": res.depth_source, "params": params.to_json(),
         "timings": {k: round(v, 4) for k, v in timings.items()},
         "mesh": {"faces": int(res.mesh.n_faces), "vertices": int(res.mesh.n_vertices),
                  "reduced": res.mesh_result.reduced},
+        "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
+                                                   "message": res.refine.message},
         "lights_annotated": 0 if chain.annotation is None else len(chain.annotation.instance_ids()),
         "errors": frame_errors(chain, res), "nights": nights_info, "kinds": list(kinds),
-        "files": [p.name for p in written], "versions": versions()})
-    written.append(manifest)
+        "files": names, "checksums": {nm: file_checksum(staging / nm) for nm in names}, "versions": versions()}
+    if cancel is not None and cancel.is_set():
+        raise NpsimCancelled("export cancelled")
+    _commit(staging, folder, names, f"{n}_export.json", manifest)
+    out = [folder / nm for nm in names] + [folder / f"{n}_export.json"]
     if progress is not None:
-        progress(1.0, f"exported {len(written)} files")
-    return written
+        progress(1.0, f"exported {len(out)} files")
+    return out

@@ -9,6 +9,7 @@ per-class probabilities) are the app's business.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
@@ -20,6 +21,9 @@ from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DenoiseParams
 
 __all__ = ["CameraSetup", "MeshParams", "NightParams", "ChainParams", "MESH_DEPTHS", "parse_value"]
+
+#: The only fields where infinity means something (keep every visible vertex's depth).
+INFINITE_OK = {("postprocess", "keep_consistent")}
 
 #: Which depth the mesh is built from: the refined depth (the method), or one of the
 #: thesis's baselines -- the cross-bilateral-filtered depth or the input depth.
@@ -140,6 +144,9 @@ class ChainParams:
         if name not in names:
             raise NpsimInputError(f"unknown parameter {section}.{name}; {section} has {', '.join(sorted(names))}")
         cur = getattr(sec, name)
+        if isinstance(value, float) and not math.isfinite(value) and not (math.isinf(value) and (section, name)
+                                                                          in INFINITE_OK):
+            raise NpsimInputError(f"bad value {value!r} for {section}.{name}: must be a finite number")
         if isinstance(cur, tuple) and isinstance(value, list):
             value = tuple(tuple(x) if isinstance(x, list) else x for x in value)
         elif isinstance(cur, frozenset) and isinstance(value, (list, tuple, set)):

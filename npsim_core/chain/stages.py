@@ -69,19 +69,34 @@ class MaterialsResult:
 
 # --------------------------------------------------------------------------- depth
 def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
-    """Intrinsics (FOV override) and input depth/normals: the frame's, else the pop-up prior."""
+    """Intrinsics (FOV override) and input depth/normals: the frame's, else the pop-up prior.
+
+    Depths beyond the far limit (``mesh.far_limit``, metres), non-positive or non-finite are
+    invalid (NaN): a sky at 1e6 m would otherwise pull the filter and the refinement
+    everywhere. A frame without a single valid depth is an error.
+    """
+    camera, far_limit = params
     s: Scene = inputs["frame"]
-    hfov = float(params.hfov_deg or 0.0)
+    hfov = float(camera.hfov_deg or 0.0)
     intr = Intrinsics.from_fov(s.width, s.height, hfov) if hfov > 0 else s.intrinsics
     s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
     if s.depth is None:
         from ..geometry import estimate_geometry
 
-        return GeometryResult(estimate_geometry(s, "popup").apply(s), "semantic pop-up prior")
-    if s.normals is None:
-        s = s.with_(normals=normals_from_depth(s.depth, intr))
-        return GeometryResult(s, "the frame's depth (normals from it)")
-    return GeometryResult(s, "the frame's depth and normals")
+        s, source = estimate_geometry(s, "popup").apply(s), "semantic pop-up prior"
+    elif s.normals is None:
+        s, source = s.with_(normals=normals_from_depth(s.depth, intr)), "the frame's depth (normals from it)"
+    else:
+        source = "the frame's depth and normals"
+    d = np.asarray(s.depth, np.float32)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(d) & (d > 0) & (d <= far_limit))
+    if bad.all():
+        raise NpsimInputError(f"scene {s.name!r}: no valid depth within {far_limit:g} m (all sky, NaN, <= 0 or "
+                              "beyond the far limit, mesh.far_limit); there is nothing to reconstruct")
+    if bad.any():
+        s = s.with_(depth=np.where(bad, np.float32(np.nan), d))
+    return GeometryResult(s, source)
 
 
 def filter_stage(inputs: dict, params, ctx) -> np.ndarray:
@@ -234,7 +249,7 @@ def guides_stage(inputs: dict, params, ctx):
 
 # --------------------------------------------------------------------------- the graph
 STAGES: tuple[Stage, ...] = (
-    Stage("geometry", geometry_stage, ("frame",), lambda p: p.camera),
+    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit)), version=2),
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
     Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),

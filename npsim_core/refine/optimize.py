@@ -479,8 +479,18 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
     bad = valid & ~ok
     if bad.any():  # a non-positive or non-finite refined value would be silently invalid: keep the input there
         out[bad] = d[bad]
-    change = float(np.max(np.abs(out[valid].astype(np.float64) - d[valid]))) if valid.any() else 0.0
     msgs = [info["message"]]
+    hn = hist.get("normal", [])
+    bs = int(info["best_step"])
+    if len(hn) > bs and np.isfinite(hn[0]) and hn[0] > 0 and not hn[bs] <= NORMAL_DRIFT * hn[0]:
+        # The loss fell, yet the depth's normals agree less with the estimated normals than the
+        # input's did: the optimiser left the region where the loss means accuracy (a step size
+        # far too large, typically). Its result is not trusted: the input depth is kept.
+        msgs.append(f"diverged: the normal term rose from {hn[0]:.4g} to {hn[bs]:.4g} (more than "
+                    f"{NORMAL_DRIFT:g}x) although the loss fell; kept the input depth (lower the learning rate)")
+        info = dict(info, diverged=True, best_step=0)
+        out[valid] = d[valid]
+    change = float(np.max(np.abs(out[valid].astype(np.float64) - d[valid]))) if valid.any() else 0.0
     if prob.n_flipped:
         msgs.append(f"{prob.n_flipped} normals faced away from the camera and were flipped")
     if bad.any():
@@ -491,6 +501,11 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
                                  "total_s": t_end - t_start},
                         converged=info["converged"], diverged=info["diverged"], message="; ".join(msgs),
                         steps=info["steps"], best_step=info["best_step"], max_change_m=change)
+
+
+#: A refinement whose normal term (disagreement with the estimated normals) ends above this
+#: multiple of its initial value is reported as diverged and its input depth kept.
+NORMAL_DRIFT = 1.25
 
 
 class _Tracker:
