@@ -7,6 +7,7 @@ import re
 import sys
 
 from npsim_core.chain import ChainParams
+from npsim_core.chain.params import DEPTH_SOURCES
 from npsim_core.errors import NpsimInputError
 
 
@@ -38,6 +39,13 @@ def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> 
     p.add_argument("--seed", type=int, default=None, help="seed of the first night (night k uses seed+k)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of the nights (default 64)")
     p.add_argument("--fov", type=float, default=None, help="horizontal field of view in degrees (overrides intrinsics)")
+    p.add_argument("--depth", dest="depth_source", choices=DEPTH_SOURCES, default=None,
+                   help="input depth per frame: auto (default: the frame's own depth file, else the dataset's stereo, "
+                        "else a network with --checkpoint, else the pop-up prior), files, stereo, network, prior")
+    p.add_argument("--full-outputs", action="store_true",
+                   help="also write the full mesh, 16-bit depth/normal PNGs, normals .npy and linear nights .npy "
+                        "(default: only what a frame needs: about 30 MB at 2048x1024)")
+    p.add_argument("--checkpoint", default=None, help="local depth-network checkpoint folder (for --depth network/auto)")
 
 
 def params_from_args(args: argparse.Namespace) -> ChainParams:
@@ -62,6 +70,12 @@ def params_from_args(args: argparse.Namespace) -> ChainParams:
         if not 0 < args.fov < 180:
             raise NpsimInputError(f"--fov must be a horizontal field of view in (0, 180) degrees, got {args.fov}")
         params = params.with_value("camera", "hfov_deg", float(args.fov))
+    if getattr(args, "full_outputs", False):
+        params = params.with_value("export", "extras", True).with_value("export", "mesh", "both")
+    if getattr(args, "checkpoint", None):
+        params = params.with_value("depth", "checkpoint", str(args.checkpoint))
+    if getattr(args, "depth_source", None):
+        params = params.with_value("depth", "source", args.depth_source)
     if getattr(args, "nights", 0) is not None and getattr(args, "nights", 0) < 0:
         raise NpsimInputError(f"--nights must be >= 0, got {args.nights}")
     return params

@@ -109,18 +109,18 @@ class SceneSource:
                                    f"pitch {DEFAULT_CAMERA_PITCH} rad")
         return intr, cam_height, pitch, note
 
-    def load(self, *, disparity_as: str = "gt") -> Scene:
+    def load(self, *, disparity_as: str = "stereo") -> Scene:
         """Read the files into a validated :class:`Scene`.
 
         Parameters
         ----------
-        disparity_as : {"gt", "input", "none"}
-            Where Cityscapes stereo depth (``B f / disp``) goes: ``depth_gt``
-            (reference for scoring, the default), ``depth`` (the estimated input
-            D), or nowhere.
+        disparity_as : {"stereo", "gt", "input", "none"}
+            Where Cityscapes stereo depth (``B f / disp``) goes: ``depth_stereo`` (the
+            default: a depth source and the scoring reference, docs/method.md §2.2),
+            ``depth_gt``, ``depth`` (the estimated input D), or nowhere.
         """
-        if disparity_as not in ("gt", "input", "none"):
-            raise NpsimInputError(f"disparity_as must be 'gt', 'input' or 'none', got {disparity_as!r}")
+        if disparity_as not in ("stereo", "gt", "input", "none"):
+            raise NpsimInputError(f"disparity_as must be 'stereo', 'gt', 'input' or 'none', got {disparity_as!r}")
         image = read_image(self.image_path)
         labels = read_label_image(self.label_path, trainids=self.trainids)
         H, W = image.shape[:2]
@@ -145,8 +145,9 @@ class SceneSource:
             if depth.shape != (H, W):
                 raise NpsimInputError(f"{self.disparity_path}: disparity is {depth.shape[1]}x{depth.shape[0]} but "
                                       f"the image is {W}x{H}; resample one of them")
-            arrays["depth_gt" if disparity_as == "gt" else "depth"] = depth
-            prov["stereo_depth"] = f"{self.disparity_path.name} -> {'depth_gt' if disparity_as == 'gt' else 'depth'}"
+            field = {"stereo": "depth_stereo", "gt": "depth_gt", "input": "depth"}[disparity_as]
+            arrays[field] = depth
+            prov["stereo_depth"] = f"{self.disparity_path.name} -> {field}"
         return Scene(name=self.name, image=image, labels=labels, intrinsics=intr, camera_height=cam_height,
                      camera_pitch=pitch, provenance=prov, **arrays)
 

@@ -11,12 +11,14 @@ from .camera import valid_depth_mask
 
 @dataclass(frozen=True)
 class DepthMetrics:
-    """AbsRel = mean |d - g| / g; RMSE in metres; delta1 = fraction with max(d/g, g/d) < 1.25."""
+    """AbsRel = mean |d - g| / g; RMSE in metres; delta1 = fraction with max(d/g, g/d) < 1.25;
+    RMSElog = sqrt(mean (ln d - ln g)^2); n = pixels compared."""
 
     abs_rel: float
     rmse: float
     delta1: float
     n: int
+    rmse_log: float = float("nan")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -52,7 +54,8 @@ def depth_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = No
     p, g = pred[m], gt[m]
     ratio = np.maximum(p / g, g / p)
     return DepthMetrics(abs_rel=float(np.mean(np.abs(p - g) / g)), rmse=float(np.sqrt(np.mean((p - g) ** 2))),
-                        delta1=float(np.mean(ratio < 1.25)), n=n)
+                        delta1=float(np.mean(ratio < 1.25)), n=n,
+                        rmse_log=float(np.sqrt(np.mean((np.log(p) - np.log(g)) ** 2))))
 
 
 def angular_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:

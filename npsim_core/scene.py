@@ -57,6 +57,9 @@ class Scene:
         toward the camera, NaN invalid) -- the input D, N of the method.
     depth_gt, normals_gt : optional
         Ground truth, when known (synthetic scene); used for scoring only.
+    depth_stereo : optional
+        The dataset's stereo depth (m, NaN where the disparity has holes): a depth source
+        (``--depth stereo``/``auto``) and the scoring reference of frames without ground truth.
     lights : optional LightAnnotation
         Inactive light sources.
     albedo : optional (H, W, 3) float32 linear RGB in [0, 1]; roughness : optional (H, W) float32.
@@ -74,6 +77,7 @@ class Scene:
     normals: np.ndarray | None = None
     depth_gt: np.ndarray | None = None
     normals_gt: np.ndarray | None = None
+    depth_stereo: np.ndarray | None = None
     lights: LightAnnotation | None = None
     albedo: np.ndarray | None = None
     roughness: np.ndarray | None = None
@@ -117,7 +121,7 @@ def validate_scene(s: Scene) -> None:
     if (s.intrinsics.width, s.intrinsics.height) != (W, H):
         raise NpsimInputError(f"{where}: intrinsics are for {s.intrinsics.width}x{s.intrinsics.height} but the image "
                               f"is {W}x{H}; use Intrinsics.resized({W}, {H})")
-    for name in ("depth", "depth_gt", "roughness"):
+    for name in ("depth", "depth_gt", "depth_stereo", "roughness"):
         a = getattr(s, name)
         if a is None:
             continue
@@ -145,7 +149,8 @@ def validate_scene(s: Scene) -> None:
 
 # --------------------------------------------------------------------------- scene folders
 ARRAY_FILES = {"depth": "depth_pred.npy", "normals": "normals_pred.npy",
-               "depth_gt": "depth_gt.npy", "normals_gt": "normals_gt.npy", "roughness": "roughness.npy"}
+               "depth_gt": "depth_gt.npy", "normals_gt": "normals_gt.npy", "depth_stereo": "depth_stereo.npy",
+               "roughness": "roughness.npy"}
 
 
 def save_scene(scene: Scene, folder: str | Path) -> Path:

@@ -122,7 +122,7 @@ def test_chain_caching_follows_the_parameters():
     r = chain.compute(p, until="refine")
     assert r.recomputed == ["geometry", "filter", "uncertain", "refine"]
     assert isinstance(r.refine, RefineResult) and r.filtered.shape == (24, 40) and r.uncertain.dtype == bool
-    assert r.uncertain.any() and r.depth_source == "the frame's depth and normals"
+    assert r.uncertain.any() and r.depth_source == "files: the frame's depth and normals"
     assert chain.compute(p.with_lambdas(1, 1, 5), until="refine").recomputed == ["refine"]
     assert chain.compute(p.with_value("uncertainty", "l", 4), until="refine").recomputed == ["uncertain", "refine"]
     assert chain.compute(p.with_value("filter", "sigma_s", 4.0), until="refine").recomputed == [
@@ -180,6 +180,7 @@ def test_export_manifest_has_the_real_stage_timings(street, tmp_path):
     p = ChainParams().with_value("refine", "steps", 20).with_value("night", "final_spp", 2)
     first = chain.compute(p)
     files = export_frame(chain, p, tmp_path, nights=1, mesh_formats=("ply",))
+    assert not any(f.name.endswith(("_linear.npy", "_normals_refined.npy")) for f in files)  # extras only
     man = json.loads(files[-1].read_text())
     assert files[-1].name == f"{street.name}_export.json"
     for stage in ("geometry", "filter", "uncertain", "refine", "mesh"):
@@ -188,7 +189,9 @@ def test_export_manifest_has_the_real_stage_timings(street, tmp_path):
     assert man["timings"]["refine"] > 0 and man["timings"]["night_scene"] > 0
     assert man["depth_source"] and man["nights"][0]["seed"] == 0 and man["nights"][0]["timings"]["render"] > 0
     assert set(man["files"]) == {f.name for f in files[:-1]}
-    assert "depth_refined" in man["errors"] and "normals_refined" in man["errors"]
+    err = man["errors"]
+    assert err["reference"] == "ground truth" and "normal_rmse_deg" in err["refined"]
+    assert set(err["refined"]["classes"]) == {"road", "sidewalk", "building", "vegetation", "car"}
 
 
 def test_night_command_and_run_write_identical_nights(street, tmp_path):
@@ -197,7 +200,7 @@ def test_night_command_and_run_write_identical_nights(street, tmp_path):
     from npsim_core.scene import save_scene
 
     save_scene(street, tmp_path / "scene")
-    common = ["--spp", "2", "--seed", "5", "--set", "refine.steps=10"]
+    common = ["--spp", "2", "--seed", "5", "--set", "refine.steps=10", "--set", "export.extras=true"]
     assert main(["night", str(tmp_path / "scene"), "-o", str(tmp_path / "night"), "--variants", "1"] + common) == 0
     assert main(["run", str(tmp_path / "scene"), "-o", str(tmp_path / "run"), "--nights", "1"] + common) == 0
     stem = f"{street.name}_night_0"

@@ -78,11 +78,12 @@ def test_cityscapes_layout_is_listed_and_loaded(cityscapes_root):
     assert "camera json" in scene.provenance["intrinsics"]
     # Stereo depth B f / disp with the focal of the disparity image's size (here the same 64x32 scaling).
     fx = 2262.52 * W / 2048
-    np.testing.assert_allclose(scene.depth_gt[H // 2:], 0.209313 * fx / 20.0, rtol=1e-5)
-    assert np.isnan(scene.depth_gt[: H // 2]).all() and scene.depth is None
+    np.testing.assert_allclose(scene.depth_stereo[H // 2:], 0.209313 * fx / 20.0, rtol=1e-5)
+    assert np.isnan(scene.depth_stereo[: H // 2]).all() and scene.depth is None and scene.depth_gt is None
+    assert fr.load(disparity_as="gt").depth_gt is not None
     as_input = fr.load(disparity_as="input")
     assert as_input.depth is not None and as_input.depth_gt is None
-    assert fr.load(disparity_as="none").depth_gt is None
+    assert fr.load(disparity_as="none").depth_stereo is None
     with pytest.raises(NpsimInputError, match="disparity_as"):
         fr.load(disparity_as="both")
     # Without a camera file: Cityscapes' typical intrinsics, and the provenance says it was assumed.
@@ -113,7 +114,7 @@ def test_cityscapes_disparity_without_camera_is_a_clear_error(cityscapes_root):
     src = [s for s in open_dataset(cityscapes_root) if s.name.startswith("frankfurt")][0]
     with pytest.raises(NpsimInputError, match=r"frankfurt_000000_000294_disparity\.png.*baseline.*camera\.json"):
         src.load()
-    assert src.load(disparity_as="none").depth_gt is None
+    assert src.load(disparity_as="none").depth_stereo is None
 
 
 def test_bad_camera_json_names_the_file(cityscapes_root):
@@ -210,9 +211,9 @@ def test_estimate_cli_on_a_dataset_image(cityscapes_root, tmp_path, capsys):
     img = cityscapes_root / "leftImg8bit" / "val" / "frankfurt" / "frankfurt_000000_000294_leftImg8bit.png"
     assert main(["estimate", str(img), "-o", str(tmp_path / "out")]) == 0
     s = load_scene(tmp_path / "out")
-    assert s.name == "frankfurt_000000_000294" and s.depth is not None and s.depth_gt is not None
+    assert s.name == "frankfurt_000000_000294" and s.depth is not None and s.depth_stereo is not None
     assert s.provenance["geometry"]["method"] == "popup"
-    assert "AbsRel" in capsys.readouterr().out
+    assert "vs stereo" in capsys.readouterr().out
     assert main(["estimate", str(img)]) == 2
     assert "-o DIR is required" in capsys.readouterr().err
     lonely = tmp_path / "lonely.png"

@@ -373,7 +373,8 @@ def test_depth_metrics_hand_computed():
     assert m2.n == 2 and m2.abs_rel == pytest.approx(0.05) and m2.delta1 == 1.0
     empty = depth_metrics(pred, gt, np.zeros((2, 2), bool))
     assert empty.n == 0 and math.isnan(empty.abs_rel)
-    assert set(m.as_dict()) == {"abs_rel", "rmse", "delta1", "n"}
+    assert set(m.as_dict()) == {"abs_rel", "rmse", "delta1", "n", "rmse_log"}
+    assert m.rmse_log == pytest.approx(math.sqrt((math.log(1.1) ** 2 + math.log(2.0) ** 2) / 3))
 
 
 def test_normal_metrics_hand_computed():

@@ -1,11 +1,11 @@
-"""``npsim estimate SCENE --method popup|files|network``: estimate the input depth and normals.
+"""``npsim estimate SCENE --method popup|files|network|stereo``: estimate the input depth and normals.
 
 SCENE is a scene folder (``npsim sample``) or one labelled image from a
 dataset (a Cityscapes/ACDC image path is matched to its labels; in a plain
 folder, ``x.png`` to ``x_labelIds.png``). The result is written as a scene
 folder (``-o DIR``, default: SCENE itself when it is a scene folder) with
-``depth_pred.npy`` / ``normals_pred.npy`` replaced; the errors against ground
-truth are printed when the scene has it.
+``depth_pred.npy`` / ``normals_pred.npy`` replaced; the errors against the frame's
+reference (ground truth, else its stereo depth) are printed when it has one.
 """
 
 from __future__ import annotations
@@ -21,7 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("estimate", help="estimate depth and normals (pop-up prior, files, or a local network)",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scene", help="scene folder, or an image file inside a dataset (labels found by name)")
-    p.add_argument("--method", choices=("popup", "files", "network"), default="popup")
+    p.add_argument("--method", choices=("popup", "files", "network", "stereo"), default="popup",
+                   help="popup: the semantic pop-up prior; files: --depth FILE; network: --checkpoint DIR; stereo: "
+                        "the dataset's disparity (holes from the aligned prior)")
     p.add_argument("-o", "--output", help="output scene folder (default: SCENE when it is a scene folder)")
     p.add_argument("--depth", help="files: depth map (.npy, .pfm, .exr, 16-bit .png metres*256, disparity .png)")
     p.add_argument("--normals", help="files: normal map (.npy or 8/16-bit .png); default: from the depth")
@@ -47,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from npsim_core.geometry.files import FilesParams
     from npsim_core.geometry.network import NetworkParams
     from npsim_core.geometry.popup import PopupParams
-    from npsim_core.metrics import depth_metrics, normal_metrics
+    from npsim_core.scoring import reference_of, score_depth
     from npsim_core.scene import save_scene
 
     scene, folder = _load(args)
@@ -58,6 +60,10 @@ def run(args: argparse.Namespace) -> int:
     popup = PopupParams(camera_height=args.camera_height, camera_pitch=args.pitch)
     if args.method == "popup":
         params = popup
+    elif args.method == "stereo":
+        from npsim_core.geometry.stereo import StereoParams
+
+        params = StereoParams(popup=popup)
     elif args.method == "files":
         if not args.depth:
             raise NpsimInputError("--method files needs --depth FILE")
@@ -76,11 +82,13 @@ def run(args: argparse.Namespace) -> int:
     save_scene(result, out)
     print(f"{scene.name}: {args.method} depth/normals -> {out}/depth_pred.npy, normals_pred.npy "
           f"({100 * float((est.depth == est.depth).mean()):.1f}% valid)")
-    if scene.depth_gt is not None:
-        dm = depth_metrics(est.depth, scene.depth_gt)
-        print(f"  depth vs ground truth: AbsRel {dm.abs_rel:.4f}, RMSE {dm.rmse:.3f} m, delta1 {dm.delta1:.4f}")
-    if scene.normals_gt is not None:
-        nm = normal_metrics(est.normals, scene.normals_gt)
-        print(f"  normals vs ground truth: angular RMSE {nm.rmse_deg:.2f} deg, within 11.25 deg "
-              f"{nm.within_11_25:.3f}")
+    ref = reference_of(scene)
+    if ref is not None:
+        sc = score_depth(est.depth, scene.intrinsics, scene.labels, ref)
+        cls = ", ".join(f"{k} {v:.3f}" for k, v in sc["classes"].items() if v == v)
+        print(f"  depth vs {ref.kind}: AbsRel {sc['abs_rel']:.4f}, RMSE {sc['rmse_m']:.3f} m, delta1 "
+              f"{sc['delta1']:.4f}, RMSElog {sc['rmse_log']:.4f}; AbsRel per class: {cls}")
+        if "normal_rmse_deg" in sc:
+            print(f"  normals vs {ref.kind}: angular RMSE {sc['normal_rmse_deg']:.2f} deg, within 11.25 deg "
+                  f"{sc['normal_within_11_25']:.3f}")
     return 0

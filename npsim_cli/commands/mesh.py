@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     if args.variant != "npsim":
         params = params.with_value("mesh", "depth", "input" if args.variant == "raw" else "filtered") \
                        .with_value("mesh", "postprocess", False)
+    params = params.with_value("export", "mesh", "full")  # the mesh tool writes the chain's mesh itself
     formats = tuple(f.strip().lower() for f in args.format.split(",") if f.strip())
     check_mesh_formats(formats)
     check_output_folder(args.out)

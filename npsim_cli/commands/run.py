@@ -9,6 +9,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from npsim_core.chain import (Chain, ChainParams, check_output_folder, export_frame, frame_errors, iter_frames,
                               load_frame, verify_frame)
 from npsim_core.errors import NpsimInputError
@@ -44,18 +46,35 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _summary(errors: dict) -> str:
-    parts = []
-    if "depth_input" in errors:
-        parts.append(f"depth AbsRel {errors['depth_input']['abs_rel']:.4f} -> {errors['depth_refined']['abs_rel']:.4f}")
-    if "normals_input" in errors:
-        parts.append(f"normal RMSE {errors['normals_input']['rmse_deg']:.1f} -> "
-                     f"{errors['normals_refined']['rmse_deg']:.1f} deg")
-    return ("vs ground truth: " + ", ".join(parts)) if parts else ""
+    """One line: the refined depth's scores against the frame's reference (input -> refined)."""
+    if not errors:
+        return "no reference (no ground truth, no stereo): not scored"
+    i, r = errors["input"], errors["refined"]
+    cls = ", ".join(f"{k} {v:.3f}" for k, v in r["classes"].items() if v == v)
+    line = (f"vs {errors['reference']}: AbsRel {i['abs_rel']:.4f} -> {r['abs_rel']:.4f}, δ1 {r['delta1']:.3f}, "
+            f"RMSElog {r['rmse_log']:.3f}; per class {cls}")
+    if "normal_rmse_deg" in r:
+        line += f"; normal RMSE {i['normal_rmse_deg']:.1f} -> {r['normal_rmse_deg']:.1f} deg"
+    return line
+
+
+def dataset_summary(scores: list[dict]) -> list[str]:
+    """Mean scores over the frames, per reference kind (lines for the log)."""
+    lines = []
+    for kind in sorted({e["reference"] for e in scores}):
+        rows = [e for e in scores if e["reference"] == kind]
+        mean = lambda key, stage="refined": float(np.nanmean([e[stage][key] for e in rows]))  # noqa: E731
+        cls = {c: float(np.nanmean([e["refined"]["classes"][c] for e in rows])) for c in rows[0]["refined"]["classes"]}
+        lines.append(f"{len(rows)} frames vs {kind}: mean AbsRel {mean('abs_rel', 'input'):.4f} -> "
+                     f"{mean('abs_rel'):.4f}, δ1 {mean('delta1'):.3f}, RMSElog {mean('rmse_log'):.3f}; per class "
+                     + ", ".join(f"{c} {v:.3f}" for c, v in cls.items() if v == v))
+    return lines
 
 
 def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, *, kinds=None,
-                  inputs: dict | None = None) -> list[Path]:
-    """Run the chain on ``scene`` and export to ``out`` (progress on stderr)."""
+                  inputs: dict | None = None, scores: list | None = None) -> list[Path]:
+    """Run the chain on ``scene`` and export to ``out`` (progress on stderr); its scores are
+    appended to ``scores`` when given."""
     chain = Chain(scene)
     t0 = time.perf_counter()
 
@@ -85,9 +104,10 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     kw = {"kinds": tuple(kinds)} if kinds else {}
     written = export_frame(chain, params, out, nights=nights, progress=progress, inputs=inputs, **kw)
     log(cmd, f"{scene.name}: total {time.perf_counter() - t0:.1f} s")
-    summ = _summary(frame_errors(chain, res))
-    if summ:
-        log(cmd, f"{scene.name}: {summ}")
+    errors = frame_errors(chain, res, params.depth.stereo_max_m)
+    log(cmd, f"{scene.name}: {_summary(errors)}")
+    if scores is not None and errors:
+        scores.append(errors)
     return written
 
 
@@ -122,7 +142,7 @@ def run_batch(args: argparse.Namespace) -> int:
     sources = iter_frames(args.dataset, trainids=args.trainids, hfov_deg=args.fov)
     if args.limit is not None:
         sources = sources[: args.limit]
-    failed, skipped, done = [], 0, []
+    failed, skipped, done, scores = [], 0, [], []
     t0 = time.perf_counter()
     for i, src in enumerate(sources):
         out = Path(args.out) / src.name
@@ -142,7 +162,8 @@ def run_batch(args: argparse.Namespace) -> int:
         log("batch", f"{head}{eta}")
         t1 = time.perf_counter()
         try:
-            process_frame(src.load(), params, out, args.nights, "batch", inputs={"frame": str(src.path)})
+            process_frame(src.load(), params, out, args.nights, "batch", inputs={"frame": str(src.path)},
+                          scores=scores)
             done.append(time.perf_counter() - t1)
         except (NpsimInputError, OSError) as exc:  # one bad frame must not stop a dataset run
             failed.append((src.name, str(exc)))
@@ -154,6 +175,8 @@ def run_batch(args: argparse.Namespace) -> int:
     ok = len(sources) - len(failed) - skipped
     log("batch", f"{ok} frames done, {skipped} skipped as complete, {len(failed)} failed, of {len(sources)}, "
                  f"in {time.perf_counter() - t0:.1f} s")
+    for line in dataset_summary(scores):
+        log("batch", line)
     for name, err in failed:
         print(f"failed: {name}: {err}", file=sys.stderr)
     return 1 if failed else 0
@@ -187,10 +210,9 @@ def run_sweep(args: argparse.Namespace) -> int:
     print(header)
     for l1, l2, l3 in grid:
         res = chain.compute(params.with_lambdas(l1, l2, l3), until="refine")
-        err = frame_errors(chain, res)
-        d, nrm = err.get("depth_refined", {}), err.get("normals_refined", {})
-        row = (l1, l2, l3, res.refine.final_loss, res.timings["refine"], d.get("abs_rel", float("nan")),
-               d.get("rmse_m", float("nan")), nrm.get("rmse_deg", float("nan")))
+        r = frame_errors(chain, res, params.depth.stereo_max_m).get("refined", {})
+        row = (l1, l2, l3, res.refine.final_loss, res.timings["refine"], r.get("abs_rel", float("nan")),
+               r.get("rmse_m", float("nan")), r.get("normal_rmse_deg", float("nan")))
         rows.append(row)
         print(",".join(f"{x:.6g}" for x in row), flush=True)
     scored = [r for r in rows if r[7] == r[7]]

@@ -56,21 +56,32 @@ def versions() -> dict[str, str]:
     return out
 
 
-def frame_errors(chain: Chain, res: ChainResults) -> dict[str, dict[str, float]]:
-    """Errors of the input and refined depth/normals against the frame's ground truth (what it has
-    of it: depth and normals separately); empty without ground truth."""
-    from ..metrics import depth_metrics, normal_metrics
+def frame_errors(chain: Chain, res: ChainResults, stereo_max_m: float | None = None) -> dict:
+    """Scores of the input and refined depth against the frame's reference (ground truth, else
+    stereo; :mod:`npsim_core.scoring`): ``{"reference", "input", "refined"}``; empty without one."""
+    from ..scoring import reference_of, score_depth
 
-    sc, out = chain.scene, {}
-    if sc.depth_gt is not None and res.depth_in is not None:
-        for tag, d in (("input", res.depth_in), ("refined", res.depth)):
-            m = depth_metrics(d, sc.depth_gt)
-            out[f"depth_{tag}"] = {"abs_rel": float(m.abs_rel), "rmse_m": float(m.rmse), "delta1": float(m.delta1)}
-    if sc.normals_gt is not None and res.depth_in is not None:
-        for tag, d in (("input", res.depth_in), ("refined", res.depth)):
-            m = normal_metrics(normals_from_depth(d, res.intrinsics), sc.normals_gt)
-            out[f"normals_{tag}"] = {"rmse_deg": float(m.rmse_deg), "within_11_25": float(m.within_11_25)}
-    return out
+    if stereo_max_m is None:
+        stereo_max_m = ChainParams().depth.stereo_max_m
+    ref = reference_of(chain.scene, stereo_max_m)
+    if ref is None or res.depth_in is None:
+        return {}
+    labels = chain.scene.labels
+    return {"reference": ref.kind, "input": score_depth(res.depth_in, res.intrinsics, labels, ref),
+            "refined": score_depth(res.depth, res.intrinsics, labels, ref)}
+
+
+def written_mesh(res: ChainResults, tolerance: float):
+    """The mesh an export writes by default: the quadtree reduction of the post-processed sheets
+    whose merged cells stay within ``tolerance`` (relative) of the full mesh's depth; the chain's
+    mesh itself when it was already reduced to a face budget or has no sheets (no
+    post-processing). Returns (mesh, what it is)."""
+    from ..mesh.reduce import ReduceParams, reduce_mesh
+
+    if res.layers is None or res.mesh_result.reduced:
+        return res.mesh, "the chain's mesh"
+    red = reduce_mesh(res.layers, res.intrinsics, ReduceParams(tol=float(tolerance)))
+    return red.mesh, f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
 
 
 def check_mesh_formats(formats) -> None:
@@ -150,15 +161,18 @@ def _commit(staging: Path, folder: Path, names: list[str], manifest_name: str, m
 
 
 def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, nights: int = 1,
-                 kinds: tuple[str, ...] = EXPORT_KINDS, mesh_formats: tuple[str, ...] = ("ply", "glb"),
+                 kinds: tuple[str, ...] = EXPORT_KINDS, mesh_formats: tuple[str, ...] | None = None,
                  cancel: threading.Event | None = None, progress: Callable[[float, str], None] | None = None,
                  inputs: dict | None = None) -> list[Path]:
     """Write ``kinds`` of ``chain``'s frame (and ``nights`` nights) to ``folder``.
 
     Returns the written paths, the manifest ``<name>_export.json`` last. ``progress(fraction,
     text)`` reports as it goes; ``inputs`` (e.g. the command line's paths) goes into the manifest.
-    All or nothing: see the module doc.
+    What is written follows ``params.export`` (``mesh_formats`` overrides its formats). All or
+    nothing: see the module doc.
     """
+    if mesh_formats is None:
+        mesh_formats = params.export.mesh_formats
     bad = [k for k in kinds if k not in EXPORT_KINDS]
     if bad:
         raise NpsimInputError(f"unknown export kinds {bad}; choose from {EXPORT_KINDS}")
@@ -212,24 +226,39 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
             put(staging / f"{n}_uncertain.png", write_image, res.uncertain.astype(np.uint8) * 255)
         if chain.annotation is not None:
             written += list(save_annotation(chain.annotation, staging, n).values())
+    ex = params.export
     if "depth" in kinds:
         for tag, d in (("input", res.depth_in), ("refined", res.depth)):
             put(staging / f"{n}_depth_{tag}.npy", write_npy, d.astype(np.float32))
-            put(staging / f"{n}_depth_{tag}.png", write_depth_png, d)
+            if ex.extras:
+                put(staging / f"{n}_depth_{tag}.png", write_depth_png, d)
             put(staging / f"{n}_depth_{tag}_vis.png", write_image, depth_to_rgb(d))
     if "normals" in kinds:
         nr = normals_from_depth(res.depth, res.intrinsics)
-        put(staging / f"{n}_normals_refined.npy", write_npy, nr)
-        put(staging / f"{n}_normals_refined.png", write_normals_png, nr)
+        if ex.extras:
+            put(staging / f"{n}_normals_refined.npy", write_npy, nr)
+            put(staging / f"{n}_normals_refined.png", write_normals_png, nr)
         put(staging / f"{n}_normals_refined_vis.png", write_image, normals_to_rgb(nr))
-    if "mesh" in kinds:
+    mesh_info = {"faces": int(res.mesh.n_faces), "vertices": int(res.mesh.n_vertices),
+                 "reduced_by_budget": res.mesh_result.reduced}
+    if "mesh" in kinds and ex.mesh != "none":
         from ..mesh.export import export_mesh
 
-        out = export_mesh(res.mesh, staging, stem=f"{n}_mesh", formats=tuple(mesh_formats), image=s.image)
-        written += list(out.values())
-        if "obj" in out:  # its material and texture files beside it
-            written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{n}_mesh_texture.png"))
-                        if p.exists()]
+        meshes = []
+        if ex.mesh in ("reduced", "both"):
+            small, how = written_mesh(res, ex.mesh_tolerance)
+            meshes.append((f"{n}_mesh", small))
+            mesh_info["written"] = {"faces": int(small.n_faces), "what": how}
+        if ex.mesh in ("full", "both"):
+            meshes.append((f"{n}_mesh" if ex.mesh == "full" else f"{n}_mesh_full", res.mesh))
+            if ex.mesh == "full":
+                mesh_info["written"] = {"faces": int(res.mesh.n_faces), "what": "the chain's mesh"}
+        for stem, m in meshes:
+            out = export_mesh(m, staging, stem=stem, formats=tuple(mesh_formats), image=s.image)
+            written += list(out.values())
+            if "obj" in out:  # its material and texture files beside it
+                written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{stem}_texture.png"))
+                            if p.exists()]
     nights_info = []
     for k in range(n_nights):
         step(f"rendering night {k + 1}/{n_nights}")
@@ -237,7 +266,8 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         frame = chain.night_final(res, params, seed=seed, cancel=cancel)
         stem = f"{n}_night_{k}"
         put(staging / f"{stem}.png", write_image, frame.image)
-        put(staging / f"{stem}_linear.npy", write_npy, frame.linear)
+        if ex.extras:
+            put(staging / f"{stem}_linear.npy", write_npy, frame.linear)
         put(staging / f"{stem}_labelIds.png", write_image, s.labels)
         put(staging / f"{stem}_lights.json", write_json, frame.active.to_json())
         on = len(frame.active.on_ids)
@@ -259,12 +289,11 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         "provenance": {k: str(v) for k, v in s.provenance.items() if k != "files"},
         "depth_source": res.depth_source, "params": params.to_json(),
         "timings": {k: round(v, 4) for k, v in timings.items()},
-        "mesh": {"faces": int(res.mesh.n_faces), "vertices": int(res.mesh.n_vertices),
-                 "reduced": res.mesh_result.reduced},
+        "mesh": mesh_info,
         "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
                                                    "message": res.refine.message},
         "lights_annotated": 0 if chain.annotation is None else len(chain.annotation.instance_ids()),
-        "errors": frame_errors(chain, res), "nights": nights_info, "kinds": list(kinds),
+        "errors": frame_errors(chain, res, params.depth.stereo_max_m), "nights": nights_info, "kinds": list(kinds),
         "files": names, "checksums": {nm: file_checksum(staging / nm) for nm in names}, "versions": versions()}
     if cancel is not None and cancel.is_set():
         raise NpsimCancelled("export cancelled")

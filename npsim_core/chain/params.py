@@ -20,7 +20,8 @@ from ..refine.optimize import PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DenoiseParams
 
-__all__ = ["CameraSetup", "MeshParams", "NightParams", "ChainParams", "MESH_DEPTHS", "parse_value"]
+__all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "MESH_DEPTHS", "DEPTH_SOURCES",
+           "parse_value"]
 
 #: The only fields where infinity means something (keep every visible vertex's depth).
 INFINITE_OK = {("postprocess", "keep_consistent")}
@@ -35,6 +36,38 @@ class CameraSetup:
     """hfov_deg: horizontal field of view in degrees; 0 keeps the frame's intrinsics."""
 
     hfov_deg: float = 0.0
+
+
+#: Where the input depth comes from (docs/method.md §2.2); ``auto`` picks per frame.
+DEPTH_SOURCES = ("auto", "files", "stereo", "network", "prior")
+
+
+@dataclass(frozen=True)
+class DepthSource:
+    """The input depth D and normals N of each frame.
+
+    source : ``auto`` (default) takes the frame's own depth (a scene folder's ``depth_pred.npy``,
+        from ``npsim estimate``) if it has one, else the dataset's stereo (disparity + camera
+        JSON, holes filled from the aligned pop-up prior), else a network when ``checkpoint``
+        is given, else the pop-up prior. ``files``, ``stereo``, ``network`` and ``prior``
+        force one (an error names the frame when it lacks it).
+    checkpoint : a local depth-network checkpoint folder ('' = none; nothing is downloaded).
+    stereo_max_m : stereo depth beyond this many metres counts as a hole (filled from the prior)
+        and is not used for scoring.
+    """
+
+    source: str = "auto"
+    checkpoint: str = ""
+    stereo_max_m: float = 80.0
+
+    def __post_init__(self) -> None:
+        if self.source not in DEPTH_SOURCES:
+            raise NpsimInputError(f"depth.source must be one of {', '.join(DEPTH_SOURCES)}, got {self.source!r}")
+        if self.source == "network" and not self.checkpoint:
+            raise NpsimInputError("depth.source 'network' needs depth.checkpoint, a local checkpoint folder "
+                                  "(CLI: --checkpoint DIR)")
+        if not self.stereo_max_m > 0:
+            raise NpsimInputError(f"depth.stereo_max_m must be > 0, got {self.stereo_max_m}")
 
 
 @dataclass(frozen=True)
@@ -120,11 +153,45 @@ class NightParams:
         return dict(self.probabilities).get(int(class_id))
 
 
+EXPORT_MESHES = ("reduced", "full", "both", "none")
+
+
+@dataclass(frozen=True)
+class ExportParams:
+    """What an export writes for a frame (docs/design.md; README "Files and formats").
+
+    mesh : ``reduced`` (default): the quadtree mesh whose merged cells stay within
+        ``mesh_tolerance`` (relative) of the full mesh's depth, as ``<name>_mesh.<fmt>``;
+        ``full``: the chain's mesh as ``<name>_mesh.<fmt>``; ``both``: the reduced one plus
+        ``<name>_mesh_full.<fmt>``; ``none``.
+    mesh_formats : subset of ply, obj, glb.
+    extras : also the 16-bit depth and normal PNGs, the normals as ``.npy`` and each night's
+        linear render ``<name>_night_<k>_linear.npy`` (float32: 24 MB a night at 2048x1024).
+    """
+
+    mesh: str = "reduced"
+    mesh_tolerance: float = 0.01
+    mesh_formats: tuple = ("glb",)
+    extras: bool = False
+
+    def __post_init__(self) -> None:
+        if self.mesh not in EXPORT_MESHES:
+            raise NpsimInputError(f"export.mesh must be one of {', '.join(EXPORT_MESHES)}, got {self.mesh!r}")
+        if not 0 < float(self.mesh_tolerance) < 1:
+            raise NpsimInputError(f"export.mesh_tolerance must be in (0, 1), got {self.mesh_tolerance}")
+        from ..mesh.export import FORMATS
+
+        bad = [f for f in self.mesh_formats if f not in FORMATS]
+        if bad or not self.mesh_formats:
+            raise NpsimInputError(f"export.mesh_formats: unknown {bad or 'empty'}; choose from {', '.join(FORMATS)}")
+
+
 @dataclass(frozen=True)
 class ChainParams:
     """Every parameter of the chain, one frozen section per stage."""
 
     camera: CameraSetup = CameraSetup()
+    depth: DepthSource = DepthSource()
     filter: FilterParams = FilterParams()
     uncertainty: UncertaintyParams = UncertaintyParams()
     refine: RefineParams = RefineParams()
@@ -132,6 +199,7 @@ class ChainParams:
     postprocess: PostprocessParams = PostprocessParams()
     night: NightParams = NightParams()
     denoise: DenoiseParams = DenoiseParams()
+    export: ExportParams = ExportParams()
 
     # ------------------------------------------------------------------ edits
     def with_value(self, section: str, name: str, value: Any) -> "ChainParams":

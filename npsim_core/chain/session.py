@@ -106,5 +106,6 @@ def scaled_frame(scene: Scene, scale: float) -> Scene:
     return scene.with_(image=cv2.resize(scene.image, (W, H), interpolation=cv2.INTER_AREA),
                        labels=near(scene.labels), intrinsics=scene.intrinsics.resized(W, H),
                        depth=near(scene.depth), normals=near(scene.normals), depth_gt=near(scene.depth_gt),
+                       depth_stereo=near(scene.depth_stereo),
                        normals_gt=near(scene.normals_gt), lights=lights, albedo=near(scene.albedo),
                        roughness=near(scene.roughness))

@@ -31,7 +31,7 @@ from .params import ChainParams
 
 __all__ = ["GeometryResult", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
            "uncertain_stage", "refine_stage", "mesh_stage", "materials_stage", "night_scene_stage",
-           "guides_stage", "removed_faces", "light_table", "mesh_needs"]
+           "guides_stage", "removed_faces", "light_table", "mesh_needs", "input_geometry"]
 
 
 # --------------------------------------------------------------------------- results
@@ -75,19 +75,12 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     invalid (NaN): a sky at 1e6 m would otherwise pull the filter and the refinement
     everywhere. A frame without a single valid depth is an error.
     """
-    camera, far_limit = params
+    camera, far_limit, src = params
     s: Scene = inputs["frame"]
     hfov = float(camera.hfov_deg or 0.0)
     intr = Intrinsics.from_fov(s.width, s.height, hfov) if hfov > 0 else s.intrinsics
     s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
-    if s.depth is None:
-        from ..geometry import estimate_geometry
-
-        s, source = estimate_geometry(s, "popup").apply(s), "semantic pop-up prior"
-    elif s.normals is None:
-        s, source = s.with_(normals=normals_from_depth(s.depth, intr)), "the frame's depth (normals from it)"
-    else:
-        source = "the frame's depth and normals"
+    s, source = input_geometry(s, src)
     d = np.asarray(s.depth, np.float32)
     with np.errstate(invalid="ignore"):
         bad = ~(np.isfinite(d) & (d > 0) & (d <= far_limit))
@@ -97,6 +90,41 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     if bad.any():
         s = s.with_(depth=np.where(bad, np.float32(np.nan), d))
     return GeometryResult(s, source)
+
+
+def input_geometry(s: Scene, src) -> tuple[Scene, str]:
+    """``s`` with its input depth and normals from the source ``src`` (:class:`~.params.DepthSource`)
+    chose, and a sentence saying which (docs/method.md §2.2)."""
+    from ..geometry import estimate_geometry
+
+    kind = src.source
+    if kind == "auto":
+        kind = ("files" if s.depth is not None else "stereo" if s.depth_stereo is not None
+                else "network" if src.checkpoint else "prior")
+    if kind == "files":
+        if s.depth is None:
+            raise NpsimInputError(f"scene {s.name!r} has no depth of its own (depth_pred.npy); create one with "
+                                  "'npsim estimate', or choose --depth auto|stereo|prior|network")
+        if s.normals is None:
+            return s.with_(normals=normals_from_depth(s.depth, s.intrinsics)), "files: the frame's depth (normals " \
+                                                                               "from it)"
+        return s, "files: the frame's depth and normals"
+    if kind == "stereo":
+        from ..geometry.stereo import StereoParams
+
+        est = estimate_geometry(s, "stereo", StereoParams(max_depth=src.stereo_max_m))
+        i = est.info
+        return est.apply(s), (f"stereo: {100 * i['stereo_valid']:.1f} % of pixels within {src.stereo_max_m:g} m, "
+                              f"{100 * i['filled_from_prior']:.1f} % filled from the pop-up prior x "
+                              f"{i['prior_scale']:.3f}")
+    if kind == "network":
+        from ..geometry.network import NetworkParams
+
+        if not src.checkpoint:
+            raise NpsimInputError("--depth network needs --checkpoint DIR (a local checkpoint folder)")
+        return estimate_geometry(s, "network", NetworkParams(checkpoint=src.checkpoint)).apply(s), \
+            f"network: {src.checkpoint}"
+    return estimate_geometry(s, "popup").apply(s), "prior: semantic pop-up"
 
 
 def filter_stage(inputs: dict, params, ctx) -> np.ndarray:
@@ -249,7 +277,7 @@ def guides_stage(inputs: dict, params, ctx):
 
 # --------------------------------------------------------------------------- the graph
 STAGES: tuple[Stage, ...] = (
-    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit)), version=2),
+    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=3),
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
     Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import NpsimInputError
 from ..scene import Scene
 
-METHODS = ("popup", "files", "network")
+METHODS = ("popup", "files", "network", "stereo")
 
 
 @dataclass(frozen=True)
@@ -63,22 +63,23 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None) -
     ----------
     scene : Scene
         Image, labels, intrinsics, camera height/pitch.
-    method : {"popup", "files", "network"}
-    params : PopupParams | FilesParams | NetworkParams, optional
+    method : {"popup", "files", "network", "stereo"}
+    params : PopupParams | FilesParams | NetworkParams | StereoParams, optional
         The method's frozen parameters (defaults when ``None``; ``files`` and
         ``network`` need paths, so their params are required).
     """
     from .files import FilesParams, estimate_from_files
     from .network import NetworkParams, estimate_network
     from .popup import PopupParams, estimate_popup
+    from .stereo import StereoParams, estimate_stereo
 
     table = {"popup": (PopupParams, estimate_popup), "files": (FilesParams, estimate_from_files),
-             "network": (NetworkParams, estimate_network)}
+             "network": (NetworkParams, estimate_network), "stereo": (StereoParams, estimate_stereo)}
     if method not in table:
         raise NpsimInputError(f"unknown geometry method {method!r}; use one of {', '.join(METHODS)}")
     ptype, fn = table[method]
     if params is None:
-        if method != "popup":
+        if method not in ("popup", "stereo"):
             raise NpsimInputError(f"geometry method {method!r} needs parameters ({ptype.__name__}): "
                                   + ("the depth file" if method == "files" else "the checkpoint folder"))
         params = ptype()

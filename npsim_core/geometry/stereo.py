@@ -1,0 +1,93 @@
+"""Stereo depth as the method's input D, N (docs/method.md §2.2).
+
+A dataset's stereo depth (Cityscapes disparity converted with the camera JSON's baseline
+and focal length, ``Scene.depth_stereo``) is the best depth a real frame has, but it has
+holes: sky, the ego hood, thin structures, occlusion borders, and the far range where a
+disparity of a few pixels is mostly noise. The holes are filled from the semantic pop-up
+prior scaled to the stereo (the median ratio over pixels valid in both), so the two agree
+in scale where they meet; sky stays invalid. Normals come from the fused depth smoothed
+by a normalised Gaussian (stereo is noisy pixel to pixel), except on ground classes, whose
+plane the prior knows exactly from the camera height and pitch.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..camera import normals_from_depth
+from ..errors import NpsimInputError
+from ..labels import cityscapes
+from ..scene import Scene
+from . import GeometryEstimate, invalid_label_mask
+from .popup import PopupParams, estimate_popup
+
+__all__ = ["StereoParams", "estimate_stereo"]
+
+#: labelIds never taken from stereo: unlabeled, ego vehicle, rectification border, out of ROI, sky.
+STEREO_EXCLUDED = (0, 1, 2, 3, 23)
+
+
+@dataclass(frozen=True)
+class StereoParams:
+    """max_depth : stereo beyond this (m) counts as a hole (far disparity is mostly noise).
+    smooth_px : σ of the Gaussian that smooths the depth the normals are taken from (0 = W/1024 px, at least 1).
+    popup : parameters of the prior that fills the holes."""
+
+    max_depth: float = 80.0
+    smooth_px: float = 0.0
+    popup: PopupParams = PopupParams()
+
+    def __post_init__(self) -> None:
+        if not (self.max_depth > 0 and self.smooth_px >= 0):
+            raise NpsimInputError(f"stereo: max_depth must be > 0 and smooth_px >= 0, got {self.max_depth}, "
+                                  f"{self.smooth_px}")
+
+
+def smoothed_depth(depth: np.ndarray, sigma: float) -> np.ndarray:
+    """Normalised Gaussian smoothing of a depth map over its valid pixels (NaN stays NaN)."""
+    ok = np.isfinite(depth)
+    d = np.where(ok, depth, 0.0).astype(np.float32)
+    w = ok.astype(np.float32)
+    k = int(2 * round(3 * sigma) + 1)
+    num = cv2.GaussianBlur(d, (k, k), sigma, borderType=cv2.BORDER_REPLICATE)
+    den = cv2.GaussianBlur(w, (k, k), sigma, borderType=cv2.BORDER_REPLICATE)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = num / den
+    return np.where(ok & (den > 1e-6), out, np.nan).astype(np.float32)
+
+
+def stereo_valid(scene: Scene, max_depth: float) -> np.ndarray:
+    """Pixels whose stereo depth is usable: finite, positive, within ``max_depth``, not sky/ego/border."""
+    st = scene.depth_stereo
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(st) & (st > 0) & (st <= max_depth)
+    return ok & ~invalid_label_mask(scene.labels, STEREO_EXCLUDED)
+
+
+def estimate_stereo(scene: Scene, params: StereoParams | None = None) -> GeometryEstimate:
+    """Stereo depth with its holes filled from the scaled pop-up prior; normals as in the module doc."""
+    p = params or StereoParams()
+    if scene.depth_stereo is None:
+        raise NpsimInputError(f"scene {scene.name!r} has no stereo depth (a Cityscapes disparity PNG with its "
+                              "camera JSON); use another depth source (--depth prior|network|files)")
+    t0 = time.perf_counter()
+    ok = stereo_valid(scene, p.max_depth)
+    if ok.mean() < 0.01:
+        raise NpsimInputError(f"scene {scene.name!r}: its stereo depth has {100 * ok.mean():.2f} % usable pixels "
+                              f"(within {p.max_depth:g} m, off sky/ego/borders); use --depth prior")
+    prior = estimate_popup(scene, p.popup)
+    both = ok & np.isfinite(prior.depth)
+    scale = float(np.median(scene.depth_stereo[both] / prior.depth[both])) if both.sum() >= 100 else 1.0
+    fused = np.where(ok, scene.depth_stereo, prior.depth * np.float32(scale)).astype(np.float32)
+    sigma = p.smooth_px or max(1.0, scene.width / 1024)
+    normals = normals_from_depth(smoothed_depth(fused, sigma), scene.intrinsics)
+    ground = np.isin(scene.labels, sorted(cityscapes().ground_ids())) & np.isfinite(prior.normals).all(-1)
+    normals = np.where(ground[..., None], prior.normals, normals).astype(np.float32)
+    info = {"stereo_valid": round(float(ok.mean()), 4), "prior_scale": round(scale, 4),
+            "filled_from_prior": round(float((~ok & np.isfinite(fused)).mean()), 4), "max_depth": p.max_depth,
+            "smooth_px": round(sigma, 2), "time_s": round(time.perf_counter() - t0, 3)}
+    return GeometryEstimate(fused, normals, "stereo", info)
