@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+import time
 
 from npsim_core.chain import ChainParams
 from npsim_core.chain.params import DEPTH_SOURCES
@@ -13,6 +14,22 @@ from npsim_core.errors import NpsimInputError
 
 def log(cmd: str, msg: str) -> None:
     print(f"[npsim {cmd}] {msg}", file=sys.stderr, flush=True)
+
+
+def stage_logger(cmd: str, name: str, every_s: float = 5.0):
+    """A chain progress callback that logs each stage's start and, in long stages, a step every
+    ``every_s`` seconds."""
+    last = [time.perf_counter()]
+
+    def on_stage(info: dict) -> None:
+        if info.get("stage") and "done" not in info and "step" not in info:
+            log(cmd, f"{name}: {info['stage']}…")
+            last[0] = time.perf_counter()
+        elif "step" in info and time.perf_counter() - last[0] > every_s:
+            last[0] = time.perf_counter()
+            log(cmd, f"{name}: {info['stage']} step {info['step']}/{info['of']}")
+
+    return on_stage
 
 
 def parse_size(text: str) -> tuple[int, int]:

@@ -81,8 +81,11 @@ def test_good_frame_loads_image_labels_camera_and_stereo_depth(fixture_root):
         assert (scene.camera_height, scene.camera_pitch) == (truth.camera_height, truth.camera_pitch)
         assert "camera json" in scene.provenance["intrinsics"]
         # Stereo depth: real-looking coverage, holes on sky and the hood, values within the noise.
-        d, gt = scene.depth_gt, truth.depth_gt
-        assert d is not None and scene.depth is None and scene.normals is None and scene.normals_gt is None
+        # It loads as the stereo depth; there is no ground truth (nor any other depth or normals).
+        d, gt = scene.depth_stereo, truth.depth_gt
+        assert d is not None and scene.provenance["stereo_depth"].endswith("depth_stereo")
+        assert scene.depth_gt is None and scene.normals_gt is None and scene.depth is None and scene.normals is None
+        np.testing.assert_array_equal(src.load(disparity_as="gt").depth_gt, d)
         ok = np.isfinite(d)
         assert 0.75 <= ok.mean() <= 0.85
         assert not ok[truth.labels == 23].any() and not ok[hood].any()

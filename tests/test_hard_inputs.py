@@ -196,6 +196,7 @@ def test_every_stage_reports_its_progress(scene_dir, tmp_path, capsys):
     out = capsys.readouterr()
     for stage in ("geometry", "filter", "uncertain", "refine", "mesh"):
         assert f"{stage} " in out.out  # per-stage seconds
+        assert f"{stage}…" in out.err  # logged when it starts
     events = []
     Chain(street_scene(64, 32)).compute(QUICK, progress=events.append)
     started = [e["stage"] for e in events if set(e) == {"stage"}]

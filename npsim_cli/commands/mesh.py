@@ -8,7 +8,7 @@ from pathlib import Path
 from npsim_core.chain import Chain, check_output_folder, export_frame, load_frame
 from npsim_core.chain.export import check_mesh_formats
 
-from ..options import add_param_options, params_from_args
+from ..options import add_param_options, log, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     check_output_folder(args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, with_ground_truth=False)
     chain = Chain(scene)
-    res = chain.compute(params)
+    log("mesh", f"{scene.name}: {scene.width}x{scene.height}")
+    res = chain.compute(params, progress=stage_logger("mesh", scene.name))
     written = export_frame(chain, params, Path(args.out), kinds=("mesh",), mesh_formats=formats,
                            inputs={"scene": str(args.scene), "variant": args.variant})
     mesh = res.mesh

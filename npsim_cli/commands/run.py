@@ -15,7 +15,7 @@ from npsim_core.chain import (Chain, ChainParams, check_output_folder, export_fr
                               load_frame, verify_frame)
 from npsim_core.errors import NpsimInputError
 
-from ..options import add_param_options, log, params_from_args
+from ..options import add_param_options, log, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -78,15 +78,7 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     chain = Chain(scene)
     t0 = time.perf_counter()
 
-    last = [time.perf_counter()]
-
-    def on_stage(info: dict) -> None:
-        if info.get("stage") and "done" not in info and "step" not in info:
-            log(cmd, f"{scene.name}: {info['stage']}…")
-            last[0] = time.perf_counter()
-        elif "step" in info and time.perf_counter() - last[0] > 5.0:  # long stages report every 5 s
-            last[0] = time.perf_counter()
-            log(cmd, f"{scene.name}: {info['stage']} step {info['step']}/{info['of']}")
+    on_stage = stage_logger(cmd, scene.name)
 
     log(cmd, f"{scene.name}: {scene.width}x{scene.height}")
     if scene.lights is None:

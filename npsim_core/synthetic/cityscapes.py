@@ -128,7 +128,7 @@ def _paint_ego_vehicle(image: np.ndarray, hood: np.ndarray) -> np.ndarray:
     refl = np.zeros_like(image, dtype=np.float32)
     refl[rows, cols] = image[src, cols].astype(np.float32)
     refl = cv2.GaussianBlur(refl, (0, 0), max(0.6, W / 400.0))
-    depth_frac = t / np.maximum(1, (H - top[cols]))[...]
+    depth_frac = t / np.maximum(1, H - top[cols])
     paint = np.array([30.0, 32.0, 36.0], dtype=np.float32)
     val = paint[None, :] * (1.0 - 0.35 * depth_frac[:, None]) + 0.28 * refl[rows, cols]
     out[rows, cols] = np.clip(val + 0.5, 0, 255).astype(np.uint8)
@@ -142,7 +142,8 @@ def instance_ids(labels: np.ndarray, prim: np.ndarray | None = None, prims: Any 
     primitives of one object (a car's body, cabin, wheels, panes and lamps) are
     grouped by their overlapping footprints, so each object is one instance even
     where two cars overlap in the image. Without them, each connected component
-    of a class is an instance. ``k`` counts from 0 per class, nearest object first.
+    of a class is an instance. ``k`` counts from 0 per class, in order of each object's lowest
+    image row (nearest first for objects standing on the road).
     """
     table = cityscapes()
     inst_classes = [c.id for c in table.classes if c.has_instances]
@@ -163,8 +164,7 @@ def instance_ids(labels: np.ndarray, prim: np.ndarray | None = None, prims: Any 
             ids, _ = ndimage.label(mask)
             ids = np.where(mask, ids, -1)
         present = [int(i) for i in np.unique(ids[mask])]
-        # nearest first: order by the lowest image row's distance from the bottom (a proxy for depth)
-        rows = np.arange(labels.shape[0])[:, None].repeat(labels.shape[1], axis=1)
+        rows = np.broadcast_to(np.arange(labels.shape[0])[:, None], labels.shape)
         lowest = {i: int(rows[ids == i].max()) for i in present}
         order = sorted(present, key=lambda i: (-lowest[i], i))
         if len(order) > 1000:
@@ -451,6 +451,7 @@ def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: 
 
 def main(argv: list[str] | None = None) -> int:
     import argparse
+    import sys
 
     ap = argparse.ArgumentParser(prog="python -m npsim_core.synthetic.cityscapes",
                                  description="Write a Cityscapes-layout dataset of synthetic streets "
@@ -472,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
                                          city=args.city, seed=args.seed, corrupt=args.corrupt, noise=args.noise,
                                          hole_fraction=args.hole_fraction, ego_vehicle=not args.no_ego_vehicle)
     except (NpsimInputError, ValueError) as exc:
-        print(f"error: {exc}", file=__import__("sys").stderr)
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     for s in stems:
         print(s)

@@ -8,6 +8,14 @@ every ray below the roof lines hits something: sky is only above.
 
 Light instances get ids ``classId*1000 + index`` at layout time (stable across
 resolutions); the caller drops the ones that own no pixel.
+
+Variants (``build_street(seed, variant=...)``, docs/synthetic.md "Hard variants") add
+the layouts that defeat a naive semantic pop-up prior: long building blocks
+receding along the street, facade bases hidden behind continuous rows of parked
+cars, people and hedges, corner buildings at cross streets, and poles and trees
+in front of the facades. ``variant="default"`` draws exactly the same random
+numbers as before, so the default street is unchanged; the extra objects of a
+variant come from a second random stream seeded by ``(seed, variant)``.
 """
 
 from __future__ import annotations
@@ -19,7 +27,8 @@ import numpy as np
 from .primitives import PrimitiveList, Primitives
 
 # Cityscapes labelIds used here.
-ROAD, SIDEWALK, BUILDING, POLE, TRAFFIC_LIGHT, TRAFFIC_SIGN, VEGETATION, SKY, CAR = 7, 8, 11, 17, 19, 20, 21, 23, 26
+ROAD, SIDEWALK, BUILDING, POLE, TRAFFIC_LIGHT, TRAFFIC_SIGN, VEGETATION, SKY, PERSON, CAR = \
+    7, 8, 11, 17, 19, 20, 21, 23, 24, 26
 # Light-source classes (resources/light_classes.json).
 WINDOW_BUILDING, WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, STREET_LIGHT_HT, ADVERTISEMENT, INFERRED = 1, 2, 3, 4, 8, 10, 12
 WINDOWS_GROUP, CAR_GROUP, TRAFFIC_LIGHT_GROUP = 13, 14, 20
@@ -39,6 +48,36 @@ CAR_COLORS = [(0.60, 0.61, 0.62), (0.03, 0.03, 0.035), (0.80, 0.80, 0.78), (0.45
               (0.05, 0.12, 0.35), (0.25, 0.26, 0.27), (0.30, 0.33, 0.20), (0.75, 0.55, 0.10)]
 GLASS_BUILDING = [(0.05, 0.07, 0.09), (0.04, 0.05, 0.05), (0.07, 0.08, 0.07)]
 GLASS_CAR = (0.02, 0.025, 0.03)
+CLOTHES = [(0.05, 0.05, 0.06), (0.25, 0.05, 0.05), (0.10, 0.15, 0.35), (0.50, 0.45, 0.35), (0.20, 0.22, 0.18)]
+
+
+@dataclass(frozen=True)
+class _Hard:
+    """Which hard-layout features a variant switches on (all off = the default street)."""
+
+    receding: bool = False       # long blocks (40-90 m) along the street, taller, street 150-200 m long
+    occluded_base: bool = False  # near-continuous parked cars, people, hedges along the facade bases
+    corner: bool = False         # a cross street on each side: corner buildings with two visible facades
+    clutter: bool = False        # poles, bollards, signs and trees in front of the facades
+
+
+#: The street variants (docs/synthetic.md): name -> features.
+VARIANTS = {
+    "default": _Hard(),
+    "receding": _Hard(receding=True),
+    "occluded_base": _Hard(occluded_base=True),
+    "corner": _Hard(corner=True),
+    "clutter": _Hard(clutter=True),
+    "hard": _Hard(receding=True, occluded_base=True, corner=True, clutter=True),
+}
+_VARIANT_CODE = {name: k for k, name in enumerate(VARIANTS)}
+
+
+def check_variant(variant: str) -> str:
+    """``variant`` if it names a street variant, else a ValueError listing the names."""
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown street variant {variant!r}; choose one of {', '.join(VARIANTS)}")
+    return variant
 
 
 @dataclass
@@ -72,19 +111,40 @@ def _jitter(rng: np.random.Generator, color, amount: float = 0.06) -> np.ndarray
     return np.clip(c, 0.0, 1.0)
 
 
-def build_street(seed: int = 0) -> StreetLayout:
-    """Lay out the street for ``seed`` (pure function of the seed)."""
+def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
+    """Lay out the street for ``seed`` and ``variant`` (pure function of both; see :data:`VARIANTS`)."""
+    hard = VARIANTS[check_variant(variant)]
     rng = np.random.default_rng(seed)
+    # The variants' extra objects come from their own stream, so the shared draws stay in step.
+    xr = np.random.default_rng([int(seed), 7919, _VARIANT_CODE[variant]])
     P = PrimitiveList.new()
     ids = _Ids()
     groups: dict[int, list[int]] = {}
     far_z = float(rng.uniform(95.0, 120.0))
+    if hard.receding:  # a longer street, so the long blocks recede toward the vanishing point
+        far_z = 150.0 + 2.0 * (far_z - 95.0)
+    # Cross streets (corner variant): side -> (z0, z1) of the mouth, sidewalk corners included.
+    cross: dict[int, tuple[float, float]] = {}
+    if hard.corner:
+        for side, (lo, hi) in ((1, (30.0, 42.0)), (-1, (50.0, 64.0))):
+            z0 = float(xr.uniform(lo, hi))
+            cross[side] = (z0, z0 + float(xr.uniform(13.0, 17.0)))
 
     # --- ground: road, markings, sidewalks (the sidewalk's inner face is the kerb)
     P.box((ROAD_X[0], -0.3, STREET_Z0), (ROAD_X[1], 0.0, far_z), ROAD, _jitter(rng, (0.13, 0.13, 0.14), 0.03))
     # Sidewalks run on under the (set-back) buildings so no gap opens at a facade's foot.
-    P.box((LEFT_WALK_X[0] - 15.0, -0.3, STREET_Z0), (LEFT_WALK_X[1], KERB, far_z), SIDEWALK, (0.42, 0.40, 0.38))
-    P.box((RIGHT_WALK_X[0], -0.3, STREET_Z0), (RIGHT_WALK_X[1] + 15.0, KERB, far_z), SIDEWALK, (0.42, 0.40, 0.38))
+    if not cross:
+        P.box((LEFT_WALK_X[0] - 15.0, -0.3, STREET_Z0), (LEFT_WALK_X[1], KERB, far_z), SIDEWALK,
+              (0.42, 0.40, 0.38))
+        P.box((RIGHT_WALK_X[0], -0.3, STREET_Z0), (RIGHT_WALK_X[1] + 15.0, KERB, far_z), SIDEWALK,
+              (0.42, 0.40, 0.38))
+    else:
+        for side, (wx0, wx1) in ((-1, (LEFT_WALK_X[0] - 15.0, LEFT_WALK_X[1])),
+                                 (1, (RIGHT_WALK_X[0], RIGHT_WALK_X[1] + 15.0))):
+            c0, c1 = cross[side]
+            for za, zb in ((STREET_Z0, c0 + 2.5), (c1 - 2.5, far_z)):  # the corners' sidewalks wrap round
+                P.box((wx0, -0.3, za), (wx1, KERB, zb), SIDEWALK, (0.42, 0.40, 0.38))
+            _cross_street(P, xr, side, c0, c1)
     mark_x = -1.2
     z = float(rng.uniform(2.0, 6.0))
     while z < far_z - 3.0:
@@ -97,22 +157,41 @@ def build_street(seed: int = 0) -> StreetLayout:
         facade_x0 = LEFT_WALK_X[0] if side < 0 else RIGHT_WALK_X[1]
         z = STREET_Z0
         first = True
+        corner = False
         while z < far_z:
             w = float(rng.uniform(12.0, 26.0))
+            if hard.receding:
+                w = 40.0 + (w - 12.0) * 50.0 / 14.0   # long blocks: 40-90 m
             z1 = min(z + w, far_z)
             if far_z - z1 < 6.0:
                 z1 = far_z
+            if side in cross and z < cross[side][0] < z1:
+                z1 = cross[side][0]                    # the block ends at the cross street
             h = float(rng.uniform(8.0, 20.0))
+            if hard.receding:
+                h += 4.0
             setback = 0.0 if first else float(rng.uniform(0.0, 0.8))
             first = False
+            if corner:
+                setback = 0.0
             fx = facade_x0 + side * setback            # facade plane, faces the street
-            back = fx + side * 12.0
+            back = fx + side * (22.0 if corner else 12.0)
             col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
             P.box((min(fx, back), 0.0, z), (max(fx, back), h, z1), BUILDING, col)
             facades[side].append((z, z1, fx))
-            _facade_windows(P, rng, ids, groups, axis=0, plane=fx, out=-side, along=(z, z1), height=h,
-                            ground_shop=bool(rng.random() < 0.6))
+            # Very long streets: no panes on the far blocks (sub-pixel there, and ids stay < 1000).
+            shop = bool(rng.random() < 0.6)
+            if not (hard.receding and z > 90.0):
+                _facade_windows(P, rng, ids, groups, axis=0, plane=fx, out=-side, along=(z, z1), height=h,
+                                ground_shop=shop)
+            if corner:  # the corner building's second facade faces the camera across the cross street
+                _facade_windows(P, xr, ids, groups, axis=2, plane=z, out=-1,
+                                along=(min(fx, back), max(fx, back)), height=h, ground_shop=True)
+            corner = False
             z = z1
+            if side in cross and abs(z - cross[side][0]) < 1e-9:
+                z = cross[side][1]                     # skip the cross street's mouth
+                corner = True
     # Low enough that sky shows above it (the image top is only ~11 deg above the horizon).
     far_h = float(rng.uniform(9.0, 15.0))
     P.box((-45.0, 0.0, far_z), (45.0, far_h, far_z + 15.0), BUILDING,
@@ -123,7 +202,8 @@ def build_street(seed: int = 0) -> StreetLayout:
     # --- advertisement panels above the shop windows: one on a right-hand facade (often hidden by
     # trees), one on the far building facing the camera (always in view)
     az = float(rng.uniform(27.0, 45.0))  # the right facade enters the view at z ~ 23 m
-    z0, z1, fx = next(f for f in facades[1] if f[0] <= az < f[1])
+    z0, z1, fx = next((f for f in facades[1] if f[0] <= az < f[1]), None) or \
+        min(facades[1], key=lambda f: abs(f[0] - az))  # (in the cross street's mouth: the corner building)
     az = min(max(az, z0 + 0.3), z1 - 3.5)
     P.rect(0, fx, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
            light=ids.new(ADVERTISEMENT), out=-1)
@@ -136,14 +216,19 @@ def build_street(seed: int = 0) -> StreetLayout:
     # Occupancy varies per side and seed; gaps keep the sidewalk and kerb visible between cars.
     for side, x_in, x_out, p_forward in ((-1, -3.8, -5.85, 0.4), (1, 2.35, 4.35, 0.85)):
         occupancy = float(rng.uniform(0.35, 0.8))
+        if hard.occluded_base:
+            occupancy = 0.9 + (occupancy - 0.35) * 0.2   # near-continuous rows: 0.90-0.99
         z = float(rng.uniform(4.0, 9.0) if side > 0 else rng.uniform(5.0, 16.0))
         while z < far_z - 12.0:
             length = float(rng.uniform(3.9, 4.8))
-            if rng.random() < occupancy:
+            if rng.random() < occupancy and not _in_mouth(cross, side, z, z + length):
                 _car(P, rng, ids, groups, x_lo=min(x_in, x_out) + 0.05, x_hi=max(x_in, x_out) - 0.05,
                      z0=z, length=length, forward=bool(rng.random() < p_forward))
                 n_cars += 1
-            z += length + float(rng.uniform(0.8, 4.0))
+            gap = float(rng.uniform(0.8, 4.0))
+            if hard.occluded_base:
+                gap = 0.5 + (gap - 0.8) * 0.3   # 0.5-1.5 m
+            z += length + gap
 
     # --- street lights (poles with arms over the road), trees between them
     pole_zs = []
@@ -151,16 +236,22 @@ def build_street(seed: int = 0) -> StreetLayout:
         spacing = float(rng.uniform(22.0, 30.0))
         z = float(rng.uniform(8.0, 16.0))
         while z < far_z - 8.0:
-            _street_light(P, ids, px, z, toward=-side)
+            if not _in_mouth(cross, side, z - 0.5, z + 0.5):
+                _street_light(P, ids, px, z, toward=-side)
             pole_zs.append((side, z))
             tz = z + spacing * 0.5
             if tz < far_z - 6.0:
-                _tree(P, rng, px + side * 1.2, tz)
+                if not _in_mouth(cross, side, tz - 2.0, tz + 2.0):
+                    _tree(P, rng, px + side * 1.2, tz)
+                else:
+                    _tree(PrimitiveList.new(), rng, px + side * 1.2, tz)  # same draws, nothing placed
                 pole_zs.append((side, tz))
             z += spacing
 
     # --- a traffic light and a traffic sign on the right sidewalk, clear of the lamp poles
     tl_z = _free_z(rng, pole_zs, 1, (26.0, 40.0))
+    if _in_mouth(cross, 1, tl_z, tl_z) and cross[1][0] + 2.5 <= tl_z <= cross[1][1] - 2.5:
+        tl_z = cross[1][0] + 1.2  # at a crossing: on the near corner's sidewalk, not in the cross road
     tl_group = ids.new(TRAFFIC_LIGHT_GROUP)
     groups[tl_group] = _traffic_light(P, ids, RIGHT_WALK_X[0] + 0.45, tl_z)
     sign_z = _free_z(rng, pole_zs + [(1, tl_z)], 1, (12.0, 22.0))
@@ -171,9 +262,116 @@ def build_street(seed: int = 0) -> StreetLayout:
           VEGETATION, _jitter(rng, (0.08, 0.20, 0.05)), "foliage")
 
     sun = (float(rng.uniform(-55.0, -20.0)), float(rng.uniform(30.0, 55.0)))
-    return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z, sun=sun,
-                        info={"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
-                              "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)})
+    n_people = 0
+    if hard.occluded_base:
+        _hedges(P, xr, facades, far_z, cross)
+        n_people = _people(P, xr, facades, far_z, cross)
+    if hard.clutter:
+        _clutter(P, xr, facades, far_z, cross)
+    info = {"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
+            "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)}
+    if variant != "default":
+        info = {"variant": variant, **info, "people": n_people,
+                "cross_streets": {("left" if k < 0 else "right"): [round(a, 2), round(b, 2)]
+                                  for k, (a, b) in cross.items()}}
+    return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z, sun=sun, info=info)
+
+
+def _in_mouth(cross: dict, side: int, z0: float, z1: float) -> bool:
+    """Whether [z0, z1] on ``side`` overlaps that side's cross-street mouth (corner variant)."""
+    return side in cross and z1 > cross[side][0] and z0 < cross[side][1]
+
+
+def _facade_at(facades: dict, side: int, z: float) -> float | None:
+    """The x of ``side``'s facade plane at ``z`` (None in a cross street's mouth)."""
+    for z0, z1, fx in facades[side]:
+        if z0 <= z < z1:
+            return fx
+    return None
+
+
+def _cross_street(P: PrimitiveList, rng: np.random.Generator, side: int, z0: float, z1: float) -> None:
+    """A cross street leaving the main street on ``side`` between z0 and z1 (sidewalk corners included).
+
+    Its road runs out to |x| = 70 m; a building closes it there, so no sky shows through the mouth
+    below the roof lines. The corner buildings themselves are the facade blocks either side of it.
+    """
+    x_in = RIGHT_WALK_X[0] if side > 0 else LEFT_WALK_X[1]
+    x_far = side * 70.0
+    P.box((min(x_in, x_far), -0.3, z0 + 2.5), (max(x_in, x_far), 0.0, z1 - 2.5), ROAD,
+          _jitter(rng, (0.13, 0.13, 0.14), 0.03))
+    h = float(rng.uniform(10.0, 18.0))
+    P.box((min(x_far - side * 25.0, x_far), 0.0, z0 - 20.0), (max(x_far - side * 25.0, x_far), h, z1 + 20.0),
+          BUILDING, _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
+
+
+def _hedges(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: float, cross: dict) -> None:
+    """Hedges against the facades' feet (0.9-1.4 m tall, 0.6-1.0 m deep) along stretches of the street."""
+    for side in (-1, 1):
+        z = float(rng.uniform(3.0, 8.0))
+        while z < far_z - 10.0:
+            length = float(rng.uniform(6.0, 18.0))
+            fx = _facade_at(facades, side, z)
+            fx1 = _facade_at(facades, side, z + length)
+            if fx is not None and fx1 == fx and not _in_mouth(cross, side, z, z + length):
+                depth = float(rng.uniform(0.6, 1.0))
+                top = KERB + float(rng.uniform(0.9, 1.4))
+                P.box((fx - side * depth, KERB, z), (fx, top, z + length), VEGETATION,
+                      _jitter(rng, (0.07, 0.18, 0.05), 0.2), "foliage")
+            z += length + float(rng.uniform(2.0, 10.0))
+
+
+def _people(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: float, cross: dict) -> int:
+    """People-sized boxes (person, 0.5 x 1.6-1.9 x 0.35 m) on both sidewalks, most near the facades."""
+    n = 0
+    for side in (-1, 1):
+        walk = LEFT_WALK_X if side < 0 else RIGHT_WALK_X
+        z = float(rng.uniform(4.0, 8.0))
+        while z < min(far_z - 10.0, 80.0):
+            fx = _facade_at(facades, side, z)
+            if fx is not None and not _in_mouth(cross, side, z - 0.5, z + 0.5):
+                if rng.random() < 0.6:   # near the facade (in front of any hedge)
+                    x = fx - side * float(rng.uniform(1.3, 2.0))
+                else:
+                    x = float(rng.uniform(walk[0] + 0.5, walk[1] - 0.5))
+                tall = float(rng.uniform(1.6, 1.9))
+                col = _jitter(rng, CLOTHES[int(rng.integers(len(CLOTHES)))], 0.2)
+                P.box((x - 0.25, KERB, z - 0.17), (x + 0.25, KERB + tall, z + 0.17), PERSON, col)
+                n += 1
+            z += float(rng.uniform(3.0, 9.0))
+    return n
+
+
+def _clutter(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: float, cross: dict) -> None:
+    """Poles, bollards, sign posts and slim trees standing 0.5-2.5 m in front of the facades."""
+    grey = (0.35, 0.36, 0.37)
+    for side in (-1, 1):
+        z = float(rng.uniform(4.0, 7.0))
+        while z < min(far_z - 10.0, 90.0):
+            fx = _facade_at(facades, side, z)
+            if fx is not None and not _in_mouth(cross, side, z - 1.5, z + 1.5):
+                kind = int(rng.integers(4))
+                x = fx - side * float(rng.uniform(0.5, 2.5))
+                if kind == 0:    # tall pole
+                    r = float(rng.uniform(0.06, 0.12))
+                    P.box((x - r, KERB, z - r), (x + r, KERB + float(rng.uniform(4.0, 7.0)), z + r), POLE, grey,
+                          "metal")
+                elif kind == 1:  # bollards
+                    for k in range(3):
+                        P.box((x - 0.08, KERB, z + 1.2 * k - 0.08), (x + 0.08, KERB + 0.9, z + 1.2 * k + 0.08),
+                              POLE, grey, "metal")
+                elif kind == 2:  # sign post with a plate facing the camera
+                    P.box((x - 0.04, KERB, z - 0.04), (x + 0.04, KERB + 2.6, z + 0.04), POLE, grey, "metal")
+                    P.box((x - 0.3, KERB + 2.0, z - 0.06), (x + 0.3, KERB + 2.6, z - 0.04), TRAFFIC_SIGN,
+                          (0.02, 0.10, 0.45), "metal")
+                else:            # slim tree
+                    x = fx - side * float(rng.uniform(1.5, 2.5))
+                    P.box((x - 0.1, KERB, z - 0.1), (x + 0.1, 2.2, z + 0.1), VEGETATION, (0.12, 0.08, 0.05),
+                          "foliage")
+                    r = float(rng.uniform(0.8, 1.2))
+                    P.box((x - r, 2.0, z - r), (x + r, 2.0 + float(rng.uniform(2.0, 3.5)), z + r), VEGETATION,
+                          _jitter(rng, (0.07, 0.16, 0.04), 0.25), "foliage")
+            z += float(rng.uniform(4.0, 9.0))
 
 
 def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float, float]) -> float:
