@@ -61,6 +61,11 @@ DEFAULT_FACADE_IDS = (11, 12, 13, 14, 15, 16)
 #: Narrow things whose contact line says nothing about their facing (pole, polegroup, traffic
 #: light, traffic sign, person, rider, motorcycle, bicycle): always fronto-parallel.
 DEFAULT_FRONTO_IDS = (17, 18, 19, 20, 24, 25, 32, 33)
+#: Classes placed on their own contact line (building, wall, fence, guard rail) by ``facades="contact"``;
+#: bridges and tunnels span the road, their bottom edge is no foot.
+DEFAULT_CONTACT_IDS = (11, 12, 13, 14)
+#: The ground class raised by ``sidewalk_height`` above the road (sidewalk).
+SIDEWALK_ID = 8
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,12 @@ class PopupParams:
     ground_fraction: float = 0.5
     max_rounds: int = 32
     fallback_depth: float = 20.0
+    facades: str = "contact"
+    contact_ids: tuple[int, ...] = DEFAULT_CONTACT_IDS
+    sidewalk_height: float = 0.12
+    contact_tol: float = 1.5
+    hidden_setback: float = 2.0
+    vanishing: str = "auto"
 
     def __post_init__(self) -> None:
         if self.camera_height is not None and not (math.isfinite(self.camera_height) and self.camera_height > 0):
@@ -119,6 +130,19 @@ class PopupParams:
         if not (0 < self.min_depth < self.max_depth):
             raise NpsimInputError(f"PopupParams needs 0 < min_depth < max_depth, got {self.min_depth}, "
                                   f"{self.max_depth}")
+        if self.facades not in ("contact", "flat"):
+            raise NpsimInputError(f"PopupParams.facades must be 'contact' or 'flat', got {self.facades!r}")
+        if self.vanishing not in ("auto", "center"):
+            raise NpsimInputError(f"PopupParams.vanishing must be 'auto' or 'center', got {self.vanishing!r}")
+        for name in ("sidewalk_height", "hidden_setback"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise NpsimInputError(f"PopupParams.{name} must be >= 0 metres, got {v}")
+        if self.camera_height is not None and self.sidewalk_height >= self.camera_height:
+            raise NpsimInputError(f"PopupParams.sidewalk_height ({self.sidewalk_height} m) must be below the "
+                                  f"camera ({self.camera_height} m)")
+        if not (math.isfinite(self.contact_tol) and self.contact_tol > 0):
+            raise NpsimInputError(f"PopupParams.contact_tol must be > 0 pixels, got {self.contact_tol}")
 
 
 def ground_frame(pitch: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -214,9 +238,15 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     ground = cityscapes().lut("ground").astype(bool)[labels] & ~invalid
     vertical = ~ground & ~invalid
 
+    if p.sidewalk_height >= h:
+        raise NpsimInputError(f"PopupParams.sidewalk_height ({p.sidewalk_height} m) must be below the camera "
+                              f"({h} m)")
+    walk = ground & (labels == SIDEWALK_ID)
+    # Height scale of each ground pixel's plane: the sidewalk lies sidewalk_height above the road.
+    hscale = np.where(walk, (h - p.sidewalk_height) / h, 1.0) if p.sidewalk_height else np.ones((H, W))
     depth = np.full((H, W), np.nan, dtype=np.float64)
     normals = np.full((H, W, 3), np.nan, dtype=np.float64)
-    depth[ground] = np.clip(ground_plane_depth(intr, h, pitch, max_depth=p.max_depth)[ground],
+    depth[ground] = np.clip(ground_plane_depth(intr, h, pitch, max_depth=p.max_depth)[ground] * hscale[ground],
                             p.min_depth, p.max_depth)
     normals[ground] = -g
 
@@ -255,8 +285,37 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     zc = ground_plane_depth(intr, h, pitch, v_offset=0.5, max_depth=p.max_depth)
     zc = np.clip(zc, p.min_depth, p.max_depth)
     vs, us = np.nonzero(g_sup)
+    zs = zc[vs, us] * hscale[np.minimum(vs + 1, H - 1), us] if p.sidewalk_height else zc[vs, us]
     support[vs, us] = np.stack([(us - intr.cx) / intr.fx, (vs + 0.5 - intr.cy) / intr.fy,
-                                np.ones(vs.size)], axis=1) * zc[vs, us][:, None]
+                                np.ones(vs.size)], axis=1) * zs[:, None]
+
+    # --- facades on their contact line (piecewise planes per column), before everything else
+    drawn = np.zeros(nseg + 1, dtype=bool)  # segments whose pixels already have their plane depth
+    fac_info: dict = {}
+    if p.facades == "contact" and nseg:
+        lut[:] = False
+        lut[list(p.contact_ids)] = True
+        is_contact = lut[seg_label]
+        is_contact[0] = False
+        res = _place_facades(labels, seg, nseg, ground, invalid, is_contact, walk, intr, g, f, e, h, p, fac_info)
+        if res is not None:
+            s_arr, u_arr, n_arr, c_arr, placed_ids = res
+            fidx = np.full(nseg + 1, -1, dtype=np.int64)
+            fidx[placed_ids] = np.arange(placed_ids.size)
+            tbl = np.full((placed_ids.size, W), -1, dtype=np.int64)
+            tbl[fidx[s_arr], u_arr] = np.arange(s_arr.size)
+            m = vertical & (fidx[seg] >= 0)
+            pv, pu = np.nonzero(m)
+            j = tbl[fidx[seg[pv, pu]], pu]
+            nr = np.einsum("ij,ij->i", rays[pv, pu], n_arr[j])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.where(nr < -1e-9, c_arr[j] / nr, p.max_depth)
+            depth[pv, pu] = np.clip(z, p.min_depth, p.max_depth)
+            normals[pv, pu] = n_arr[j]
+            placed[placed_ids] = True
+            drawn[placed_ids] = True
+            fitted[placed_ids] = True
+            how[placed_ids] = 3
 
     # --- segments standing on the ground: mostly (any facing), or along a contact line long enough
     #     to give the facing by itself (a facade behind parked cars with a gap between them)
@@ -267,7 +326,6 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
 
     # --- segments resting (also) on other segments, in rounds as their supports get placed
     rounds = 0
-    drawn = np.zeros(nseg + 1, dtype=bool)  # segments whose pixels already have their plane depth
     mode_rest = np.where(seg_facade, 1, 2)  # facades: line fit; others: fronto at the nearest support
     for rounds in range(1, p.max_rounds + 1):
         cur = vertical & (placed & ~drawn)[seg]  # only segments placed since the last round
@@ -316,9 +374,9 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     info = {"params": asdict(p), "camera_height_m": h, "camera_pitch_rad": pitch,
             "horizon_row": float(intr.cy - intr.fy * math.tan(pitch)),
             "segments": int(nseg), "on_ground": int(np.sum(how[seg_ids] == 1)),
-            "on_segments": int(np.sum(how[seg_ids] == 2)),
+            "on_segments": int(np.sum(how[seg_ids] == 2)), "on_contact_lines": int(np.sum(how[seg_ids] == 3)),
             "unplaced_pixels": int(rest.sum()), "line_fits": int(fitted[seg_ids].sum()), "rounds": int(rounds),
-            "seconds": round(time.perf_counter() - t0, 4)}
+            "seconds": round(time.perf_counter() - t0, 4), **fac_info}
     if notes:
         info["notes"] = notes
     return GeometryEstimate(depth=depth.astype(np.float32), normals=normals.astype(np.float32), method="popup",
@@ -365,3 +423,405 @@ def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed
             n, c, ok_fit = -f, -float(np.median(sb)), False
         planes[s, :3], planes[s, 3] = n, c
         placed[s], fitted[s], how[s] = True, ok_fit, how_code
+
+
+# --------------------------------------------------------------------------- facades on their contact line
+class _GroundMap:
+    """The ground homography of a plane ``hgt`` metres below the camera, and its inverse.
+
+    A ground point with plan coordinates ``(a, b) = (P.e, P.f)`` is ``P = a e + b f + hgt g``;
+    it projects to ``x ~ K [e | f | hgt g] (a, b, 1)``. Image lines and ground lines map
+    through the same matrix: a ground line ``L`` appears as the image line ``H^-T L`` and an
+    image line ``l`` is the ground line ``H^T l``.
+    """
+
+    def __init__(self, intr, g: np.ndarray, f: np.ndarray, e: np.ndarray, hgt: float) -> None:
+        self.K = np.asarray(intr.matrix, dtype=np.float64)
+        self.g, self.f, self.e, self.hgt = g, f, e, hgt
+        self.H = self.K @ np.stack([e, f, hgt * g], axis=1)
+        self.Hinv = np.linalg.inv(self.H)
+
+    def plane_of_image_line(self, line: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """Vertical plane ``(n, c)`` (n.P = c < 0, toward the camera) standing on the image line's ground line."""
+        L = self.H.T @ line
+        rho = math.hypot(L[0], L[1])
+        if rho < 1e-12 * max(1.0, abs(L[2])):
+            return None  # the horizon: no ground line
+        n = (L[0] * self.e + L[1] * self.f) / rho
+        c = -L[2] / rho
+        if c > 0:
+            n, c = -n, -c
+        if abs(c) < 1e-6:
+            return None  # through the camera
+        return n, float(c)
+
+    def image_line_of_plane(self, n: np.ndarray, c: float) -> np.ndarray:
+        """Image line (α, β, γ), α u + β v + γ = 0, of the foot of the vertical plane n.P = c."""
+        L = np.array([n @ self.e, n @ self.f, -c])
+        return self.Hinv.T @ L
+
+    def plan(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Plan coordinates (a, b) of the ground points seen at image positions (u, v) (below the horizon)."""
+        x = self.Hinv @ np.stack([u, v, np.ones_like(u)])
+        return x[0] / x[2], x[1] / x[2]
+
+    def point(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        a, b = self.plan(u, v)
+        return a[:, None] * self.e + b[:, None] * self.f + self.hgt * self.g
+
+
+def _rows(line: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Row of image line ``line`` in columns ``u`` (NaN where the line is vertical)."""
+    if abs(line[1]) < 1e-12:
+        return np.full(np.shape(u), np.nan)
+    return -(line[0] * u + line[2]) / line[1]
+
+
+def _ls_line(u: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+    """Least-squares ``v = s u + t``."""
+    um, vm = float(u.mean()), float(v.mean())
+    du = u - um
+    suu = float(du @ du)
+    s = float(du @ (v - vm)) / suu if suu > 0 else 0.0
+    return s, vm - s * um
+
+
+def _robust_line(u: np.ndarray, v: np.ndarray, tol: float, through: tuple[float, float] | None = None
+                 ) -> tuple[float, float, int]:
+    """Line ``v = s u + t`` fitted once, trimmed of points off by > 3 tol, refitted; -> (s, t, outliers).
+
+    With ``through = (u0, v0)`` the line is constrained through that point (one parameter).
+    """
+    def fit(uu, vv):
+        if through is None:
+            return _ls_line(uu, vv)
+        du, dv = uu - through[0], vv - through[1]
+        s = float(du @ dv) / max(float(du @ du), 1e-12)
+        return s, through[1] - s * through[0]
+
+    s, t = fit(u, v)
+    keep = np.abs(v - (s * u + t)) <= 3.0 * tol
+    if 2 <= keep.sum() < u.size:
+        s, t = fit(u[keep], v[keep])
+    bad = int(np.count_nonzero(np.abs(v - (s * u + t)) > tol))
+    return s, t, bad
+
+
+def _fits(n: int, bad: int) -> bool:
+    return bad <= max(1, int(0.05 * n))
+
+
+def _split_pieces(u: np.ndarray, v: np.ndarray, tol: float, min_pts: int) -> list[tuple[int, int]]:
+    """Split the contact sequence (sorted by column) into index ranges that each fit one image line.
+
+    Recursive: a range that one (trimmed) line does not fit within ``tol`` pixels is split where
+    the two least-squares lines leave the least squared residual (all split points at once from
+    prefix sums); neighbours that one line fits again are merged afterwards.
+    """
+    out, stack = [], [(0, u.size)]
+    while stack:
+        i0, i1 = stack.pop()
+        n = i1 - i0
+        uu, vv = u[i0:i1], v[i0:i1]
+        _, _, bad = _robust_line(uu, vv, tol)
+        if _fits(n, bad) or n < 2 * min_pts:
+            out.append((i0, i1))
+            continue
+        uc, vc = uu - uu.mean(), vv - vv.mean()
+        cs = [np.concatenate([[0.0], np.cumsum(x)]) for x in (uc, vc, uc * uc, uc * vc, vc * vc)]
+        k = np.arange(min_pts, n - min_pts + 1)
+
+        def sse(m, su, sv, suu, suv, svv):
+            cuu = suu - su * su / m
+            cuv = suv - su * sv / m
+            cvv = svv - sv * sv / m
+            return cvv - np.where(cuu > 1e-9, cuv * cuv / np.maximum(cuu, 1e-9), 0.0)
+
+        left = sse(k, *(c[k] for c in cs))
+        right = sse(n - k, *(c[n] - c[k] for c in cs))
+        j = int(k[np.argmin(left + right)])
+        stack += [(i0, i0 + j), (i0 + j, i1)]
+    out.sort()
+    merged = True
+    while merged and len(out) > 1:
+        merged = False
+        for q in range(len(out) - 1):
+            a0, a1 = out[q]
+            _, b1 = out[q + 1]
+            _, _, bad = _robust_line(u[a0:b1], v[a0:b1], tol)
+            if _fits(b1 - a0, bad):
+                out[q:q + 2] = [(a0, b1)]
+                merged = True
+                break
+    return out
+
+
+@dataclass
+class _Line:
+    """One contact line: image line, the vertical plane standing on it, and how it was found."""
+
+    line: np.ndarray      # (α, β, γ)
+    n: np.ndarray         # plane normal (toward the camera)
+    c: float              # n.P = c < 0
+    kind: str             # "free" | "vp" (through the street's vanishing point) | "side" (street line)
+    u0: float = 0.0       # columns of its visible support
+    u1: float = 0.0
+
+    def rows(self, u: np.ndarray) -> np.ndarray:
+        return _rows(self.line, u)
+
+
+def _image_line(s: float, t: float) -> np.ndarray:
+    return np.array([s, -1.0, t])
+
+
+def _crossing(p: _Line, q: _Line) -> float | None:
+    """Column where the two image lines cross (None if parallel)."""
+    x = np.cross(p.line, q.line)
+    if abs(x[2]) < 1e-12:
+        return None
+    return float(x[0] / x[2])
+
+
+def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, intr, g, f, e, h, p, info):
+    """Per-(segment, column) vertical planes of the facade segments standing on their contact line.
+
+    Returns ``(seg_ids, cols, normals (N, 3), offsets (N,))`` for every column of every facade
+    segment that could be placed, and the set of placed segment ids. See the module docstring.
+    """
+    H, W = labels.shape
+    v_h = intr.cy - intr.fy * math.tan(float(np.arcsin(g[2])))  # horizon row
+    fac_px = is_contact_seg[seg]
+    seg_below = np.zeros_like(seg)
+    seg_below[:-1] = seg[1:]
+    bot = fac_px & (seg_below != seg)
+    vs, us = np.nonzero(bot)
+    if vs.size == 0:
+        return None
+    key = seg[vs, us].astype(np.int64) * W + us
+    uniq, inv = np.unique(key, return_inverse=True)
+    vb = np.full(uniq.size, -1, dtype=np.int64)
+    np.maximum.at(vb, inv, vs)
+    ks = uniq // W
+    ku = (uniq % W).astype(np.int64)
+    # What is below each column's lowest facade pixel: ground (a visible contact), the image
+    # bottom, sky / invalid (no information) or something standing in front (the foot is hidden
+    # behind it, between the facade's lowest pixel and the next ground row below).
+    vbel = np.minimum(vb + 1, H - 1)
+    at_bottom = vb >= H - 1
+    visible = ~at_bottom & ground[vbel, ku]
+    unknown = ~at_bottom & invalid[vbel, ku]
+    rowidx = np.where(ground, np.arange(H)[:, None], H)
+    next_ground = np.minimum.accumulate(rowidx[::-1], axis=0)[::-1]
+    ng = next_ground[vbel, ku]
+    lo = vb + 0.5
+    hi = np.where(visible, lo, np.where(at_bottom | unknown | (ng >= H), np.inf, ng - 0.5))
+    # Contact height: facades stand on the sidewalk when most visible contacts are sidewalk.
+    on_walk = walk_px[vbel, ku] & visible
+    hgt = h - p.sidewalk_height if (p.sidewalk_height and on_walk.sum() >= 0.5 * max(visible.sum(), 1)
+                                     and walk_px.any()) else h
+    gm = _GroundMap(intr, g, f, e, hgt)
+    # Lowest row whose ground point is nearer than max_depth (contacts above it are clamped to it).
+    gy = (hgt / p.max_depth - g[2]) / g[1]
+    v_min = intr.cy + intr.fy * gy
+    tol = max(1.0, p.contact_tol * W / 2048.0)
+    min_pts = 3
+
+    # --- pieces per segment from the visible contacts
+    starts = np.searchsorted(ks, np.arange(nseg + 2))
+    segs = np.unique(ks)
+    pieces: dict[int, list[_Line]] = {}
+    raw: list[tuple[int, float, float, float, float, int]] = []  # (seg, s, t, u0, u1, n) free fits
+    for s_id in segs:
+        i0, i1 = starts[s_id], starts[s_id + 1]
+        m = visible[i0:i1] & (lo[i0:i1] > v_min)
+        uu = ku[i0:i1][m].astype(np.float64)
+        vv = lo[i0:i1][m]
+        if uu.size == 0:
+            continue
+        ranges = _split_pieces(uu, vv, tol, min_pts)
+        pieces[s_id] = []
+        for a0, a1 in ranges:
+            s_, t_, _ = _robust_line(uu[a0:a1], vv[a0:a1], tol) if a1 - a0 >= 2 else (0.0, float(vv[a0]), 0)
+            raw.append((s_id, s_, t_, float(uu[a0]), float(uu[a1 - 1]), a1 - a0))
+            pieces[s_id].append((uu[a0:a1], vv[a0:a1], s_, t_))
+
+    # --- the street's vanishing point on the horizon: where the long receding contact lines meet it
+    u_vp = intr.cx
+    if p.vanishing == "auto":
+        cand, wts = [], []
+        for _, s_, t_, u0, u1, n in raw:
+            if n >= 2 * min_pts and u1 - u0 >= 0.03 * W and abs(s_) > 0.02:
+                ux = (v_h - t_) / s_
+                if abs(ux - intr.cx) < 0.2 * W and ((s_ > 0 and ux < u0) or (s_ < 0 and ux > u1)):
+                    cand.append(ux)
+                    wts.append(u1 - u0)
+        if len(cand) >= 2:
+            o = np.argsort(cand)
+            cw = np.cumsum(np.asarray(wts)[o])
+            u_vp = float(np.asarray(cand)[o][np.searchsorted(cw, 0.5 * cw[-1])])
+    info["vanishing_column"] = round(u_vp, 1)
+    ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
+    d = np.array([ratio, 1.0]) / math.hypot(ratio, 1.0)  # street direction in plan (a, b)
+
+    def lateral(u, v):
+        a, b = gm.plan(np.asarray(u, float), np.asarray(v, float))
+        return a * d[1] - b * d[0]  # > 0 right of the street axis
+
+    def make(line, kind, u0=0.0, u1=0.0):
+        pl = gm.plane_of_image_line(line)
+        if pl is None:
+            return None
+        return _Line(line, pl[0], pl[1], kind, u0, u1)
+
+    # --- snap pieces to the vanishing point where that fits (receding facades); keep free lines otherwise
+    lines: dict[int, list[_Line]] = {}
+    side_X: dict[int, list[tuple[float, int]]] = {-1: [], 1: []}
+    for s_id, plist in pieces.items():
+        out = []
+        for uu, vv, s_, t_ in plist:
+            du = uu - u_vp
+            one_side = (np.all(du > 2 * tol) or np.all(du < -2 * tol))
+            ln = None
+            if one_side:
+                sv, tv, bad = _robust_line(uu, vv, tol, through=(u_vp, v_h))
+                if _fits(uu.size, bad) or uu.size < min_pts:
+                    ln = make(_image_line(sv, tv), "vp", uu[0], uu[-1])
+                    if ln is not None:
+                        X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
+                        side_X[1 if du[0] > 0 else -1].append((X, uu.size))
+            if ln is None:
+                if uu.size < min_pts:
+                    s_ = 0.0  # too short for a slope: fronto-parallel at its row
+                    t_ = float(np.median(vv))
+                ln = make(_image_line(s_, t_), "free", uu[0], uu[-1])
+            if ln is not None:
+                out.append(ln)
+        if out:
+            lines[s_id] = out
+
+    # --- the street lines: one vertical plane along the street per side, at the median lateral
+    #     offset of that side's receding facades (or, failing those, behind the visible ground)
+    side_line: dict[int, _Line] = {}
+    for side in (-1, 1):
+        xs = side_X[side]
+        X = None
+        if xs:
+            vals = np.array([x for x, _ in xs])
+            w = np.array([n for _, n in xs], dtype=float)
+            o = np.argsort(vals)
+            cw = np.cumsum(w[o])
+            X = float(vals[o][np.searchsorted(cw, 0.5 * cw[-1])])
+            if X * side <= 0.3:
+                X = None
+        if X is not None:
+            n3 = -side * (d[1] * e - d[0] * f)
+            side_line[side] = _Line(gm.image_line_of_plane(n3, -abs(X)), n3, -abs(X), "side")
+    info["street_lines_m"] = {("left" if k < 0 else "right"): round(-v.c * k, 2) for k, v in side_line.items()}
+
+    def fallback_side(side, cols):
+        """Street line behind the ground visible in ``cols`` (+ hidden_setback), when no facade shows its foot."""
+        gv, gu = np.nonzero(ground[:, cols.astype(np.int64)])
+        if gv.size == 0:
+            return None
+        X = lateral(cols[gu].astype(float), gv.astype(float))
+        X = X[np.isfinite(X) & (np.sign(X) == side)]
+        if X.size == 0:
+            return None
+        Xs = side * (float(np.max(np.abs(X))) + p.hidden_setback)
+        n3 = -side * (d[1] * e - d[0] * f)
+        return _Line(gm.image_line_of_plane(n3, -abs(Xs)), n3, -abs(Xs), "side")
+
+    # --- contact row and line per column of every facade segment
+    out_s, out_u, out_n, out_c = [], [], [], []
+    placed = []
+    for s_id in segs:
+        i0, i1 = starts[s_id], starts[s_id + 1]
+        cols = ku[i0:i1].astype(np.float64)
+        lo_s, hi_s = lo[i0:i1], hi[i0:i1]
+        vis_s = visible[i0:i1]
+        nc = cols.size
+        row = np.full(nc, np.nan)
+        which = np.full(nc, -1, dtype=np.int64)
+        cand: list[_Line] = list(lines.get(s_id, []))
+        sides = np.where(cols >= u_vp, 1, -1)
+
+        def side_of(k):
+            ln = side_line.get(k)
+            if ln is None:
+                ln = fallback_side(k, cols[sides == k])
+            return ln
+
+        if cand:
+            # within each piece's span: its line
+            for j, ln in enumerate(cand):
+                m = (cols >= ln.u0) & (cols <= ln.u1)
+                row[m], which[m] = ln.rows(cols[m]), j
+            # gaps between pieces: the two lines up to where they cross (a corner), else half way
+            for j in range(len(cand) - 1):
+                a_, b_ = cand[j], cand[j + 1]
+                m = (cols > a_.u1) & (cols < b_.u0)
+                if not m.any():
+                    continue
+                ux = _crossing(a_, b_)
+                split = ux if (ux is not None and a_.u1 <= ux <= b_.u0) else 0.5 * (a_.u1 + b_.u0)
+                ma, mb = m & (cols <= split), m & (cols > split)
+                row[ma], which[ma] = a_.rows(cols[ma]), j
+                row[mb], which[mb] = b_.rows(cols[mb]), j + 1
+            # ends: extend the end pieces; a piece that does not recede along the street meets the
+            # street line where they cross (a corner building whose side facade is hidden)
+            for j, m in ((0, cols < cand[0].u0), (len(cand) - 1, cols > cand[-1].u1)):
+                if not m.any():
+                    continue
+                ln = cand[j]
+                row[m], which[m] = ln.rows(cols[m]), j
+                if ln.kind != "free":
+                    continue
+                end = ln.u0 if j == 0 else ln.u1
+                for k in (-1, 1):
+                    sl = side_of(k)
+                    if sl is None:
+                        continue
+                    ux = _crossing(ln, sl)
+                    if ux is None or np.sign(ux - u_vp) != k:
+                        continue
+                    beyond = m & ((cols < ux) if j == 0 else (cols > ux)) & (sides == k)
+                    if ux is not None and (ux <= end if j == 0 else ux >= end) and beyond.any():
+                        cand.append(sl)
+                        row[beyond], which[beyond] = sl.rows(cols[beyond]), len(cand) - 1
+        else:
+            for k in (-1, 1):
+                m = sides == k
+                sl = side_of(k) if m.any() else None
+                if sl is None:
+                    continue
+                cand.append(sl)
+                row[m], which[m] = sl.rows(cols[m]), len(cand) - 1
+        ok = which >= 0
+        if not ok.any():
+            continue  # nothing to stand on: left to the resting rounds
+        if not ok.all():  # (a side without any street line): nearest placed column's line
+            idx = np.nonzero(ok)[0]
+            near = idx[np.clip(np.searchsorted(idx, np.arange(nc)), 0, idx.size - 1)]
+            which = np.where(ok, which, which[near])
+            rows_near = np.array([cand[w].rows(np.array([c]))[0] for w, c in zip(which[~ok], cols[~ok])])
+            row[~ok] = rows_near
+        # hidden columns: the foot lies between the facade's lowest pixel and the ground below it
+        row = np.where(vis_s, row, np.minimum(np.maximum(row, lo_s), hi_s))
+        row = np.where(np.isfinite(row), row, lo_s)
+        row = np.maximum(row, v_min + 1e-3)
+        P = gm.point(cols, row)
+        nrm = np.stack([cand[w].n for w in which])
+        c = np.einsum("ij,ij->i", nrm, P)
+        flip = c > 0
+        nrm[flip], c[flip] = -nrm[flip], -c[flip]
+        out_s.append(np.full(nc, s_id))
+        out_u.append(cols.astype(np.int64))
+        out_n.append(nrm)
+        out_c.append(c)
+        placed.append(s_id)
+    info["facade_lines"] = int(sum(len(v) for v in lines.values()))
+    if not placed:
+        return None
+    return (np.concatenate(out_s), np.concatenate(out_u), np.concatenate(out_n), np.concatenate(out_c),
+            np.array(placed, dtype=np.int64))

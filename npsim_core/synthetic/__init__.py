@@ -28,14 +28,15 @@ from ..errors import NpsimInputError
 from ..scene import Scene, load_scene, save_scene
 from .prediction import PredictionErrors, simulate_prediction
 from .primitives import MATERIALS, ROUGHNESS, CameraPose, GroundTruth, Primitives, raycast
-from .street import SKY, StreetLayout, build_street
+from .street import SKY, VARIANTS, StreetLayout, build_street, check_variant
 from .texture import albedo_factor
 
 __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_prediction", "SCENE_VERSION",
            "CAMERA_HEIGHT", "CAMERA_PITCH", "build_street", "raycast", "CameraPose", "street_ground_truth",
-           "cache_dir", "auto_spp"]
+           "cache_dir", "auto_spp", "VARIANTS"]
 
-#: Bump whenever the scene's content changes (it is part of the cache key).
+#: Bump whenever the scene's content changes (it is part of the cache key; it covers the
+#: hard variants too, whose layouts are new in version 4 and leave the default street unchanged).
 SCENE_VERSION = 4
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
@@ -53,9 +54,18 @@ def _check_size(width: int, height: int) -> tuple[int, int]:
     return w, h
 
 
-def street_ground_truth(width: int, height: int, seed: int = 0, *, include_lights: bool = True
-                        ) -> tuple[StreetLayout, Intrinsics, CameraPose, GroundTruth]:
+def _check_variant(variant: str) -> str:
+    try:
+        return check_variant(variant)
+    except ValueError as exc:
+        raise NpsimInputError(str(exc)) from None
+
+
+def street_ground_truth(width: int, height: int, seed: int = 0, *, include_lights: bool = True,
+                        variant: str = "default") -> tuple[StreetLayout, Intrinsics, CameraPose, GroundTruth]:
     """Layout, camera and exact GT buffers (no render, no prediction).
+
+    ``variant`` picks a hard street layout (:data:`VARIANTS`, docs/synthetic.md).
 
     ``include_lights=False`` casts without the light panes, i.e. the host surfaces
     under them; the returned ``GroundTruth.prim`` then indexes
@@ -64,7 +74,7 @@ def street_ground_truth(width: int, height: int, seed: int = 0, *, include_light
     width, height = _check_size(width, height)
     if int(seed) != seed or seed < 0:
         raise NpsimInputError(f"synthetic scene seed must be a non-negative integer, got {seed!r}")
-    layout = build_street(int(seed))
+    layout = build_street(int(seed), _check_variant(variant))
     intr = Intrinsics.cityscapes(width, height)
     pose = CameraPose(CAMERA_HEIGHT, CAMERA_PITCH)
     prims = layout.prims if include_lights else layout.prims.subset(layout.prims.light == 0)
@@ -107,7 +117,7 @@ def _pow4(n: int) -> int:
 
 
 def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp: int | None = None,
-                      prediction: PredictionErrors | None = None) -> Scene:
+                      prediction: PredictionErrors | None = None, variant: str = "default") -> Scene:
     """Generate the synthetic street at ``width`` x ``height`` (deterministic in ``seed``).
 
     Parameters
@@ -122,6 +132,10 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
         default :func:`auto_spp`.
     prediction : PredictionErrors, optional
         Error model of the simulated depth/normal network (defaults documented there).
+    variant : str
+        ``"default"`` (the street every test and cached result uses, unchanged), or a hard
+        layout for the depth prior: ``"receding"``, ``"occluded_base"``, ``"corner"``,
+        ``"clutter"``, ``"hard"`` (all of them), see docs/synthetic.md.
 
     Returns
     -------
@@ -135,12 +149,13 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
 
     params = prediction or PredictionErrors()
     width, height = _check_size(width, height)
+    variant = _check_variant(variant)
     spp = auto_spp(width, height) if spp is None else int(spp)
     if spp < 1:
         raise NpsimInputError(f"spp must be >= 1, got {spp}")
     spp = _pow4(spp)
     t0 = time.perf_counter()
-    layout, intr, pose, gt = street_ground_truth(width, height, seed)
+    layout, intr, pose, gt = street_ground_truth(width, height, seed, variant=variant)
     prims = layout.prims
     hit = gt.prim >= 0
     idx = np.maximum(gt.prim, 0)
@@ -160,11 +175,15 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     depth, normals = simulate_prediction(gt.depth, gt.normals, params, seed)
     t3 = time.perf_counter()
     image = linear_to_srgb8(linear * EXPOSURE)
-    return Scene(name=f"street_s{seed}", image=image, labels=labels, intrinsics=intr, depth=depth, normals=normals,
+    name = f"street_s{seed}" if variant == "default" else f"street_{variant}_s{seed}"
+    provenance = {"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
+                  "seed": int(seed), "spp": int(spp)}
+    if variant != "default":  # (the default scene's provenance stays as it was)
+        provenance["variant"] = variant
+    return Scene(name=name, image=image, labels=labels, intrinsics=intr, depth=depth, normals=normals,
                  depth_gt=gt.depth, normals_gt=gt.normals, lights=lights, albedo=albedo, roughness=roughness,
                  camera_height=pose.height, camera_pitch=pose.pitch,
-                 provenance={"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
-                             "seed": int(seed), "spp": int(spp),
+                 provenance={**provenance,
                              "renderer": "mitsuba scalar_rgb direct (sun) + sky ambient (numpy)",
                              "prediction": params.as_dict(), "layout": layout.info,
                              "timing_s": {"ground_truth": round(t1 - t0, 3), "render": round(t2 - t1, 3),
@@ -177,31 +196,39 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "npsim"
 
 
-def _prune_old_versions(root: Path, width: int, height: int, seed: int) -> None:
-    """Delete this size and seed's cache entries of older scene versions (they are never read again)."""
-    for old in root.glob(f"street_{width}x{height}_s{int(seed)}_v*"):
+def _cache_name(width: int, height: int, seed: int, variant: str) -> str:
+    """Cache folder name without the version: the default street keeps its historical name."""
+    tag = "" if variant == "default" else f"_{variant}"
+    return f"street_{width}x{height}_s{int(seed)}{tag}"
+
+
+def _prune_old_versions(root: Path, width: int, height: int, seed: int, variant: str = "default") -> None:
+    """Delete this size, seed and variant's cache entries of older scene versions (never read again)."""
+    for old in root.glob(f"{_cache_name(width, height, seed, variant)}_v*"):
         v = old.name.rsplit("_v", 1)[-1]
         if v.isdigit() and int(v) < SCENE_VERSION:
             shutil.rmtree(old, ignore_errors=True)
 
 
-def street_scene(width: int = 256, height: int = 128, seed: int = 0) -> Scene:
+def street_scene(width: int = 256, height: int = 128, seed: int = 0, variant: str = "default") -> Scene:
     """:func:`make_street_scene` with default parameters, cached as a scene folder.
 
-    The folder ``<cache_dir()>/street_<W>x<H>_s<seed>_v<SCENE_VERSION>`` is written
+    The folder ``<cache_dir()>/street_<W>x<H>_s<seed>_v<SCENE_VERSION>`` (for a hard
+    ``variant``: ``street_<W>x<H>_s<seed>_<variant>_v<SCENE_VERSION>``) is written
     to a temporary sibling and renamed into place, so concurrent callers and
     crashes never see a half-written scene; entries of older scene versions for the
     same size and seed are deleted then.
     """
     width, height = _check_size(width, height)
+    variant = _check_variant(variant)
     root = cache_dir()
-    folder = root / f"street_{width}x{height}_s{int(seed)}_v{SCENE_VERSION}"
+    folder = root / f"{_cache_name(width, height, seed, variant)}_v{SCENE_VERSION}"
     if (folder / "scene.json").exists():
         try:
             return load_scene(folder)
         except NpsimInputError:
             shutil.rmtree(folder, ignore_errors=True)  # corrupt cache entry: regenerate
-    scene = make_street_scene(width, height, seed)
+    scene = make_street_scene(width, height, seed, variant=variant)
     try:
         root.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=root))
@@ -216,7 +243,7 @@ def street_scene(width: int = 256, height: int = 128, seed: int = 0) -> Scene:
         except OSError:
             # Another process won the race (target exists and is non-empty): use theirs.
             shutil.rmtree(tmp, ignore_errors=True)
-        _prune_old_versions(root, width, height, seed)
+        _prune_old_versions(root, width, height, seed, variant)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

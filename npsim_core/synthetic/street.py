@@ -126,7 +126,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     # Cross streets (corner variant): side -> (z0, z1) of the mouth, sidewalk corners included.
     cross: dict[int, tuple[float, float]] = {}
     if hard.corner:
-        for side, (lo, hi) in ((1, (30.0, 42.0)), (-1, (50.0, 64.0))):
+        for side, (lo, hi) in ((1, (18.0, 26.0)), (-1, (30.0, 42.0))):
             z0 = float(xr.uniform(lo, hi))
             cross[side] = (z0, z0 + float(xr.uniform(13.0, 17.0)))
 
@@ -217,7 +217,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     for side, x_in, x_out, p_forward in ((-1, -3.8, -5.85, 0.4), (1, 2.35, 4.35, 0.85)):
         occupancy = float(rng.uniform(0.35, 0.8))
         if hard.occluded_base:
-            occupancy = 0.9 + (occupancy - 0.35) * 0.2   # near-continuous rows: 0.90-0.99
+            occupancy = 0.85 + (occupancy - 0.35) * 0.25   # near-continuous rows: 0.85-0.96
         z = float(rng.uniform(4.0, 9.0) if side > 0 else rng.uniform(5.0, 16.0))
         while z < far_z - 12.0:
             length = float(rng.uniform(3.9, 4.8))
@@ -227,7 +227,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
                 n_cars += 1
             gap = float(rng.uniform(0.8, 4.0))
             if hard.occluded_base:
-                gap = 0.5 + (gap - 0.8) * 0.3   # 0.5-1.5 m
+                gap = 0.6 + (gap - 0.8) * 0.45   # 0.6-2.0 m
             z += length + gap
 
     # --- street lights (poles with arms over the road), trees between them
