@@ -1,12 +1,19 @@
 """Geometry estimators on the synthetic street scene: speed against error.
 
-    .venv/bin/python benchmarks/geometry.py [--size 512x256] [--seed 0] [--checkpoint DIR]
+    .venv/bin/python -m benchmarks.geometry [--size 512x256] [--seed 0] [--checkpoint DIR]
+    .venv/bin/python -m benchmarks.geometry --variants [--sizes 512x256,2048x1024] [--seed 0]
 
 Rows: the semantic pop-up prior, a constant-depth baseline (median of the
 ground truth, fronto-parallel normals), the scene's simulated network
 prediction (ground truth with realistic errors, see npsim_core.synthetic) and,
 with ``--checkpoint``, a local depth network aligned on the pop-up prior.
 Errors over all pixels with valid ground truth (sky excluded), docs/method.md §9.2.
+
+``--variants``: the pop-up prior on the hard street layouts (docs/synthetic.md),
+AbsRel per class, before (``PopupParams(facades="flat", sidewalk_height=0)``, the
+earlier prior) and after (the default), with the prior's time (best of
+``--repeat``). The scenes are the exact ground truth and labels of
+``make_street_scene`` without the render (the prior reads only labels and camera).
 """
 
 from __future__ import annotations
@@ -30,13 +37,75 @@ def _row(name, seconds, depth, normals, scene):
             f"{nm.median_deg:6.1f} | {nm.within_11_25:5.3f} | {nm.within_30:5.3f} | {cover:5.3f} |")
 
 
+VARIANT_CLASSES = (("road", 7), ("sidewalk", 8), ("building", 11), ("vegetation", 21), ("car", 26))
+BEFORE = {"facades": "flat", "sidewalk_height": 0.0}
+
+
+def variant_scene(W: int, H: int, seed: int, variant: str):
+    """Labels, camera and exact ground truth of a street variant, without the render (what the prior reads)."""
+    from npsim_core.scene import Scene
+    from npsim_core.synthetic import street_ground_truth
+    from npsim_core.synthetic.street import SKY
+
+    layout, intr, pose, gt = street_ground_truth(W, H, seed, variant=variant)
+    hit = gt.prim >= 0
+    labels = np.where(hit, layout.prims.label[np.maximum(gt.prim, 0)], SKY).astype(np.uint8)
+    return Scene(name=f"street_{variant}_s{seed}", image=np.zeros((H, W, 3), np.uint8), labels=labels,
+                 intrinsics=intr, depth_gt=gt.depth, normals_gt=gt.normals, camera_height=pose.height,
+                 camera_pitch=pose.pitch)
+
+
+def class_abs_rel(depth: np.ndarray, scene) -> dict[str, float]:
+    """AbsRel of ``depth`` per class of :data:`VARIANT_CLASSES`, and over every pixel with ground truth ("all")."""
+    from npsim_core.metrics import depth_metrics
+
+    out = {name: depth_metrics(depth, scene.depth_gt, scene.labels == cid).abs_rel for name, cid in VARIANT_CLASSES}
+    out["all"] = depth_metrics(depth, scene.depth_gt).abs_rel
+    return out
+
+
+def variants_table(sizes: list[tuple[int, int]], seed: int, repeat: int, variants: list[str]) -> list[dict]:
+    """Print (and return) the before/after table of the pop-up prior on the street variants."""
+    from npsim_core.geometry.popup import PopupParams, estimate_popup
+
+    rows = []
+    print(f"pop-up prior on the street variants, seed {seed}; load {os.getloadavg()[0]:.2f} "
+          f"(1-min average, {os.cpu_count()} cores)")
+    names = [n for n, _ in VARIANT_CLASSES] + ["all"]
+    print("| size | variant | prior | " + " | ".join(names) + " | time s |")
+    print("|---|---|---|" + "---|" * len(names) + "---|")
+    for W, H in sizes:
+        for variant in variants:
+            scene = variant_scene(W, H, seed, variant)
+            for label, params in (("before", PopupParams(**BEFORE)), ("after", PopupParams())):
+                times, est = [], None
+                for _ in range(max(1, repeat)):
+                    t0 = time.perf_counter()
+                    est = estimate_popup(scene, params)
+                    times.append(time.perf_counter() - t0)
+                err = class_abs_rel(est.depth, scene)
+                rows.append({"size": f"{W}x{H}", "variant": variant, "prior": label, **err, "seconds": min(times)})
+                print(f"| {W}x{H} | {variant} | {label} | " + " | ".join(f"{err[n]:.3f}" for n in names)
+                      + f" | {min(times):.2f} |")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", default="512x256", help="WxH of the synthetic scene")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per estimator (best is shown)")
     ap.add_argument("--checkpoint", help="local transformers depth checkpoint folder (optional)")
+    ap.add_argument("--variants", action="store_true",
+                    help="the pop-up prior before/after on the hard street variants, AbsRel per class")
+    ap.add_argument("--sizes", default="512x256,2048x1024", help="WxH list for --variants")
+    ap.add_argument("--which", default="default,receding,occluded_base,corner,clutter,hard",
+                    help="street variants for --variants")
     args = ap.parse_args(argv)
+    if args.variants:
+        sizes = [tuple(int(x) for x in sz.lower().split("x")) for sz in args.sizes.split(",")]
+        variants_table(sizes, args.seed, args.repeat, args.which.split(","))
+        return 0
     W, H = (int(x) for x in args.size.lower().split("x"))
 
     from npsim_core.camera import normals_from_depth

@@ -35,8 +35,45 @@ Model (in the spirit of Hoiem et al.'s "Automatic Photo Pop-up")
   fronto-parallel normal.
 * Sky, ego vehicle, rectification border and out-of-roi pixels are invalid (NaN).
 
+Facades on their contact line (``facades="contact"``, the default; docs/geometry.md)
+-----------------------------------------------------------------------------------
+The model above gives a facade one plane, fitted to whatever it stands on; a street
+wall that recedes, hides its foot behind parked cars or turns a corner is then off by
+2-3x. Instead, ``contact_ids`` segments (building, wall, fence, guard rail) are placed
+first, column by column:
+
+* Per column, the facade's lowest pixel either touches ground (a *visible* contact at
+  the boundary row) or stands above something in front of it, so its foot is *hidden*
+  somewhere between that pixel and the next ground row below.
+* A vertical plane's foot is a straight line in the image, so the visible contacts of a
+  segment (sorted by column) are split into pieces that one image line each fits within
+  ``contact_tol`` pixels (recursive least-squares split, then merge) -- a corner building
+  gets two pieces. Image lines map to ground lines through the ground homography, so
+  each piece is a vertical plane; the rows' half-pixel quantisation stays uniform there.
+* A piece that a line through the street's vanishing point fits better than a level
+  line is a facade along the street (its line is snapped to that point); the others
+  face the camera or are oblique. The vanishing point is on the horizon row, at ``cx``
+  or where the long receding pieces meet it (``vanishing``).
+* Per side of the street, the receding pieces give a *street line*: their lateral
+  offset (weighted median, each weighted by its precision at half a row). A side whose
+  facades show no foot gets the offset behind the feet of what hides them, by the other
+  side's setback or ``hidden_setback``.
+* Hidden columns are filled: between two pieces up to where their lines cross (a corner)
+  or via the street line, beyond the end pieces by extending a receding piece or by
+  turning from a non-receding piece onto the street line where they cross; a segment
+  without any visible contact follows its side's street line. Every hidden row is
+  finally clamped between the facade's lowest pixel and the ground below its occluder.
+* Each column gets its own plane (normal from its line, offset through its contact
+  point); every pixel gets that plane's depth along its ray.
+
+Other classes keep the model above, with two changes in this mode: a contact that a
+level image line fits is fronto-parallel (a trunk or post, whose plan-view scatter is
+only row quantisation), and a tree crown whose trunk is hidden stands half way between
+the nearest support (the car in front) and the facade behind. ``sidewalk_height`` raises
+the sidewalk plane (and whatever stands on it) above the road.
+
 All work is vectorised over the image; the only Python loops are over
-segments (fitting a line to each one's contact points) and placement rounds.
+segments (fitting lines to each one's contact points) and placement rounds.
 """
 
 from __future__ import annotations
@@ -98,6 +135,25 @@ class PopupParams:
         Placement rounds for segments standing on other segments.
     fallback_depth : float
         Depth (m) used only when nothing in the image can be placed (no ground).
+    facades : str
+        ``"contact"`` (default): ``contact_ids`` segments stand on their own contact line,
+        piecewise planes per column (docs/geometry.md, "Facades on their contact line");
+        ``"flat"``: the earlier model, one line per segment fitted to whatever it stands on
+        (with ``sidewalk_height=0`` it reproduces the earlier prior exactly).
+    contact_ids : tuple of int
+        labelIds placed on their contact line by ``facades="contact"``.
+    sidewalk_height : float
+        The sidewalk's surface lies this many metres above the road (kerb height); sidewalk
+        pixels and everything standing on them use that plane. 0 = one ground plane.
+    contact_tol : float
+        Pixels (at 2048 columns, scaled with the width, at least 1) a contact may lie off its
+        image line before the line is split into pieces.
+    hidden_setback : float
+        Metres from the feet of what hides a facade's base (parked cars' street side, mostly)
+        to the facade, assumed when neither side of the street shows a facade's foot.
+    vanishing : str
+        ``"auto"``: the street's vanishing column from the long receding contact lines (the
+        principal point's column when fewer than two agree); ``"center"``: always ``cx``.
     """
 
     camera_height: float | None = None
@@ -117,7 +173,7 @@ class PopupParams:
     contact_ids: tuple[int, ...] = DEFAULT_CONTACT_IDS
     sidewalk_height: float = 0.12
     contact_tol: float = 1.5
-    hidden_setback: float = 2.0
+    hidden_setback: float = 5.0
     vanishing: str = "auto"
 
     def __post_init__(self) -> None:
@@ -315,18 +371,34 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
             placed[placed_ids] = True
             drawn[placed_ids] = True
             fitted[placed_ids] = True
-            how[placed_ids] = 3
+            how[placed_ids] = 1
+            fac_info["on_contact_lines"] = int(placed_ids.size)
 
     # --- segments standing on the ground: mostly (any facing), or along a contact line long enough
     #     to give the facing by itself (a facade behind parked cars with a gap between them)
     mostly = (n_ground > 0) & (n_ground >= p.ground_fraction * n_total)
     vs, us = np.nonzero(g_sup)
+    # (new default) a contact that a level image line fits is fronto-parallel, whatever its scatter in plan;
+    # a fitted plane that runs off to a fraction or a multiple of its contacts' depth at the segment's own
+    # outermost columns is a grazing misfit of a few quantised contacts: fronto-parallel too
+    flat_tol = max(1.0, p.contact_tol * W / 2048.0) if p.facades == "contact" else None
+    row_of = (intr.fy, intr.cy)
+    span = None
+    if p.facades == "contact":
+        span = np.zeros((nseg + 1, 2))
+        for k, sl in enumerate(ndimage.find_objects(seg), start=1):
+            if sl is not None:
+                span[k] = (sl[1].start, sl[1].stop - 1)
+        span = (span, intr)
     _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 1, e, f, p,
-                mode=np.where(seg_fronto, 0, 1), only_line_fits=~mostly)
+                mode=np.where(seg_fronto, 0, 1), only_line_fits=~mostly, flat_tol=flat_tol, row_of=row_of,
+                span=span)
 
     # --- segments resting (also) on other segments, in rounds as their supports get placed
     rounds = 0
     mode_rest = np.where(seg_facade, 1, 2)  # facades: line fit; others: fronto at the nearest support
+    if p.facades == "contact":  # (new default) a tree crown whose trunk is hidden: between car and facade
+        mode_rest = np.where(seg_thin & ~seg_facade, 3, mode_rest)
     for rounds in range(1, p.max_rounds + 1):
         cur = vertical & (placed & ~drawn)[seg]  # only segments placed since the last round
         if cur.any():
@@ -352,7 +424,9 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
         n_solid = np.bincount(seg[use & ~thin], minlength=nseg + 1)
         use &= ~(thin & (n_solid[seg] > 0))
         vs, us = np.nonzero(use)
-        _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 2, e, f, p, mode=mode_rest)
+        kind = np.where(g_sup[vs, us], 0, np.where(seg_facade[seg_below[vs, us]], 2, 1))
+        _fit_groups(seg[vs, us], support[vs, us], planes, placed, fitted, how, 2, e, f, p, mode=mode_rest,
+                    kind=kind)
     cur = vertical & (placed & ~drawn)[seg]
     depth[cur] = _plane_depth(rays, planes, seg, cur, p)
     normals[cur] = planes[seg[cur], :3]
@@ -374,7 +448,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     info = {"params": asdict(p), "camera_height_m": h, "camera_pitch_rad": pitch,
             "horizon_row": float(intr.cy - intr.fy * math.tan(pitch)),
             "segments": int(nseg), "on_ground": int(np.sum(how[seg_ids] == 1)),
-            "on_segments": int(np.sum(how[seg_ids] == 2)), "on_contact_lines": int(np.sum(how[seg_ids] == 3)),
+            "on_segments": int(np.sum(how[seg_ids] == 2)),
             "unplaced_pixels": int(rest.sum()), "line_fits": int(fitted[seg_ids].sum()), "rounds": int(rounds),
             "seconds": round(time.perf_counter() - t0, 4), **fac_info}
     if notes:
@@ -385,7 +459,9 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
 
 def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed: np.ndarray, fitted: np.ndarray,
                 how: np.ndarray, how_code: int, e: np.ndarray, f: np.ndarray, p: PopupParams,
-                mode: np.ndarray, only_line_fits: np.ndarray | None = None) -> None:
+                mode: np.ndarray, only_line_fits: np.ndarray | None = None, flat_tol: float | None = None,
+                row_of: tuple[float, float] = (1.0, 0.0), kind: np.ndarray | None = None,
+                span: tuple | None = None) -> None:
     """Fit one vertical plane per segment to its support points ``pts`` (N, 3) in place.
 
     ``mode[s]``: 1 = vertical plane through the line fitted to the support
@@ -394,7 +470,15 @@ def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed
     at the support points within 25% of the nearest one: a segment resting on
     several surfaces (a sign over its pole and the facade behind) is attached to
     the nearest, since whatever is farther is seen past its free bottom edge.
+    Mode 3 (tree crowns whose trunk is hidden; ``kind`` per point: 0 ground contact, 1 other
+    segment, 2 facade): fronto-parallel at the median ground contact when there is one, else half
+    way between the nearest support and the nearest facade behind (the crown stands on the sidewalk
+    between the car that hides its trunk and the facade), else as mode 2.
     Segments with ``only_line_fits[s]`` are left unplaced unless a line fit succeeds.
+    With ``flat_tol`` (pixels), a mode-1 support whose image rows (``fy * y / z + cy``, ``row_of``
+    = (fy, cy)) all lie within ``flat_tol`` of their median -- up to 5 % -- is fronto-parallel: its
+    contact is level in the image, and the plan-view line through it is only the half-pixel row
+    quantisation seen along the viewing rays (a tree trunk or post fitted as a radial plane).
     """
     if seg_ids.size == 0:
         return
@@ -402,6 +486,8 @@ def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed
     seg_ids, pts = seg_ids[ok], pts[ok]
     order = np.argsort(seg_ids, kind="stable")
     seg_ids, pts = seg_ids[order], pts[order]
+    if kind is not None:
+        kind = kind[ok][order]
     a = pts @ e
     b = pts @ f
     uniq, start = np.unique(seg_ids, return_index=True)
@@ -412,12 +498,36 @@ def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed
         sa, sb = a[i0:i1], b[i0:i1]
         if mode[s] == 1:
             n, c, ok_fit = _fit_vertical_plane(sa, sb, e, f, p)
+            if ok_fit and flat_tol is not None:
+                rows = row_of[0] * pts[i0:i1, 1] / pts[i0:i1, 2] + row_of[1]
+                if _fits(rows.size, int(np.count_nonzero(np.abs(rows - np.median(rows)) > flat_tol))):
+                    n, c, ok_fit = -f, -float(np.median(sb)), False
+            if ok_fit and span is not None:
+                cols, intr = span[0][s], span[1]
+                r = np.stack([(cols - intr.cx) / intr.fx, np.full(2, (float(np.median(rows)) - intr.cy) / intr.fy),
+                              np.ones(2)], axis=1)
+                nr = r @ n
+                z = pts[i0:i1, 2]
+                with np.errstate(divide="ignore"):
+                    zz = np.where(nr < -1e-9, c / np.where(nr < -1e-9, nr, -1.0), np.inf)
+                if not np.all((zz >= 0.5 * z.min()) & (zz <= 2.0 * z.max())):
+                    n, c, ok_fit = -f, -float(np.median(sb)), False
             if only_line_fits is not None and only_line_fits[s] and not ok_fit:
                 continue
         elif only_line_fits is not None and only_line_fits[s]:
             continue
         else:
-            if mode[s] == 2:
+            between = None
+            if mode[s] == 3 and kind is not None:
+                kk = kind[i0:i1]
+                if (kk == 0).any():
+                    between = float(np.median(sb[kk == 0]))
+                elif (kk == 1).any() and (kk == 2).any():
+                    near = float(np.min(sb[kk == 1]))
+                    between = 0.5 * (near + max(near, float(np.percentile(sb[kk == 2], 10))))
+            if between is not None:
+                sb = np.array([between])
+            elif mode[s] >= 2:
                 z = pts[i0:i1, 2]
                 sb = sb[z <= 1.25 * z.min()]
             n, c, ok_fit = -f, -float(np.median(sb)), False
@@ -523,9 +633,16 @@ def _split_pieces(u: np.ndarray, v: np.ndarray, tol: float, min_pts: int) -> lis
         i0, i1 = stack.pop()
         n = i1 - i0
         uu, vv = u[i0:i1], v[i0:i1]
-        _, _, bad = _robust_line(uu, vv, tol)
+        s_, t_, bad = _robust_line(uu, vv, tol)
         if _fits(n, bad) or n < 2 * min_pts:
-            out.append((i0, i1))
+            # the outliers a fit tolerates must not stretch its span: split them off its ends
+            good = np.nonzero(np.abs(vv - (s_ * uu + t_)) <= tol)[0]
+            if good.size and (good[0] > 0 or good[-1] < n - 1) and n > 2:
+                a, b = i0 + int(good[0]), i0 + int(good[-1]) + 1
+                stack += [r for r in ((i0, a), (b, i1)) if r[1] > r[0]]
+                out.append((a, b))
+            else:
+                out.append((i0, i1))
             continue
         uc, vc = uu - uu.mean(), vv - vv.mean()
         cs = [np.concatenate([[0.0], np.cumsum(x)]) for x in (uc, vc, uc * uc, uc * vc, vc * vc)]
@@ -548,8 +665,9 @@ def _split_pieces(u: np.ndarray, v: np.ndarray, tol: float, min_pts: int) -> lis
         for q in range(len(out) - 1):
             a0, a1 = out[q]
             _, b1 = out[q + 1]
-            _, _, bad = _robust_line(u[a0:b1], v[a0:b1], tol)
-            if _fits(b1 - a0, bad):
+            s_, t_, bad = _robust_line(u[a0:b1], v[a0:b1], tol)
+            ends = np.abs(v[[a0, b1 - 1]] - (s_ * u[[a0, b1 - 1]] + t_)) <= tol
+            if _fits(b1 - a0, bad) and ends.all():
                 out[q:q + 2] = [(a0, b1)]
                 merged = True
                 break
@@ -566,6 +684,7 @@ class _Line:
     kind: str             # "free" | "vp" (through the street's vanishing point) | "side" (street line)
     u0: float = 0.0       # columns of its visible support
     u1: float = 0.0
+    X: float = 0.0        # lateral offset from the street axis (m, > 0 right) of a "vp" line
 
     def rows(self, u: np.ndarray) -> np.ndarray:
         return _rows(self.line, u)
@@ -685,11 +804,20 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
             ln = None
             if one_side:
                 sv, tv, bad = _robust_line(uu, vv, tol, through=(u_vp, v_h))
-                if _fits(uu.size, bad) or uu.size < min_pts:
+                # ... unless a level line (a facade facing the camera, also one parameter) fits
+                # at least as well: a short or far piece can be either; it stays free and gives
+                # no street line
+                r_vp = float(np.sqrt(np.mean((vv - (sv * uu + tv)) ** 2)))
+                r_level = float(np.sqrt(np.mean((vv - np.median(vv)) ** 2)))
+                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level:
                     ln = make(_image_line(sv, tv), "vp", uu[0], uu[-1])
                     if ln is not None:
                         X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
-                        side_X[1 if du[0] > 0 else -1].append((X, uu.size))
+                        # its precision: half a row at the nearest contact (+ 0.3 m of label noise)
+                        j = int(np.argmax(vv))
+                        dX = float(lateral(uu[j:j + 1], vv[j:j + 1] + 0.5)[0] - lateral(uu[j:j + 1], vv[j:j + 1])[0])
+                        side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3)))
+                        ln.X = X
             if ln is None:
                 if uu.size < min_pts:
                     s_ = 0.0  # too short for a slope: fronto-parallel at its row
@@ -700,24 +828,53 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         if out:
             lines[s_id] = out
 
-    # --- the street lines: one vertical plane along the street per side, at the median lateral
-    #     offset of that side's receding facades (or, failing those, behind the visible ground)
-    side_line: dict[int, _Line] = {}
+    # --- the street lines: one vertical plane along the street per side, at the lateral offset of
+    #     that side's receding facades (weighted median, weights 1/sigma^2); a side whose facades
+    #     show no (precise) foot also gets a candidate behind the feet of what hides them: the
+    #     other side's offset behind its occluders' feet, else ``hidden_setback``
+    def wmedian(vals, sig):
+        vals, w = np.asarray(vals, float), 1.0 / np.asarray(sig, float) ** 2
+        o = np.argsort(vals)
+        cw = np.cumsum(w[o])
+        return float(vals[o][np.searchsorted(cw, 0.5 * cw[-1])])
+
+    gm_road = _GroundMap(intr, g, f, e, h)
+    hid = ~visible & ~at_bottom & ~unknown & (ng < H)
+    hu, hv = ku[hid].astype(float), ng[hid] - 0.5
+    keep = hv > v_min
+    hu, hv, hl = hu[keep], hv[keep], labels[ng[hid][keep], ku[hid][keep]]
+    fa, fb = gm_road.plan(hu, hv)
+    fa2, fb2 = gm.plan(hu, hv)
+    on_w = hl == SIDEWALK_ID
+    feet_X = np.where(on_w, fa2 * d[1] - fb2 * d[0], fa * d[1] - fb * d[0])
+    feet: dict[int, float] = {}
+    evid: dict[int, tuple[float, float]] = {}
     for side in (-1, 1):
-        xs = side_X[side]
-        X = None
-        if xs:
-            vals = np.array([x for x, _ in xs])
-            w = np.array([n for _, n in xs], dtype=float)
-            o = np.argsort(vals)
-            cw = np.cumsum(w[o])
-            X = float(vals[o][np.searchsorted(cw, 0.5 * cw[-1])])
-            if X * side <= 0.3:
-                X = None
-        if X is not None:
-            n3 = -side * (d[1] * e - d[0] * f)
-            side_line[side] = _Line(gm.image_line_of_plane(n3, -abs(X)), n3, -abs(X), "side")
+        fx_ = feet_X[(np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)]
+        if fx_.size >= 3:
+            feet[side] = float(np.median(fx_))
+        ev = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
+        if ev:
+            evid[side] = (wmedian(*zip(*ev)), min(sg for _, sg in ev))
+    side_line: dict[int, _Line] = {}
+    setbacks = {}
+    for side in (-1, 1):
+        cands = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
+        if side in feet:
+            other = -side
+            if other in evid and evid[other][1] < 1.0 and other in feet:
+                setback = float(np.clip(abs(evid[other][0]) - abs(feet[other]), 0.5, 15.0))
+            else:
+                setback = p.hidden_setback
+            setbacks[side] = round(setback, 2)
+            cands.append((side * (abs(feet[side]) + setback), 2.0))
+        if not cands:
+            continue
+        X = wmedian(*zip(*cands))
+        n3 = -side * (d[1] * e - d[0] * f)
+        side_line[side] = _Line(gm.image_line_of_plane(n3, -abs(X)), n3, -abs(X), "side")
     info["street_lines_m"] = {("left" if k < 0 else "right"): round(-v.c * k, 2) for k, v in side_line.items()}
+    info["hidden_setback_m"] = {("left" if k < 0 else "right"): v for k, v in setbacks.items()}
 
     def fallback_side(side, cols):
         """Street line behind the ground visible in ``cols`` (+ hidden_setback), when no facade shows its foot."""
@@ -758,35 +915,68 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                 m = (cols >= ln.u0) & (cols <= ln.u1)
                 row[m], which[m] = ln.rows(cols[m]), j
             # gaps between pieces: the two lines up to where they cross (a corner), else half way
-            for j in range(len(cand) - 1):
+            for j in range(len(lines[s_id]) - 1):
                 a_, b_ = cand[j], cand[j + 1]
                 m = (cols > a_.u1) & (cols < b_.u0)
                 if not m.any():
                     continue
                 ux = _crossing(a_, b_)
-                split = ux if (ux is not None and a_.u1 <= ux <= b_.u0) else 0.5 * (a_.u1 + b_.u0)
+                if ux is not None and a_.u1 <= ux <= b_.u0:  # a corner between them
+                    split = ux
+                else:
+                    split = 0.5 * (a_.u1 + b_.u0)
+                    # ... or the street line between them (a corner building whose receding side is
+                    # hidden, next to a facade facing the camera)
+                    k = 1 if 0.5 * (a_.u1 + b_.u0) >= u_vp else -1
+                    sl = side_of(k)
+                    if sl is not None and (a_.kind == "free" or b_.kind == "free"):
+                        x1 = _crossing(a_, sl) if sl is not None else None
+                        x2 = _crossing(sl, b_) if sl is not None else None
+                        if x2 is not None and a_.u1 < x2 <= b_.u0:
+                            s0 = x1 if (x1 is not None and a_.u1 <= x1 < x2) else a_.u1
+                            ms = m & (cols > s0) & (cols <= x2)
+                            cand.append(sl)
+                            row[ms], which[ms] = sl.rows(cols[ms]), len(cand) - 1
+                            m = m & ~ms
+                            split = s0
                 ma, mb = m & (cols <= split), m & (cols > split)
                 row[ma], which[ma] = a_.rows(cols[ma]), j
                 row[mb], which[mb] = b_.rows(cols[mb]), j + 1
             # ends: extend the end pieces; a piece that does not recede along the street meets the
             # street line where they cross (a corner building whose side facade is hidden)
-            for j, m in ((0, cols < cand[0].u0), (len(cand) - 1, cols > cand[-1].u1)):
+            npc = len(lines[s_id])  # (side lines appended to cand above come after the pieces)
+            for j, left, m in ((0, True, cols < cand[0].u0), (npc - 1, False, cols > cand[npc - 1].u1)):
                 if not m.any():
                     continue
                 ln = cand[j]
                 row[m], which[m] = ln.rows(cols[m]), j
+                if ln.kind == "vp":
+                    # a receding piece well off its side's street line (a facade down a cross street, a
+                    # deep set-back) does not carry on past its end: the street line does
+                    k = 1 if (ln.u0 + ln.u1) / 2 >= u_vp else -1
+                    sl = side_line.get(k)
+                    if sl is not None and abs(ln.X - (-sl.c * k)) > max(2.0, 0.2 * abs(sl.c)):
+                        beyond = m & (sides == k)
+                        cand.append(sl)
+                        row[beyond], which[beyond] = sl.rows(cols[beyond]), len(cand) - 1
+                    continue
                 if ln.kind != "free":
                     continue
-                end = ln.u0 if j == 0 else ln.u1
+                end = ln.u0 if left else ln.u1
                 for k in (-1, 1):
                     sl = side_of(k)
                     if sl is None:
                         continue
                     ux = _crossing(ln, sl)
-                    if ux is None or np.sign(ux - u_vp) != k:
+                    if ux is None:
                         continue
-                    beyond = m & ((cols < ux) if j == 0 else (cols > ux)) & (sides == k)
-                    if ux is not None and (ux <= end if j == 0 else ux >= end) and beyond.any():
+                    # crossing in the run: a corner there; within the piece: a short step off the
+                    # street line, which carries on right after it; behind the piece: they diverge
+                    if (left and ux > ln.u1) or (not left and ux < ln.u0):
+                        continue
+                    at = min(ux, end) if left else max(ux, end)
+                    beyond = m & ((cols < at) if left else (cols > at)) & (sides == k)
+                    if beyond.any():
                         cand.append(sl)
                         row[beyond], which[beyond] = sl.rows(cols[beyond]), len(cand) - 1
         else:
