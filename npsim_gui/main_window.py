@@ -294,8 +294,12 @@ class MainWindow(QMainWindow):
         what = "recomputed" if final else f"quick preview ({self.LIVE_REFINE_BUDGET_S:g} s refinement budget)"
         self.log.log(f"{what}: " + ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items()
                                              if k in res.recomputed) + f" — change→view {lat:.2f} s")
+        if "geometry" in res.recomputed:
+            self.log.log(f"depth from {res.depth_source}")
         if res.refine is not None:
             self.loss_plot.set_history(res.refine_history())
+            if final and res.refine.diverged:
+                self.log.log(f"warning: the refinement diverged: {res.refine.message}")
         if view is not None and view[0] == self.view_mode.currentText():
             self.editor.set_base_image(view[1])
         else:

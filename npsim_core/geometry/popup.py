@@ -967,6 +967,19 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                     sl = side_of(k)
                     if sl is None:
                         continue
+                    if left == (k < 0):
+                        # outward (away from the vanishing point): the street wall is whichever is
+                        # nearer -- the street line meeting a facade that faces the camera (an inside
+                        # corner), or the nearer block after a cross street's mouth
+                        mk = m & (sides == k)
+                        rs = sl.rows(cols[mk])
+                        nearer = np.zeros_like(mk)
+                        nearer[mk] = rs > row[mk]
+                        if nearer.any():
+                            cand.append(sl)
+                            row[nearer], which[nearer] = sl.rows(cols[nearer]), len(cand) - 1
+                        continue
+                    # inward (toward the vanishing point): the facade turns the corner onto the street line
                     ux = _crossing(ln, sl)
                     if ux is None:
                         continue
