@@ -96,8 +96,11 @@ def test_output_path_that_is_a_file_is_refused_first(cmd, scene_dir, tmp_path, c
 def test_sweep_and_batch_output_checks(scene_dir, tmp_path, capsys):
     blocker = tmp_path / "file.txt"
     blocker.write_text("x")
-    assert main(["sweep", str(scene_dir), "-o", str(tmp_path)]) == 2
+    (tmp_path / "t.csv").mkdir()
+    assert main(["sweep", str(scene_dir), "-o", str(tmp_path / "t.csv")]) == 2
     assert "is a folder" in capsys.readouterr().err
+    assert main(["sweep", str(scene_dir), "-o", str(blocker)]) == 2
+    assert "not a folder" in capsys.readouterr().err
     assert main(["sweep", str(scene_dir), "-o", str(blocker / "t.csv")]) == 2
     assert main(["batch", str(scene_dir.parent), "-o", str(blocker)]) == 2
     assert "not a folder" in capsys.readouterr().err

@@ -360,3 +360,101 @@ def test_bad_seed_and_size_rejected(tmp_path, capsys):
         make_street_scene(0, 16)
     assert cli_main(["sample", "--size", "32x16", "--seed", "-3", "-o", str(tmp_path / "x")]) == 2
     assert "seed" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- hard variants (docs/synthetic.md)
+HARD = ["receding", "occluded_base", "corner", "clutter", "hard"]
+
+
+def _labels(layout, gt):
+    return np.where(gt.prim >= 0, layout.prims.label[np.maximum(gt.prim, 0)], 23)
+
+
+@pytest.mark.parametrize("variant", HARD)
+def test_street_variants_keep_the_ground_truth_invariants(variant):
+    """Ray casting only (no render): deterministic, differ from the default, sky only above the horizon,
+    every light on its host surface, unit normals facing the camera."""
+    layout, intr, _, gt = street_ground_truth(160, 80, seed=0, variant=variant)
+    again = street_ground_truth(160, 80, seed=0, variant=variant)[3]
+    assert np.array_equal(gt.depth, again.depth, equal_nan=True) and np.array_equal(gt.prim, again.prim)
+    default = street_ground_truth(160, 80, seed=0)[3]
+    assert not np.array_equal(gt.depth, default.depth, equal_nan=True)
+    assert layout.info["variant"] == variant
+    sky = gt.prim < 0
+    horizon = intr.cy - intr.fy * np.tan(0.038)
+    assert sky.any() and np.nonzero(sky)[0].max() < horizon
+    assert np.array_equal(np.isnan(gt.depth), sky)
+    n = gt.normals[~sky]
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-5)
+    P = backproject(gt.depth, intr)[~sky]
+    assert (np.sum(P * n, axis=-1) < 0).all()
+    _, _, _, host = street_ground_truth(160, 80, seed=0, variant=variant, include_lights=False)
+    on = ~sky & (layout.prims.light[np.maximum(gt.prim, 0)] > 0)
+    dist = np.abs(np.sum((backproject(gt.depth, intr)[on] - backproject(host.depth, intr)[on]) * host.normals[on],
+                         axis=-1))
+    assert on.sum() > 20 and dist.max() < 1e-3
+
+
+def test_street_variants_have_their_hard_features():
+    def world_normals(gt):
+        from npsim_core.synthetic import CameraPose
+
+        return gt.normals @ CameraPose().R_cw  # camera -> world (x right, y up, z along the street)
+
+    # receding: a longer street, longer blocks, more building in view
+    d_layout = street_ground_truth(256, 128, seed=0)[0]
+    r_layout = street_ground_truth(256, 128, seed=0, variant="receding")[0]
+    assert r_layout.far_z >= 150 > d_layout.far_z
+
+    def block_lengths(layout):  # street-side building boxes (facade blocks along z)
+        pr = layout.prims
+        ext = pr.hi - pr.lo
+        side = (pr.label == 11) & (ext.min(axis=1) > 1.0) & (ext[:, 2] < 100) & (np.abs(pr.lo[:, 0]) < 40)
+        return ext[side, 2]
+
+    assert np.median(block_lengths(r_layout)) >= 40 > np.median(block_lengths(d_layout))
+    # occluded_base: people (labelId 24) and hedges; facade feet mostly hidden
+    o_layout, _, _, o_gt = street_ground_truth(512, 256, seed=0, variant="occluded_base")
+    lab = _labels(o_layout, o_gt)
+    assert (o_layout.prims.label == 24).sum() >= 6 and (lab == 24).any()
+
+    def visible_feet(lab):
+        b = lab == 11
+        below = np.zeros_like(b)
+        below[:-1] = b[:-1] & ~b[1:] & np.isin(lab[1:], (7, 8))
+        return below.sum()
+
+    assert visible_feet(lab) < 0.5 * visible_feet(_labels(d_layout, street_ground_truth(512, 256, seed=0)[3]))
+    # corner: a building facade facing the camera (world normal -z) beside the street facades (+-x)
+    c_layout, _, _, c_gt = street_ground_truth(256, 128, seed=0, variant="corner")
+    lab = _labels(c_layout, c_gt)
+    nw = world_normals(c_gt)[lab == 11]
+    assert (nw[:, 2] < -0.99).sum() > 200 and (np.abs(nw[:, 0]) > 0.99).sum() > 200
+    assert set(c_layout.info["cross_streets"]) == {"left", "right"}
+    # clutter: more poles and vegetation than the default street
+    k_layout = street_ground_truth(256, 128, seed=0, variant="clutter")[0]
+    assert (k_layout.prims.label == 17).sum() > (d_layout.prims.label == 17).sum() + 5
+    assert (k_layout.prims.label == 21).sum() > (d_layout.prims.label == 21).sum()
+
+
+def test_variant_api_names_and_cache(tmp_path, monkeypatch):
+    import npsim_core.synthetic as syn
+    from npsim_core.errors import NpsimInputError
+
+    monkeypatch.setenv("NPSIM_CACHE", str(tmp_path))
+    monkeypatch.setattr(syn, "auto_spp", lambda w, h: 1)
+    s = make_street_scene(48, 24, seed=0, spp=1, variant="corner")
+    assert s.name == "street_corner_s0" and s.provenance["variant"] == "corner"
+    assert s.provenance["layout"]["variant"] == "corner"
+    d = street_scene(48, 24, seed=0)
+    assert d.name == "street_s0" and "variant" not in d.provenance and "variant" not in d.provenance["layout"]
+    h = street_scene(48, 24, seed=0, variant="hard")
+    assert h.provenance["variant"] == "hard"
+    assert (tmp_path / f"street_48x24_s0_v{syn.SCENE_VERSION}").is_dir()
+    assert (tmp_path / f"street_48x24_s0_hard_v{syn.SCENE_VERSION}").is_dir()
+    assert not np.array_equal(d.labels, h.labels)
+    for bad in ("nope", "Default", ""):
+        with pytest.raises(NpsimInputError, match="street variant"):
+            make_street_scene(16, 8, variant=bad)
+        with pytest.raises(NpsimInputError, match="street variant"):
+            street_scene(16, 8, variant=bad)

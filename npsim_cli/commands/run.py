@@ -4,7 +4,7 @@ chain -- depth refinement, mesh, nights -- with every output written to disk."""
 from __future__ import annotations
 
 import argparse
-import itertools
+import os
 import sys
 import time
 from pathlib import Path
@@ -31,16 +31,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("-o", "--out", required=True, help="output folder (one sub-folder per frame)")
     b.add_argument("--limit", type=int, default=None, help="at most this many frames")
     b.add_argument("--trainids", action="store_true", help="label files hold trainIds")
-    b.add_argument("--skip-existing", action="store_true", help="skip frames whose export manifest exists")
+    b.add_argument("--skip-existing", action="store_true",
+                   help="(the default) skip frames whose outputs are complete: manifest, files and checksums verified, "
+                        "same parameters")
+    b.add_argument("--force", action="store_true", help="recompute every frame, even complete ones")
+    b.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: one per two cores, at most 4)")
+    b.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="run the frames as Ray tasks: 'local' starts a local Ray instance, else the address of a "
+                        "running cluster (its workers must see the dataset and output paths)")
+    b.add_argument("--layout", choices=("npsim", "cityscapes"), default="npsim",
+                   help="cityscapes: also copy nights and labels into OUT/cityscapes/{leftImg8bit,gtFine}/<split>/<city>")
     add_param_options(b)
     b.set_defaults(func=run_batch)
 
     s = sub.add_parser("sweep", help="grid search over λ1, λ2, λ3 (scored against ground truth when present)")
     s.add_argument("scene", help="scene folder (e.g. from 'npsim sample')")
+    grid = "0.001,0.01,0.1,1,10,100,1000"
     s.add_argument("--lambda1", default="1", help="comma-separated values (default 1)")
-    s.add_argument("--lambda2", default="0.2,1,5,25", help="comma-separated values")
-    s.add_argument("--lambda3", default="0.2,1,5", help="comma-separated values")
-    s.add_argument("-o", "--out", help="write the table as CSV here")
+    s.add_argument("--lambda2", default=grid, help=f"comma-separated values (default the thesis's appendix B: {grid})")
+    s.add_argument("--lambda3", default=grid, help="comma-separated values (default as --lambda2)")
+    s.add_argument("-o", "--out", help="folder for contact_sheet.png, sweep.csv and sweep.json (or a .csv file for "
+                                       "the table alone)")
+    s.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: one per two cores, at most 4)")
     add_param_options(s, nights=None)
     s.set_defaults(func=run_sweep)
 
@@ -127,91 +141,73 @@ def run_sample_headless(out: str, size: tuple[int, int]) -> int:
 
 
 def run_batch(args: argparse.Namespace) -> int:
+    from npsim_core.chain.batch import run_batch as run_frames
+
     params = params_from_args(args)
     if args.limit is not None and args.limit < 1:
         raise NpsimInputError(f"--limit must be >= 1, got {args.limit}")
+    if args.workers is not None and args.workers < 1:
+        raise NpsimInputError(f"--workers must be >= 1, got {args.workers}")
     check_output_folder(args.out)
     sources = iter_frames(args.dataset, trainids=args.trainids, hfov_deg=args.fov)
     if args.limit is not None:
         sources = sources[: args.limit]
-    failed, skipped, done, scores = [], 0, [], []
-    t0 = time.perf_counter()
-    for i, src in enumerate(sources):
-        out = Path(args.out) / src.name
-        head = f"[{i + 1}/{len(sources)}] {src.name}"
-        if args.skip_existing:
-            why = verify_frame(out) if out.is_dir() else "no output yet"
-            if why is None:
-                log("batch", f"{head}: complete (manifest and checksums verified), skipped")
-                skipped += 1
-                continue
-            if why != "no output yet":
-                log("batch", f"{head}: previous output incomplete ({why}), recomputing")
-        eta = ""
-        if done:
-            left = (len(sources) - i) * sum(done) / len(done)
-            eta = f", about {left / 60:.1f} min left"
-        log("batch", f"{head}{eta}")
-        t1 = time.perf_counter()
-        try:
-            process_frame(src.load(), params, out, args.nights, "batch", inputs={"frame": str(src.path)},
-                          scores=scores)
-            done.append(time.perf_counter() - t1)
-        except (NpsimInputError, OSError) as exc:  # one bad frame must not stop a dataset run
-            failed.append((src.name, str(exc)))
-            log("batch", f"{src.name}: FAILED: {exc}")
-        except Exception as exc:  # noqa: BLE001 -- an unforeseen failure is reported, the batch goes on
-            failed.append((src.name, f"{type(exc).__name__}: {exc}"))
-            log("batch", f"{src.name}: FAILED with an internal error ({type(exc).__name__}: {exc}); "
-                         "please report it with this frame")
-    ok = len(sources) - len(failed) - skipped
-    log("batch", f"{ok} frames done, {skipped} skipped as complete, {len(failed)} failed, of {len(sources)}, "
-                 f"in {time.perf_counter() - t0:.1f} s")
-    for line in dataset_summary(scores):
+    workers = args.workers or default_workers()
+    where = f"Ray ({args.ray})" if args.ray else f"{workers} local worker{'s' if workers > 1 else ''}"
+    log("batch", f"{len(sources)} frames from {args.dataset} -> {args.out}, {where}")
+    res = run_frames(sources, params, args.out, nights=args.nights, workers=workers, ray_address=args.ray,
+                     skip_existing=not args.force, layout=args.layout, inputs={"dataset": str(args.dataset)},
+                     log=lambda m: log("batch", m))
+    failed = [o for o in res.outcomes if o.status == "failed"]
+    log("batch", f"{res.count('done')} frames done, {res.count('skipped')} skipped as complete, {len(failed)} failed, "
+                 f"of {len(sources)}, in {res.seconds:.1f} s; manifest {res.manifest}")
+    for line in dataset_summary([o.scores for o in res.outcomes if o.status == "done" and o.scores]):
         log("batch", line)
-    for name, err in failed:
-        print(f"failed: {name}: {err}", file=sys.stderr)
+    for o in failed:
+        print(f"failed: {o.name}: {o.error}", file=sys.stderr)
     return 1 if failed else 0
 
 
-def _values(text: str, name: str) -> list[float]:
-    try:
-        vals = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise NpsimInputError(f"--{name} {text!r}: give comma-separated numbers") from None
-    if not vals or not all(0 <= v < float("inf") for v in vals):
-        raise NpsimInputError(f"--{name}: need at least one value, all finite and >= 0")
-    return vals
+def default_workers() -> int:
+    """Local workers by default: one per two cores (each frame's stages use several threads), at
+    least 1, at most 4 (memory: about 3 GB a worker at 2048x1024)."""
+    return max(1, min(4, (os.cpu_count() or 1) // 2))
 
 
 def run_sweep(args: argparse.Namespace) -> int:
-    from npsim_core.io import atomic_write_text
+    from npsim_core.chain.sweep import parse_grid, run_sweep as sweep, write_sweep
 
     params = params_from_args(args)
-    if args.out:
-        out = Path(args.out)
-        if out.is_dir():
-            raise NpsimInputError(f"-o {out}: is a folder; give the CSV file to write, e.g. {out / 'sweep.csv'}")
-        check_output_folder(out.parent if str(out.parent) else ".")
-    grid = list(itertools.product(_values(args.lambda1, "lambda1"), _values(args.lambda2, "lambda2"),
-                                  _values(args.lambda3, "lambda3")))
-    scene = load_frame(args.scene, hfov_deg=args.fov)
-    chain = Chain(scene)
-    rows = []
+    grid = parse_grid(args.lambda1, args.lambda2, args.lambda3)
+    if args.workers is not None and args.workers < 1:
+        raise NpsimInputError(f"--workers must be >= 1, got {args.workers}")
+    out = Path(args.out) if args.out else None
+    csv_only = out is not None and out.suffix.lower() == ".csv"
+    if out is not None:
+        if csv_only and out.is_dir():
+            raise NpsimInputError(f"-o {out}: is a folder; give a folder for the sweep, or a .csv file")
+        check_output_folder(out.parent if csv_only else out)
+    load_frame(args.scene, hfov_deg=args.fov)  # a bad frame is reported before any worker starts
+    workers = args.workers or default_workers()
+    log("sweep", f"{len(grid)} λ cells on {args.scene}, {workers} worker{'s' if workers > 1 else ''}")
+    cells = sweep(args.scene, params, grid, workers=workers, hfov_deg=args.fov, log=lambda m: log("sweep", m))
     header = "l1,l2,l3,final_loss,seconds,abs_rel,rmse_m,normal_rmse_deg"
     print(header)
-    for l1, l2, l3 in grid:
-        res = chain.compute(params.with_lambdas(l1, l2, l3), until="refine")
-        r = frame_errors(chain, res, params.depth.stereo_max_m).get("refined", {})
-        row = (l1, l2, l3, res.refine.final_loss, res.timings["refine"], r.get("abs_rel", float("nan")),
-               r.get("rmse_m", float("nan")), r.get("normal_rmse_deg", float("nan")))
-        rows.append(row)
-        print(",".join(f"{x:.6g}" for x in row), flush=True)
+    rows = []
+    for c in cells:
+        r = c.row()
+        rows.append((r["l1"], r["l2"], r["l3"], r["loss"], r["seconds"], r["abs_rel"], r["rmse_m"], r["normal_rmse_deg"]))
+        print(",".join(f"{x:.6g}" for x in rows[-1]), flush=True)
     scored = [r for r in rows if r[7] == r[7]]
     if scored:
         best = min(scored, key=lambda r: r[7])
         log("sweep", f"lowest normal RMSE: λ = ({best[0]:g}, {best[1]:g}, {best[2]:g}) -> {best[7]:.2f} deg, "
-                     f"AbsRel {best[5]:.4f}")
-    if args.out:
-        atomic_write_text(args.out, header + "\n" + "\n".join(",".join(f"{x:.6g}" for x in r) for r in rows) + "\n")
+                     f"AbsRel {best[5]:.4f} (vs {cells[0].scores.get('reference', '?')})")
+    if csv_only:
+        from npsim_core.io import atomic_write_text
+
+        atomic_write_text(out, header + "\n" + "\n".join(",".join(f"{x:.6g}" for x in r) for r in rows) + "\n")
+    elif out is not None:
+        for p in write_sweep(cells, out, frame=str(args.scene), params=params):
+            log("sweep", f"wrote {p}")
     return 0

@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -24,11 +25,15 @@ __all__ = ["FrameSource", "load_frame", "iter_frames", "scaled_frame"]
 
 @dataclass(frozen=True)
 class FrameSource:
-    """One frame of a dataset root: its name and how to load it."""
+    """One frame of a dataset root: its name, where it is, how to load it (picklable: it is
+    sent to worker processes and Ray tasks) and, for dataset layouts, its split and
+    city/sequence."""
 
     name: str
     path: Path
     load: Callable[[], Scene]
+    split: str | None = None
+    group: str | None = None
 
 
 def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: bool = False,
@@ -77,10 +82,10 @@ def iter_frames(root: str | Path, *, trainids: bool = False, hfov_deg: float | N
     if scene_dirs:
         from ..scene import load_scene
 
-        return [FrameSource(d.name, d, lambda d=d: load_scene(d)) for d in scene_dirs]
+        return [FrameSource(d.name, d, functools.partial(load_scene, d)) for d in scene_dirs]
     from ..datasets import open_dataset
 
-    return [FrameSource(s.name, Path(s.image_path), s.load)
+    return [FrameSource(s.name, Path(s.image_path), s.load, s.split, s.group)
             for s in open_dataset(root, trainids=trainids, hfov_deg=hfov_deg)]
 
 

@@ -398,7 +398,9 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     rounds = 0
     mode_rest = np.where(seg_facade, 1, 2)  # facades: line fit; others: fronto at the nearest support
     if p.facades == "contact":  # (new default) a tree crown whose trunk is hidden: between car and facade
-        mode_rest = np.where(seg_thin & ~seg_facade, 3, mode_rest)
+        crown = np.isin(seg_label, p.thin_ids) & ~np.isin(seg_label, p.fronto_ids) & ~seg_facade
+        crown[0] = False
+        mode_rest = np.where(crown, 3, mode_rest)
     for rounds in range(1, p.max_rounds + 1):
         cur = vertical & (placed & ~drawn)[seg]  # only segments placed since the last round
         if cur.any():
