@@ -745,13 +745,14 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     # Lowest row whose ground point is nearer than max_depth (contacts above it are clamped to it).
     gy = (hgt / p.max_depth - g[2]) / g[1]
     v_min = intr.cy + intr.fy * gy
+    v_near = intr.cy + intr.fy * (hgt / 60.0 - g[2]) / g[1]
     tol = max(1.0, p.contact_tol * W / 2048.0)
     min_pts = 3
 
     # --- pieces per segment from the visible contacts
     starts = np.searchsorted(ks, np.arange(nseg + 2))
     segs = np.unique(ks)
-    pieces: dict[int, list[_Line]] = {}
+    pieces: dict[int, list[tuple]] = {}  # seg -> [(columns, rows, slope, intercept)]
     raw: list[tuple[int, float, float, float, float, int]] = []  # (seg, s, t, u0, u1, n) free fits
     for s_id in segs:
         i0, i1 = starts[s_id], starts[s_id + 1]
@@ -797,7 +798,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
 
     # --- snap pieces to the vanishing point where that fits (receding facades); keep free lines otherwise
     lines: dict[int, list[_Line]] = {}
-    side_X: dict[int, list[tuple[float, int]]] = {-1: [], 1: []}
+    side_X: dict[int, list[tuple[float, float]]] = {-1: [], 1: []}  # side -> [(offset m, sigma m)]
     for s_id, plist in pieces.items():
         out = []
         for uu, vv, s_, t_ in plist:
@@ -817,7 +818,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                         X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
                         # its precision: half a row at the nearest contact (+ 0.3 m of label noise)
                         j = int(np.argmax(vv))
-                        dX = float(lateral(uu[j:j + 1], vv[j:j + 1] + 0.5)[0] - lateral(uu[j:j + 1], vv[j:j + 1])[0])
+                        dX = float(np.diff(lateral(uu[[j, j]], vv[[j, j]] + [0.0, 0.5]))[0])
                         side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3)))
                         ln.X = X
             if ln is None:
@@ -881,13 +882,15 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     def fallback_side(side, cols):
         """Street line behind the ground visible in ``cols`` (+ hidden_setback), when no facade shows its foot."""
         gv, gu = np.nonzero(ground[:, cols.astype(np.int64)])
+        near = gv > v_near  # ground nearer than 60 m: far rows are too coarse (and cross streets)
+        gv, gu = gv[near], gu[near]
         if gv.size == 0:
             return None
         X = lateral(cols[gu].astype(float), gv.astype(float))
         X = X[np.isfinite(X) & (np.sign(X) == side)]
         if X.size == 0:
             return None
-        Xs = side * (float(np.max(np.abs(X))) + p.hidden_setback)
+        Xs = side * (float(np.percentile(np.abs(X), 95)) + p.hidden_setback)
         n3 = -side * (d[1] * e - d[0] * f)
         return _Line(gm.image_line_of_plane(n3, -abs(Xs)), n3, -abs(Xs), "side")
 
@@ -905,10 +908,14 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         cand: list[_Line] = list(lines.get(s_id, []))
         sides = np.where(cols >= u_vp, 1, -1)
 
+        fallback: dict[int, _Line | None] = {}
+
         def side_of(k):
             ln = side_line.get(k)
             if ln is None:
-                ln = fallback_side(k, cols[sides == k])
+                if k not in fallback:
+                    fallback[k] = fallback_side(k, cols[sides == k])
+                ln = fallback[k]
             return ln
 
         if cand:
