@@ -18,7 +18,10 @@ Plain folder: every ``*.png`` / ``*.jpg`` / ``*.jpeg`` image ``x`` with labels
 ``x_labelIds.png`` next to it, or ``labels/x.png`` / ``labels/x_labelIds.png``
 (with trainids=True also ``x_trainIds.png`` / ``x_labelTrainIds.png``). Image
 stems ending in ``_rgb``, ``_leftImg8bit`` or ``_rgb_anon`` match labels without
-that suffix, so an NPSim scene folder is also a plain folder.
+that suffix, so an NPSim scene folder is also a plain folder -- and so is a folder of
+Cityscapes/ACDC files copied side by side (``X_leftImg8bit.png`` with
+``X_gtFine_labelIds.png``, ``X_camera.json`` and ``X_disparity.png``; ``X_rgb_anon.png`` with
+``X_gt_labelIds.png``).
 
 ``ROOT`` may also be a sub-folder of a Cityscapes/ACDC tree (e.g.
 ``.../leftImg8bit/val/frankfurt``): only the images below it are listed.
@@ -49,7 +52,7 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 _IMAGE_STEM_SUFFIXES = ("_leftImg8bit", "_rgb_anon", "_rgb")
 #: Names that are never daytime images in a plain folder (labels, visualisations, maps).
 _NON_IMAGE_ENDINGS = ("_labelIds", "_trainIds", "_labelTrainIds", "_color", "_instanceIds", "_lights_classIds",
-                      "_lights_instanceIds", "_disparity", "_depth", "_normals")
+                      "_lights_instanceIds", "_disparity", "_depth", "_normals", "_vis", "_uncertain")
 #: Native Cityscapes resolution the camera.json intrinsics refer to.
 CITYSCAPES_NATIVE = (2048, 1024)
 
@@ -266,6 +269,8 @@ def iter_folder(path: Path, *, trainids: bool = False, hfov_deg: float | None = 
     if not path.is_dir():
         return
     label_endings = ("_trainIds", "_labelTrainIds") if trainids else ("_labelIds",)
+    # Cityscapes / ACDC files copied side by side keep their suffixes: X_gtFine_labelIds.png, X_gt_labelIds.png
+    label_endings = tuple(f"{pre}{end}" for end in label_endings for pre in ("", "_gtFine", "_gt"))
     for img in sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES):
         if img.stem.endswith(_NON_IMAGE_ENDINGS) or "_lights" in img.stem:
             continue
@@ -276,8 +281,11 @@ def iter_folder(path: Path, *, trainids: bool = False, hfov_deg: float | None = 
         lbl = next((c for c in cands if c.is_file()), None)
         if lbl is None:
             continue
+        camera = path / f"{stem}_camera.json"
+        disparity = path / f"{stem}_disparity.png"
         yield SceneSource(name=stem, image_path=img, label_path=lbl, layout="folder", trainids=trainids,
-                          hfov_deg=hfov_deg)
+                          hfov_deg=hfov_deg, camera_path=camera if camera.is_file() else None,
+                          disparity_path=disparity if disparity.is_file() and camera.is_file() else None)
 
 
 @dataclass(frozen=True)

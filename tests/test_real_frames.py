@@ -104,3 +104,24 @@ def test_batch_reports_the_corrupt_frame_and_finishes_the_others(dataset, tmp_pa
     assert main(["batch", str(root), "-o", str(out), "--nights", "0", "--skip-existing"] + FAST) == 1
     err = capsys.readouterr().err
     assert err.count("skipped") >= 2 and f"failed: {stems[2]}" in err
+
+
+def test_a_frame_copied_side_by_side_opens_by_folder_and_by_image(dataset, tmp_path):
+    import shutil
+
+    from npsim_core.chain import load_frame
+
+    root, stems = dataset
+    one = tmp_path / "one"
+    one.mkdir()
+    for p in root.rglob(f"{stems[0]}_*"):
+        shutil.copy(p, one / p.name)
+    by_folder = load_frame(one)
+    by_image = load_frame(one / f"{stems[0]}_leftImg8bit.png")
+    for s in (by_folder, by_image):
+        assert s.name == stems[0] and s.depth_stereo is not None
+        assert "camera json" in s.provenance["intrinsics"]
+    for p in root.rglob(f"{stems[1]}_*"):
+        shutil.copy(p, one / p.name)
+    with pytest.raises(NpsimInputError, match="holds 2 frames"):
+        load_frame(one)

@@ -52,10 +52,12 @@ def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: boo
             from .project import load_project
 
             scene = load_project(path)[0]
-        else:
+        elif (path / "scene.json").exists() or (path / "intrinsics.json").exists():
             from ..scene import load_scene
 
             scene = load_scene(path, with_ground_truth=with_ground_truth)
+        else:
+            scene = _dataset_folder(path, hfov_deg, trainids)
     else:
         scene = _dataset_image(path, hfov_deg, trainids)
     return scaled_frame(scene, scale)
@@ -69,6 +71,22 @@ def _dataset_image(path: Path, hfov_deg: float | None, trainids: bool) -> Scene:
             return src.load()
     raise NpsimInputError(f"{path}: no labels found for this image; put {path.stem}_labelIds.png beside it or use "
                           "a Cityscapes/ACDC folder layout")
+
+
+def _dataset_folder(path: Path, hfov_deg: float | None, trainids: bool) -> Scene:
+    """A folder holding one frame's dataset files side by side (image, labels, camera JSON, disparity)."""
+    from ..datasets import iter_folder
+
+    frames = list(iter_folder(path, trainids=trainids, hfov_deg=hfov_deg))
+    if len(frames) == 1:
+        return frames[0].load()
+    if not frames:
+        raise NpsimInputError(f"{path}: neither a scene folder (scene.json / intrinsics.json), a project "
+                              "(project.json) nor a frame's files (X.png or X_leftImg8bit.png with "
+                              "X_labelIds.png or X_gtFine_labelIds.png)")
+    raise NpsimInputError(f"{path}: holds {len(frames)} frames ({', '.join(f.name for f in frames[:4])}"
+                          f"{', …' if len(frames) > 4 else ''}); open one of its images, or use 'npsim batch' "
+                          "for all of them")
 
 
 def iter_frames(root: str | Path, *, trainids: bool = False, hfov_deg: float | None = None) -> list[FrameSource]:
