@@ -14,8 +14,8 @@ from pathlib import Path
 
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QMainWindow, QMessageBox,
-                               QProgressDialog, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
+                               QMessageBox, QProgressDialog, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import find_recovery, load_recovery
 from npsim_core.errors import NpsimInputError
@@ -54,6 +54,7 @@ class MainWindow(QMainWindow):
         self._build_ui(with_3d)
         self._build_menus()
         self._connect()
+        self._fit_screen()
         self._restore_layout()
         if scene is not None:
             self.set_scene(scene)
@@ -77,7 +78,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
 
         self.params_panel = ParameterPanel()
-        self.params_panel.setMinimumWidth(330)
+        self.params_panel.setMinimumWidth(280)
         self.params_dock = self._dock("Parameters", self.params_panel, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.viewer = MeshViewer() if with_3d else None
         if self.viewer is not None:
@@ -92,6 +93,12 @@ class MainWindow(QMainWindow):
         bl.addWidget(self.loss_plot, 1)
         bl.addWidget(self.log, 1)
         self.log_dock = self._dock("Loss and log", bottom, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.frame_list = QListWidget()
+        self.frame_list.currentRowChanged.connect(self.open_frame)
+        self.frames_dock = self._dock("Frames", self.frame_list, Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.tabifyDockWidget(self.params_dock, self.frames_dock)
+        self.params_dock.raise_()
+        self.frames_dock.hide()  # shown when a dataset is opened
         if self.viewer is not None:  # default split of the right column (a saved layout overrides it)
             self.resizeDocks([self.viewer_dock, self.render_dock], [420, 480], Qt.Orientation.Vertical)
             self.resizeDocks([self.viewer_dock], [560], Qt.Orientation.Horizontal)
@@ -106,6 +113,10 @@ class MainWindow(QMainWindow):
     def _build_menus(self) -> None:
         m = self.menuBar().addMenu("&File")
         self.act_open_scene = self._action(m, "Open scene folder…", "Ctrl+O", self.open_scene_dialog)
+        self.act_open_image = self._action(m, "Open dataset image…", "Ctrl+I", self.open_image_dialog)
+        self.act_open_dataset = self._action(m, "Open dataset…", "Ctrl+D", self.open_dataset_dialog)
+        self.act_next = self._action(m, "Next frame", "Ctrl+Right", lambda: self.step_frame(+1))
+        self.act_prev = self._action(m, "Previous frame", "Ctrl+Left", lambda: self.step_frame(-1))
         self.act_open_project = self._action(m, "Open project…", "Ctrl+Shift+O", self.open_project_dialog)
         self.act_reopen = self._action(m, "Reopen last scene", "Ctrl+Shift+R", self.reopen_last)
         self.act_save_project = self._action(m, "Save project…", "Ctrl+S", self.save_project_dialog)
@@ -118,7 +129,8 @@ class MainWindow(QMainWindow):
         self._action(r, "Recompute", "F5", self.recompute)
         self._action(r, "Render night preview", "F6", self.request_render)
         v = self.menuBar().addMenu("&View")
-        for d in (self.params_dock, self.render_dock, self.log_dock) + ((self.viewer_dock,) if self.viewer else ()):
+        for d in (self.params_dock, self.frames_dock, self.render_dock, self.log_dock) + \
+                ((self.viewer_dock,) if self.viewer else ()):
             v.addAction(d.toggleViewAction())
         h = self.menuBar().addMenu("&Help")
         self._action(h, "Annotation shortcuts", "F1", self.editor.show_shortcuts)
@@ -141,10 +153,14 @@ class MainWindow(QMainWindow):
         self.pipeline_jobs.busy.connect(lambda b: self._set_busy("computing…" if b else ""))
         self.view_jobs.finished.connect(self._on_view)
         self.view_jobs.failed.connect(self.on_error)
+        self.export_jobs.progress.connect(self._on_export_progress)
+        self.export_jobs.finished.connect(self._on_export_done)
+        self.export_jobs.failed.connect(self.on_error)
         self.render_jobs.finished.connect(self.on_render_done)
         self.render_jobs.failed.connect(self.on_error)
         self.render_jobs.progress.connect(self.on_render_progress)
         self.render_panel.seedChanged.connect(lambda s: self.on_param_changed("night", "seed", int(s)))
+        self.render_panel.denoiserChanged.connect(lambda d: self.on_param_changed("night", "denoiser", str(d)))
         self.render_panel.lightsToggled.connect(self.on_lights_toggled)
         self.render_panel.renderRequested.connect(self.request_render)
         self.editor.dirtyChanged.connect(self._update_title)
@@ -202,6 +218,7 @@ class MainWindow(QMainWindow):
             # 0 means "the scene's own intrinsics": show the field of view they imply
             values[("camera", "hfov_deg")] = self.chain.scene.intrinsics.hfov_deg
         self.params_panel.set_values(values)
+        self.render_panel.set_denoiser(self.params.night.denoiser)
 
     def _update_title(self, *_a) -> None:
         name = self.chain.scene.name if self.chain else "no scene"
@@ -382,6 +399,58 @@ class MainWindow(QMainWindow):
         if folder:
             self.open_scene(folder)
 
+    def open_image_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open a dataset image (its labels are found by name)", "",
+                                              "Images (*.png *.jpg *.jpeg)")
+        if path:
+            self.open_scene(path)
+
+    def open_dataset_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Open a dataset root (Cityscapes, ACDC, a folder of frames)")
+        if folder:
+            self.open_dataset(folder)
+
+    def open_dataset(self, root: str | Path) -> None:
+        """List the frames of a dataset root in the Frames dock and open the first."""
+        from npsim_core.chain import iter_frames
+
+        try:
+            frames = iter_frames(root)
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(str(exc), "")
+            return
+        self.frames = frames
+        self.frame_list.blockSignals(True)
+        self.frame_list.clear()
+        for f in frames:
+            p = Path(f.path)
+            # the editor saves a frame's annotation beside its image (inside a scene folder)
+            done = any(p.glob("*_lights.json")) if p.is_dir() else any(p.parent.glob(f"{f.name}*_lights.json"))
+            self.frame_list.addItem(("✓ " if done else "   ") + f.name)
+        self.frame_list.blockSignals(False)
+        self.frames_dock.show()
+        self.log.log(f"dataset {root}: {len(frames)} frames (✓ = annotated); Ctrl+Right / Ctrl+Left step through them")
+        self.open_frame(0)
+
+    def open_frame(self, index: int) -> None:
+        frames = getattr(self, "frames", [])
+        if not 0 <= index < len(frames):
+            return
+        try:
+            scene = frames[index].load()
+        except (NpsimInputError, OSError) as exc:
+            self.on_error(f"{frames[index].name}: {exc}", "")
+            return
+        self.frame_index = index
+        self.frame_list.blockSignals(True)
+        self.frame_list.setCurrentRow(index)
+        self.frame_list.blockSignals(False)
+        self.set_scene(scene)
+
+    def step_frame(self, delta: int) -> None:
+        if getattr(self, "frames", None):
+            self.open_frame(min(max(getattr(self, "frame_index", 0) + delta, 0), len(self.frames) - 1))
+
     def open_scene(self, path: str | Path) -> None:
         from npsim_core.chain import load_frame
 
@@ -460,21 +529,22 @@ class MainWindow(QMainWindow):
             return export_frame(chain, params, folder, nights=nights, cancel=cancel,
                                 progress=lambda f, text: progress((f, text)))
 
-        def on_progress(info):
-            if dlg is not None:
-                dlg.setValue(int(info[0] * 100))
-                dlg.setLabelText(info[1])
-
-        def on_done(written):
-            if dlg is not None:
-                dlg.setValue(100)
-            self.log.log(f"exported {len(written)} files to {folder}")
-            self.last_export = written
-
-        self.export_jobs.progress.connect(on_progress)
-        self.export_jobs.finished.connect(on_done)
-        self.export_jobs.failed.connect(self.on_error)
+        self._export_folder = folder  # what the (once-connected) handlers report
         self.export_jobs.submit(job)
+
+    def _on_export_progress(self, info) -> None:
+        dlg = getattr(self, "_export_dialog", None)
+        if dlg is not None:
+            dlg.setValue(int(info[0] * 100))
+            dlg.setLabelText(info[1])
+
+    def _on_export_done(self, written) -> None:
+        dlg = getattr(self, "_export_dialog", None)
+        if dlg is not None:
+            dlg.setValue(100)
+        self.log.log(f"exported {len(written)} files to {self._export_folder}")
+        self.last_export = written
+        self.export_reports = getattr(self, "export_reports", 0) + 1
 
     # ----------------------------------------------------------------- errors & lifetime
     def on_error(self, message: str, tb: str) -> None:
@@ -482,6 +552,20 @@ class MainWindow(QMainWindow):
         self.log.log(f"error: {message}")
         self.statusBar().showMessage(message, 10000)
         self.last_error = message
+
+    def _fit_screen(self) -> None:
+        """Start within the screen: on screens narrower than 1900 px the 3D view and the night
+        preview share one tabbed dock (a saved layout overrides this)."""
+        from PySide6.QtGui import QGuiApplication
+
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        if screen is None:
+            return
+        avail = screen.availableGeometry()
+        if avail.width() < 1900 and self.viewer is not None:
+            self.tabifyDockWidget(self.viewer_dock, self.render_dock)
+            self.render_dock.raise_()
+        self.resize(min(1680, avail.width()), min(1020, avail.height()))
 
     def _restore_layout(self) -> None:
         s = QSettings(ORG, APP)

@@ -222,3 +222,46 @@ def test_last_scene_is_remembered_between_runs(qtbot, tmp_path, scene):
     second.reopen_last()
     assert second.chain is not None and second.chain.scene.name == "remembered"
     second.close()
+
+
+def test_export_twice_reports_once_each(window, qtbot, tmp_path):
+    logged = []
+    window.log.log = lambda text, _orig=window.log.log: (logged.append(text), _orig(text))
+    for k in (1, 2):
+        before = getattr(window, "export_reports", 0)
+        window.export(tmp_path / f"e{k}", nights=0, show_progress=False)
+        qtbot.waitUntil(lambda: getattr(window, "export_reports", 0) == before + 1, timeout=120_000)
+        qtbot.wait(200)
+    exported = [t for t in logged if t.startswith("exported")]
+    assert len(exported) == 2 and str(tmp_path / "e1") in exported[0] and str(tmp_path / "e2") in exported[1]
+
+
+@pytest.fixture(scope="module")
+def real_layout(tmp_path_factory):
+    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
+
+    root = tmp_path_factory.mktemp("cs")
+    stems = write_cityscapes_fixture(root, frames=2, size=(W, H), corrupt=0)
+    return root, stems
+
+
+def test_opens_a_real_layout_frame_by_image_and_by_dataset_root(qtbot, real_layout):
+    from npsim_gui.main_window import MainWindow
+
+    root, stems = real_layout
+    win = MainWindow(with_3d=False)
+    win.ask = lambda *a: "Discard"
+    qtbot.addWidget(win)
+    win.params = ChainParams().with_value("refine", "steps", 5).with_value("night", "spp", 2)
+    win.open_scene(root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png")
+    qtbot.waitUntil(lambda: win.results is not None and win.results.mesh is not None, timeout=120_000)
+    assert win.chain.scene.name == stems[0] and win.results.depth_source.startswith("stereo")
+    win.open_dataset(root)
+    assert win.frame_list.count() == 2 and not win.frames_dock.isHidden()
+    assert win.chain.scene.name == stems[0]
+    win.step_frame(+1)
+    assert win.chain.scene.name == stems[1] and win.frame_list.currentRow() == 1
+    win.step_frame(+1)  # past the end: stays on the last frame
+    assert win.chain.scene.name == stems[1]
+    qtbot.waitUntil(lambda: win.results is not None and win.results.scene is win.chain.scene, timeout=120_000)
+    win.close()
