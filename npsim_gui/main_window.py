@@ -12,13 +12,15 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
+
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
                                QMessageBox, QProgressDialog, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import find_recovery, load_recovery
-from npsim_core.errors import NpsimInputError
+from npsim_core.errors import NpsimCancelled, NpsimInputError
 from npsim_core.scene import Scene
 from npsim_core.chain import Chain, ChainParams
 from npsim_core.views import VIEW_MODES, view_image
@@ -42,6 +44,7 @@ class MainWindow(QMainWindow):
         self.setWindowTitle("NPSim")
         self.resize(1680, 1020)
         self.chain: Chain | None = None
+        self.proxy_chain: Chain | None = None
         self.params = ChainParams()
         self.results = None
         self.light_override: dict[int, bool] | None = None
@@ -180,6 +183,11 @@ class MainWindow(QMainWindow):
         self.pipeline_jobs.cancel()
         self.render_jobs.cancel()
         self.chain = Chain(scene)
+        self.proxy_chain = None
+        if scene.width > self.PROXY_WIDTH * 1.25:
+            from npsim_core.chain import scaled_frame
+
+            self.proxy_chain = Chain(scaled_frame(scene, self.PROXY_WIDTH / scene.width))
         if params is not None:
             self.params = params
         self.results = None
@@ -256,6 +264,10 @@ class MainWindow(QMainWindow):
     #: Wall-clock budget of the quick refinement shown first after a change (s); the full
     #: refinement follows in the same worker and replaces it when done.
     LIVE_REFINE_BUDGET_S = 0.15
+    #: Frames wider than this get a proxy chain at this width for the quick views.
+    PROXY_WIDTH = 512
+    #: The full-resolution chain starts this long after the last change on a proxied frame.
+    FULL_RES_SETTLE_S = 0.8
 
     def recompute(self) -> None:
         """Run the pipeline up to the mesh in a worker (stale runs are cancelled).
@@ -265,11 +277,12 @@ class MainWindow(QMainWindow):
         """
         if self.chain is None:
             return
-        chain, params = self.chain, self.params
+        chain, params, proxy = self.chain, self.params, self.proxy_chain
         t0 = self._t_change or time.perf_counter()
         live = None
         if params.refine.optimizer == "fast" and params.refine.max_time_s is None:
             live = replace(params, refine=replace(params.refine, max_time_s=self.LIVE_REFINE_BUDGET_S))
+        settle = self.FULL_RES_SETTLE_S if proxy is not None and self.results is not None else 0.0
 
         mode = self.view_mode.currentText()
         with_3d = self.viewer is not None
@@ -277,10 +290,19 @@ class MainWindow(QMainWindow):
         def job(cancel: threading.Event, progress):
             # everything heavy happens here, off the GUI thread: stages, view images, 3D geometry
             if live is not None:
-                quick = chain.compute(live, until="refine", cancel=cancel, progress=progress)
-                if "refine" in quick.recomputed:
-                    progress({"live_results": quick, "t0": t0, "view": view_image(chain.scene, quick, mode),
-                              "mode": mode})
+                # large frames answer from a proxy resolution at once; the full resolution follows
+                # once the sliders have settled (a newer change cancels this job first)
+                src = proxy if proxy is not None else chain
+                quick = src.compute(live, until="refine", cancel=cancel, progress=progress)
+                if "refine" in quick.recomputed or proxy is not None:
+                    view = view_image(src.scene, quick, mode)
+                    if proxy is not None:
+                        view = cv2.resize(view, (chain.scene.width, chain.scene.height),
+                                          interpolation=cv2.INTER_LINEAR)
+                    progress({"live_results": quick, "t0": t0, "view": view, "mode": mode,
+                              "proxy": proxy is not None})
+                if settle and cancel.wait(settle):
+                    raise NpsimCancelled("superseded by a newer change")
             res = chain.compute(params, until="mesh", cancel=cancel, progress=progress)
             display = None
             if with_3d and res.mesh is not None:
@@ -293,7 +315,8 @@ class MainWindow(QMainWindow):
 
     def on_pipeline_progress(self, info) -> None:
         if isinstance(info, dict) and "live_results" in info:
-            self._show_results(info["live_results"], info["t0"], final=False, view=(info["mode"], info["view"]))
+            self._show_results(info["live_results"], info["t0"], final=False, view=(info["mode"], info["view"]),
+                               proxy=info.get("proxy", False))
         elif isinstance(info, dict) and "history" in info:
             self.loss_plot.set_history(info["history"])
         elif isinstance(info, dict) and "stage" in info:
@@ -303,12 +326,14 @@ class MainWindow(QMainWindow):
         res, t0, display, view, mode = payload
         self._show_results(res, t0, final=True, display=display, view=(mode, view))
 
-    def _show_results(self, res, t0: float, *, final: bool, display=None, view=None) -> None:
-        self.results = res
+    def _show_results(self, res, t0: float, *, final: bool, display=None, view=None, proxy: bool = False) -> None:
+        if not proxy:  # proxy results are shown, never kept: they are not at the frame's resolution
+            self.results = res
         self.results_final = final
         lat = time.perf_counter() - t0
         self.last_latency["pipeline" if final else "pipeline_live"] = lat
-        what = "recomputed" if final else f"quick preview ({self.LIVE_REFINE_BUDGET_S:g} s refinement budget)"
+        what = "recomputed" if final else f"quick preview ({self.LIVE_REFINE_BUDGET_S:g} s refinement budget" + \
+            (f", {res.intrinsics.width}x{res.intrinsics.height} proxy)" if proxy else ")")
         self.log.log(f"{what}: " + ", ".join(f"{k} {v * 1000:.0f} ms" for k, v in res.timings.items()
                                              if k in res.recomputed) + f" — change→view {lat:.2f} s")
         if "geometry" in res.recomputed:

@@ -265,3 +265,26 @@ def test_opens_a_real_layout_frame_by_image_and_by_dataset_root(qtbot, real_layo
     assert win.chain.scene.name == stems[1]
     qtbot.waitUntil(lambda: win.results is not None and win.results.scene is win.chain.scene, timeout=120_000)
     win.close()
+
+
+def test_large_frames_answer_sliders_from_a_proxy(qtbot):
+    from npsim_gui.main_window import MainWindow
+
+    big = street_scene(768, 384)
+    win = MainWindow(with_3d=False)
+    win.ask = lambda *a: "Discard"
+    qtbot.addWidget(win)
+    win.FULL_RES_SETTLE_S = 0.3
+    win.set_scene(big, ChainParams().with_value("night", "spp", 1))
+    qtbot.waitUntil(lambda: win.results is not None and win.results_final, timeout=180_000)
+    assert win.proxy_chain is not None and win.proxy_chain.scene.width == MainWindow.PROXY_WIDTH
+    full = win.results
+    logged = []
+    win.log.log = lambda text, _orig=win.log.log: (logged.append(text), _orig(text))
+    win.on_param_changed("refine", "lambda2", 3.0)
+    qtbot.waitUntil(lambda: any("proxy" in t for t in logged), timeout=60_000)
+    assert win.results is full  # the proxy result is shown, never kept
+    assert win.editor.canvas.base.array.shape[:2] == (384, 768)
+    qtbot.waitUntil(lambda: win.results is not full and win.results_final, timeout=180_000)
+    assert win.results.depth.shape == (384, 768)
+    win.close()
