@@ -61,12 +61,17 @@ def main(argv: list[str] | None = None) -> int:
                                          ("σs change", "filter", "sigma_s", [8.0, 12.0, 10.0])):
         for v in values[: args.repeats]:
             before_res = win.results
-            frames = []
+            frames, live = [], []
             win.render_jobs.progress.connect(lambda f, fr=frames: fr.append(time.perf_counter()))
+            # the quick view: a live (proxy on large frames) result reaching the canvas, or the full one
+            win.pipeline_jobs.progress.connect(
+                lambda info, lv=live: lv.append(time.perf_counter()) if isinstance(info, dict)
+                and "live_results" in info else None)
             t0 = time.perf_counter()
             win.params_panel.sliders[(section, field)].spin.setValue(v)  # as typed by the user
-            wait(lambda: win.results is not before_res)
-            t_view = time.perf_counter() - t0
+            wait(lambda: bool(live) or win.results is not before_res)
+            app.processEvents()
+            t_view = (live[0] if live else time.perf_counter()) - t0
             wait(lambda: getattr(win, "results_final", False) and not win.pipeline_jobs.is_busy)
             t_full = time.perf_counter() - t0
             frames.clear()  # frames of a render started before the full results are stale
@@ -74,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
             t_frame = frames[0] - t0
             wait(lambda: not win.render_jobs.is_busy)
             win.render_jobs.progress.disconnect()
+            win.pipeline_jobs.progress.disconnect()
+            win.pipeline_jobs.progress.connect(win.on_pipeline_progress)
             rows.append((what, v, t_view, t_frame, t_full, ", ".join(win.results.recomputed),
                          win.results.timings.get("refine", 0.0)))
     print("\n| change | value | → quick views (s) | → full refinement, mesh, 3D shown (s) | → first night frame (s) "

@@ -81,7 +81,7 @@ class MainWindow(QMainWindow):
         self.setCentralWidget(central)
 
         self.params_panel = ParameterPanel()
-        self.params_panel.setMinimumWidth(280)
+        self.params_panel.setMinimumWidth(250)
         self.params_dock = self._dock("Parameters", self.params_panel, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.viewer = MeshViewer() if with_3d else None
         if self.viewer is not None:

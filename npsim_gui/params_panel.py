@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QPushButton, QScrollArea,
                                QVBoxLayout, QWidget)
 
@@ -91,6 +91,7 @@ class ParameterPanel(QWidget):
         outer.addLayout(top)
         scroll = QScrollArea()
         scroll.setWidgetResizable(True)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)  # rows shrink instead
         body = QWidget()
         lay = QVBoxLayout(body)
         self.sliders: dict[tuple[str, str], ValueSlider] = {}
@@ -111,12 +112,13 @@ class ParameterPanel(QWidget):
                 self._combo(form, "refine", "optimizer", "optimizer", ["fast", "adam_faithful"])
                 self._combo(form, "refine", "loss", "loss", ["thesis", "scale_aware"])
             if title == "Mesh":
-                self._check(form, "mesh", "postprocess", "post-process (delete spurious faces, complete)")
+                self._check(form, "mesh", "postprocess", "post-process the mesh",
+                            "delete spurious faces, complete hidden background, wall depth steps")
             if title == "Night":
                 self._check(form, "night", "ego_headlights", "ego vehicle headlights")
                 self._check(form, "night", "group_all_together", "groups switch as one")
                 self._check(form, "night", "noise", "camera noise")
-                self._check(form, "night", "denoise", "denoise (guided by depth, normals, labels)")
+                self._check(form, "night", "denoise", "denoise", "remove the Monte Carlo noise before the camera's")
             lay.addWidget(box)
         probs = QGroupBox("Light activation probability per class")
         pform = QVBoxLayout(probs)
@@ -142,8 +144,9 @@ class ParameterPanel(QWidget):
         form.addLayout(row)
         self.combos[(section, field)] = cb
 
-    def _check(self, form, section: str, field: str, label: str) -> None:
+    def _check(self, form, section: str, field: str, label: str, tooltip: str = "") -> None:
         cb = QCheckBox(label)
+        cb.setToolTip(tooltip)
         cb.toggled.connect(lambda on: self.changed.emit(section, field, bool(on)))
         form.addWidget(cb)
         self.checks[(section, field)] = cb

@@ -1,12 +1,12 @@
 """Render preview panel: the progressive night image, a day/night split slider,
-light toggles per group / instance, and a resample-seed button."""
+light toggles per group / instance, a resample-seed button and the denoiser choice."""
 
 from __future__ import annotations
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QHBoxLayout, QLabel, QPushButton, QSlider, QSpinBox, QTreeWidget, QTreeWidgetItem,
-                               QVBoxLayout, QWidget, QSplitter)
+from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QPushButton, QSlider, QSpinBox, QTreeWidget,
+                               QTreeWidgetItem, QVBoxLayout, QWidget, QSplitter)
 
 from npsim_core.labels import light_class
 
@@ -28,11 +28,17 @@ def split_view(day: np.ndarray, night: np.ndarray, fraction: float) -> np.ndarra
 
 
 class RenderPanel(QWidget):
-    """Shows the night preview; emits the user's light choices and seed changes."""
+    """Shows the night preview; emits the user's light choices, seed and denoiser changes."""
 
     lightsToggled = Signal(dict)  # {instance_id: bool} overrides
     seedChanged = Signal(int)
+    denoiserChanged = Signal(str)  # night.denoiser: oidn, guided or none
     renderRequested = Signal()
+
+    #: The denoisers offered (``night.denoiser``) and their tool tips.
+    DENOISERS = (("oidn", "Intel Open Image Denoise, guided by the scene's albedo and normals"),
+                 ("guided", "the mesh-guided à-trous filter (depth, normals, labels)"),
+                 ("none", "no denoising: the raw Monte Carlo noise (isolated fireflies removed)"))
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -45,6 +51,11 @@ class RenderPanel(QWidget):
         self.resample = QPushButton("Resample")
         self.resample.setToolTip("Draw a new night: another seed for the light activation")
         self.render_btn = QPushButton("Render")
+        self.denoiser = QComboBox()
+        for i, (name, tip) in enumerate(self.DENOISERS):
+            self.denoiser.addItem(name, name)
+            self.denoiser.setItemData(i, tip, Qt.ItemDataRole.ToolTipRole)
+        self.denoiser.setToolTip("Monte Carlo denoiser of the night (night.denoiser)")
         self.status = QLabel("no render yet")
         self.split = QSlider(Qt.Orientation.Horizontal)
         self.split.setRange(0, 100)
@@ -52,6 +63,7 @@ class RenderPanel(QWidget):
         self.split.setToolTip("Day / night split: drag to compare with the input photo")
         bar.addWidget(self.seed)
         bar.addWidget(self.resample)
+        bar.addWidget(self.denoiser)
         bar.addWidget(self.render_btn)
         lay.addLayout(bar)
         split_row = QHBoxLayout()
@@ -76,8 +88,17 @@ class RenderPanel(QWidget):
         self.split.valueChanged.connect(self._refresh)
         self.resample.clicked.connect(lambda: self.seed.setValue((self.seed.value() * 1103515245 + 12345) % 2 ** 31))
         self.seed.valueChanged.connect(self.seedChanged.emit)
+        self.denoiser.currentIndexChanged.connect(lambda _i: self.denoiserChanged.emit(self.denoiser.currentData()))
         self.render_btn.clicked.connect(self.renderRequested.emit)
         self.lights.itemChanged.connect(self._on_item)
+
+    def set_denoiser(self, name: str) -> None:
+        """Show ``name`` (``night.denoiser``) without emitting :attr:`denoiserChanged`."""
+        i = self.denoiser.findData(name)
+        if i >= 0 and i != self.denoiser.currentIndex():
+            self.denoiser.blockSignals(True)
+            self.denoiser.setCurrentIndex(i)
+            self.denoiser.blockSignals(False)
 
     def set_day(self, rgb: np.ndarray) -> None:
         self.day = rgb

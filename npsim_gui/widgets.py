@@ -41,14 +41,14 @@ class ValueSlider(QWidget):
         lay = QHBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
         self.label = QLabel(label)
-        self.label.setMinimumWidth(90)
+        self.label.setMinimumWidth(80)
         self.slider = QSlider(Qt.Orientation.Horizontal)
         self.slider.setRange(0, self.STEPS)
         self.spin = QDoubleSpinBox()
         self.spin.setDecimals(0 if integer else decimals)
         self.spin.setRange(lo, hi)
         self.spin.setKeyboardTracking(False)
-        self.spin.setMinimumWidth(80)
+        self.spin.setMinimumWidth(70)
         if log:
             self.spin.setStepType(QDoubleSpinBox.StepType.AdaptiveDecimalStepType)
         for w in (self.label, self.slider, self.spin):

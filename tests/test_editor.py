@@ -31,8 +31,8 @@ H, W = 128, 256
 WINDOW_XS = [20 + 36 * k for k in range(6)]  # left edges, windows 10 px wide, rows 30..41 and 60..71
 
 
-def facade():
-    """A building facade with two rows of six dark windows; the top row annotated and grouped."""
+def facade(grouped=True):
+    """A building facade with two rows of six dark windows; the top row annotated (and grouped)."""
     img = np.zeros((H, W, 3), np.uint8)
     img[:] = (120, 170, 230)
     img[20:90] = (170, 150, 130)
@@ -45,12 +45,13 @@ def facade():
         img[30:42, x:x + 10] = (40, 60, 90)
         img[60:72, x:x + 10] = (40, 60, 90)
         ann.instance_map[30:42, x:x + 10] = 1001 + k
-    ann.groups[13001] = GroupInstance(13001, tuple(range(1001, 1007)))
+    if grouped:
+        ann.groups[13001] = GroupInstance(13001, tuple(range(1001, 1007)))
     return img, lab, ann
 
 
-def make_folder(tmp_path, names=("facade",), with_annotation=True):
-    img, lab, ann = facade()
+def make_folder(tmp_path, names=("facade",), with_annotation=True, grouped=True):
+    img, lab, ann = facade(grouped)
     for n in names:
         write_image(tmp_path / f"{n}.png", img)
         write_image(tmp_path / f"{n}_labelIds.png", lab)
@@ -119,7 +120,7 @@ def assert_overlay_current(win):
 
     s = win.editor.session
     fresh = np.zeros(s.ann.shape + (4,), np.uint8)
-    lights_region(s.ann.instance_map, fresh, None, s.selection)
+    lights_region(s.ann.instance_map, fresh, None, s.highlighted())
     np.testing.assert_array_equal(win.editor.canvas.layers["lights"].array, fresh)
 
 
@@ -183,9 +184,15 @@ def test_paint_superpixels_shift_remove_undo_redo(qtbot, tmp_path):
     np.testing.assert_array_equal(s.ann.instance_map == 2001, expected)
     key(qtbot, win, Qt.Key.Key_Y, CTRL)
     np.testing.assert_array_equal(s.ann.instance_map == 2001, expected & ~removed)
-    # the overlay follows the map in the changed region
-    lights = c.layers["lights"].array
-    np.testing.assert_array_equal(lights[..., 3] > 0, s.ann.instance_map != 0)
+    # the overlay follows the map in the changed region: fill inside, the outer outline just outside
+    alpha = c.layers["lights"].array[..., 3]
+    inside = s.ann.instance_map != 0
+    ring = np.zeros_like(inside)
+    ring[1:] |= inside[:-1]
+    ring[:-1] |= inside[1:]
+    ring[:, 1:] |= inside[:, :-1]
+    ring[:, :-1] |= inside[:, 1:]
+    assert (alpha[inside] > 0).all() and not (alpha[~(inside | ring)] > 0).any()
     assert_overlay_current(win)
     close_window(win)
 
@@ -515,4 +522,311 @@ def test_space_pans_and_buttons_keep_focus_on_canvas(qtbot, tmp_path):
     qtbot.keyRelease(c, Qt.Key.Key_Space)
     assert c.horizontalScrollBar().value() == h0 + 50  # panned by the drag
     assert win.editor.session.stack.can_undo is False  # and painted nothing
+    close_window(win)
+
+
+# --------------------------------------------------------------------------- selection, groups, display
+def lights_alpha(win, x, y) -> int:
+    return int(win.editor.canvas.layers["lights"].array[y, x, 3])
+
+
+def test_select_tool_shift_ctrl_click_builds_selection_and_groups_it(qtbot, tmp_path):
+    """'Click each lamp, then Ctrl+G': Shift/Ctrl+click add and remove, Ctrl+G groups them all (one undo step)."""
+    win = open_window(qtbot, make_folder(tmp_path, grouped=False))
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_V)
+    click(qtbot, c, WINDOW_XS[0] + 4, 35)
+    assert s.selection == {1001}
+    click(qtbot, c, WINDOW_XS[1] + 4, 35, mods=SHIFT)
+    assert s.selection == {1001, 1002}
+    click(qtbot, c, WINDOW_XS[2] + 4, 35, mods=CTRL)
+    assert s.selection == {1001, 1002, 1003}
+    click(qtbot, c, WINDOW_XS[3] + 4, 35, mods=SHIFT)
+    click(qtbot, c, WINDOW_XS[3] + 4, 35, mods=SHIFT)  # a second Shift+click removes it again
+    assert s.selection == {1001, 1002, 1003}
+    click(qtbot, c, WINDOW_XS[4] + 4, 50, mods=SHIFT)  # on the wall: nothing changes
+    assert s.selection == {1001, 1002, 1003}
+    # the selection is shown: selected lights are drawn stronger than the others
+    for x0 in WINDOW_XS[:3]:
+        assert lights_alpha(win, x0 + 4, 35) > lights_alpha(win, WINDOW_XS[4] + 4, 35)
+    assert_overlay_current(win)
+    win.editor.refresh_now()
+    assert win.editor.instance_list.selected_ids() == {1001, 1002, 1003}
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups == {13001: GroupInstance(13001, (1001, 1002, 1003))}
+    assert s.selection == {13001}
+    for x0 in WINDOW_XS[:3]:  # the group's lights stay highlighted
+        assert lights_alpha(win, x0 + 4, 35) > lights_alpha(win, WINDOW_XS[4] + 4, 35)
+    assert_overlay_current(win)
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)  # one undo step takes the group away
+    assert s.ann.groups == {}
+    key(qtbot, win, Qt.Key.Key_Y, CTRL)
+    assert s.ann.groups == {13001: GroupInstance(13001, (1001, 1002, 1003))}
+    # a selected group plus another light: Ctrl+G extends that group
+    s.set_selection({13001})
+    click(qtbot, c, WINDOW_XS[5] + 4, 35, mods=CTRL)
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups == {13001: GroupInstance(13001, (1001, 1002, 1003, 1006))}
+    close_window(win)
+
+
+def test_clicks_with_one_light_per_region_accumulate_and_group(qtbot, tmp_path):
+    """docs/annotation.md: with R on, click each window (each click a new light), then Ctrl+G."""
+    win = open_window(qtbot, make_folder(tmp_path, with_annotation=False))
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_3)  # parked_front -> car_group
+    key(qtbot, win, Qt.Key.Key_R)
+    for x0 in WINDOW_XS[:3]:
+        click(qtbot, c, x0 + 5, 66)
+    lights = s.ann.instance_ids()
+    assert len(lights) == 3 and s.selection == set(lights)
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert list(s.ann.groups) == [14001] and s.ann.groups[14001].members == tuple(lights)
+    # after grouping, the next click starts a new selection
+    click(qtbot, c, WINDOW_XS[4] + 5, 66)
+    assert len(s.selection) == 1 and s.selection <= set(s.ann.instance_ids()) - set(lights)
+    close_window(win)
+
+
+def test_rubber_band_selects_every_light_it_touches(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path, grouped=False))
+    s, c = win.editor.session, win.editor.canvas
+    c.set_zoom(c.zoom() * 2)
+    c.centerOn(QPointF(W / 2, 40))
+    key(qtbot, win, Qt.Key.Key_V)
+    p0, p1 = vp(c, WINDOW_XS[0] - 5, 25), vp(c, WINDOW_XS[2] + 2, 45)
+    qtbot.mousePress(c.viewport(), LEFT, NOMOD, p0)
+    qtbot.mouseMove(c.viewport(), (p0 + p1) / 2)
+    qtbot.mouseMove(c.viewport(), p1)
+    assert c.band_item.isVisible()  # the band is drawn while dragging
+    qtbot.mouseRelease(c.viewport(), LEFT, NOMOD, p1)
+    assert not c.band_item.isVisible()
+    assert s.selection == {1001, 1002, 1003}
+    drag(qtbot, c, [(WINDOW_XS[4] + 8, 40), (WINDOW_XS[5] + 2, 44)], mods=SHIFT)  # Shift adds
+    assert s.selection == {1001, 1002, 1003, 1005, 1006}
+    assert_overlay_current(win)
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups == {13001: GroupInstance(13001, (1001, 1002, 1003, 1005, 1006))}
+    click(qtbot, c, WINDOW_XS[1] + 15, 55)  # a plain click on the wall clears the selection
+    assert s.selection == set()
+    close_window(win)
+
+
+def test_light_created_while_group_is_active_joins_it(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))  # top row = windows_group 13001
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_V)
+    click(qtbot, c, WINDOW_XS[0] + 4, 35)
+    key(qtbot, win, Qt.Key.Key_A)  # activate the group of the selection
+    assert s.active_group == 13001
+    key(qtbot, win, Qt.Key.Key_B)
+    win.editor.brush_spin.setValue(2)
+    key(qtbot, win, Qt.Key.Key_N)
+    drag(qtbot, c, [(WINDOW_XS[0] + 4, 64), (WINDOW_XS[0] + 5, 68)])
+    assert s.current_id == 1007 and s.ann.groups[13001].members == tuple(range(1001, 1008))
+    # a stroke that starts a new light (no N) joins as well; undo removes light and membership together
+    s.set_current(None)
+    drag(qtbot, c, [(WINDOW_XS[1] + 4, 64), (WINDOW_XS[1] + 5, 68)])
+    assert s.ann.groups[13001].members == tuple(range(1001, 1009))
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    assert s.ann.groups[13001].members == tuple(range(1001, 1008)) and 1008 not in s.ann.instance_ids()
+    s.ann.validate()
+    # Esc ends it: the next light stays ungrouped
+    key(qtbot, win, Qt.Key.Key_Escape)
+    assert s.active_group is None
+    key(qtbot, win, Qt.Key.Key_N)
+    drag(qtbot, c, [(WINDOW_XS[2] + 4, 64), (WINDOW_XS[2] + 5, 68)])
+    assert s.ann.group_of(s.current_id) is None
+    close_window(win)
+
+
+#: Expected default group class per light class (docs/annotation.md "Default groups").
+DEFAULT_GROUPS = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16, 8: None, 9: None, 10: None, 11: None, 12: None}
+
+
+def test_light_class_preselects_its_default_group_class(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    s, pal = win.editor.session, win.editor.palette
+    for cid, gid in DEFAULT_GROUPS.items():
+        qtbot.mouseClick(pal.buttons[cid], LEFT)
+        assert s.current_class == cid
+        assert s.group_class == gid, (cid, s.group_class)
+        checked = {g for g in range(13, 22) if pal.buttons[g].isChecked()}
+        assert checked == ({gid} if gid else set()), (cid, checked)
+    # street lights have no default group: Ctrl+G asks for a group class instead of guessing one
+    key(qtbot, win, Qt.Key.Key_8)
+    key(qtbot, win, Qt.Key.Key_B)
+    for x0 in WINDOW_XS[:2]:
+        key(qtbot, win, Qt.Key.Key_N)
+        drag(qtbot, win.editor.canvas, [(x0 + 4, 64), (x0 + 5, 68)])
+    s.set_selection({8001, 8002})
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert set(s.ann.groups) == {13001} and "group class" in win.editor.status.text()
+    key(qtbot, win, Qt.Key.Key_8, Qt.KeyboardModifier.AltModifier)  # traffic_light_group by hand
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert s.ann.groups[20001].members == (8001, 8002)
+    close_window(win)
+
+
+def grab_rgb(widget) -> np.ndarray:
+    from PySide6.QtGui import QImage
+
+    img = widget.grab().toImage().convertToFormat(QImage.Format.Format_RGB888)
+    arr = np.frombuffer(img.constBits(), np.uint8, img.sizeInBytes()).reshape(img.height(), img.bytesPerLine())
+    return arr[:, :3 * img.width()].reshape(img.height(), img.width(), 3).copy()
+
+
+@pytest.mark.parametrize("value, class_id", [(255, 5), (0, 6)])
+def test_mask_outline_visible_over_bright_and_dark_pixels(qtbot, tmp_path, value, class_id):
+    """A white moving_front mask over a white lamp (and a dark-red one over black) shows its border."""
+    img = np.full((H, W, 3), value, np.uint8)
+    ann = LightAnnotation.empty(H, W)
+    x0, y0, x1, y1 = 100, 40, 160, 80
+    ann.instance_map[y0:y1, x0:x1] = class_id * 1000 + 1
+    write_image(tmp_path / "lamp.png", img)
+    A.save_annotation(ann, tmp_path, "lamp", image=img)
+    win = open_window(qtbot, tmp_path)
+    c = win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_P)  # superpixel borders off: only the light layer is over the image
+    assert not c.layers["superpixels"].isVisible()
+    c.set_zoom(6)
+    c.centerOn(QPointF(130, 60))
+    QApplication.processEvents()
+    shot = grab_rgb(c.viewport()).astype(int)
+
+    def diff(x, y):
+        p = vp(c, x, y)
+        return np.abs(shot[p.y(), p.x()] - value).max()
+
+    border = [(x, y0) for x in range(x0 + 2, x1 - 2, 4)] + [(x0, y) for y in range(y0 + 2, y1 - 2, 4)]
+    # along the border, the mask's own edge pixel or the one just outside it stands out from the image
+    assert all(max(diff(x, y), diff(x, y - 1) if y == y0 else diff(x - 1, y)) >= 80 for x, y in border)
+    close_window(win)
+
+
+def test_display_brightness_contrast_gamma_change_only_the_view(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    e = win.editor
+    s, c = e.session, e.canvas
+    image0, map0, groups0, sp0 = s.image.copy(), s.ann.instance_map.copy(), dict(s.ann.groups), s.sp_coarse
+    np.testing.assert_array_equal(c.base.array[..., :3], image0)
+    e.view_gamma.setValue(2.2)
+    g = c.base.array[..., :3].astype(int)
+    assert g.mean() > image0.mean() + 10 and (g >= image0).all()
+    e.view_contrast.setValue(1.5)
+    e.view_brightness.setValue(-10)
+    assert not np.array_equal(c.base.array[..., :3], g)
+    shot = grab_rgb(c.viewport())
+    p = vp(c, 5, 100)  # road pixel (80, 80, 85) on screen, adjusted
+    assert tuple(shot[p.y(), p.x()]) == tuple(c.base.array[100, 5, :3]) != (80, 80, 85)
+    # the data is untouched: image, annotation, undo history, superpixels
+    np.testing.assert_array_equal(s.image, image0)
+    np.testing.assert_array_equal(s.ann.instance_map, map0)
+    assert s.ann.groups == groups0 and not s.stack.can_undo and not s.is_dirty and s.sp_coarse is sp0
+    # another base view gets the same adjustment; Auto stretches; Reset shows the image as it is
+    e.set_base_image(np.full((H, W, 3), 100, np.uint8))
+    assert (c.base.array[..., :3] != 100).all()
+    e.view_reset.click()
+    assert (c.base.array[..., :3] == 100).all()
+    e.set_base_image(None)
+    np.testing.assert_array_equal(c.base.array[..., :3], image0)
+    e.view_auto.click()
+    a = c.base.array[..., :3]
+    assert int(a.max()) - int(a.min()) > int(image0.max()) - int(image0.min())
+    np.testing.assert_array_equal(s.image, image0)
+    close_window(win)
+
+
+CLOSE_WHILE_COMPUTING = r"""
+import sys
+import numpy as np
+from PySide6.QtCore import QThreadPool, QTimer
+from PySide6.QtWidgets import QApplication
+from npsim_gui.editor import EditorWindow
+
+app = QApplication(sys.argv[:1])
+img = np.random.default_rng(0).integers(0, 255, (1024, 2048, 3), dtype=np.uint8)
+win = EditorWindow(autosave_ms=10**9)
+win.editor.load(img)
+win.show()
+
+def close():
+    print("computing", QThreadPool.globalInstance().activeThreadCount(), win.editor.session.superpixels_ready,
+          flush=True)
+    win.close()
+    app.quit()
+
+QTimer.singleShot(0, close)
+sys.exit(app.exec())
+"""
+
+
+def test_closing_while_superpixels_compute_is_quiet(tmp_path):
+    """The app closed at once while the worker computes: no 'Signal source has been deleted'."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "close.py"
+    script.write_text(CLOSE_WHILE_COMPUTING)
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, env=env,
+                       cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert r.returncode == 0, r.stderr
+    assert "computing 1 False" in r.stdout  # it really was closed mid-computation
+    assert "Traceback" not in r.stderr and "RuntimeError" not in r.stderr, r.stderr
+
+
+def test_closing_editor_while_superpixels_compute_in_process(qtbot, capfd):
+    """Same inside a running app: the editor deleted while its worker runs; the app goes on quietly."""
+    import gc
+
+    from PySide6.QtCore import QThreadPool
+
+    win = EditorWindow(autosave_ms=10**9)
+    win.answers = {"discard": "Discard"}
+    img = np.random.default_rng(1).integers(0, 255, (512, 1024, 3), dtype=np.uint8)
+    with qtbot.captureExceptions() as exceptions:
+        win.editor.load(img)
+        win.show()
+        win.close()
+        win.deleteLater()
+        QApplication.processEvents()
+        del win
+        gc.collect()
+        assert QThreadPool.globalInstance().waitForDone(60000)
+        QApplication.processEvents()
+    assert not exceptions
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "RuntimeError" not in err, err
+
+
+def test_class_filter_narrows_the_palette(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    pal = win.editor.palette
+
+    def shown():
+        return {cid for cid, b in pal.buttons.items() if not b.isHidden()}
+
+    assert shown() == set(range(1, 22))
+    qtbot.keyClicks(pal.filter_edit, "street")
+    assert shown() == {8, 9}
+    pal.filter_edit.clear()
+    qtbot.keyClicks(pal.filter_edit, "GROUP")
+    assert shown() == set(range(13, 22))
+    pal.filter_edit.clear()
+    qtbot.keyClicks(pal.filter_edit, "rear")
+    assert shown() == {4, 6}
+    pal.filter_edit.clear()
+    qtbot.keyClicks(pal.filter_edit, "adv")  # letters that are shortcuts (A, D, V) go into the box
+    assert pal.filter_edit.text() == "adv" and shown() == {10}
+    assert not win.editor.options.fine_scale and win.editor.controller.tool == Tool.SUPERPIXEL
+    qtbot.keyClick(pal.filter_edit, Qt.Key.Key_Escape)  # Esc clears the box and gives the canvas the keys
+    assert pal.filter_edit.text() == "" and shown() == set(range(1, 22))
+    assert QApplication.focusWidget() is win.editor.canvas
+    qtbot.keyClicks(pal.filter_edit, "clock")
+    qtbot.keyClick(pal.filter_edit, Qt.Key.Key_Return)  # the single match is chosen
+    assert win.editor.session.current_class == 11 and QApplication.focusWidget() is win.editor.canvas
+    pal.filter_edit.clear()
+    assert shown() == set(range(1, 22))
     close_window(win)

@@ -9,7 +9,11 @@ buffer's changed rectangle and repaints only that.
 Navigation: wheel zooms anchored under the mouse; middle button or Space+left
 drag pans; Home fits the image. Mouse events in image coordinates go to
 ``self.handler`` (any object with ``press/move/release(x, y, event)``) so tools
-stay outside the view.
+stay outside the view; a handler may offer ``shows_path()`` (draw the drag path)
+and ``band_rect()`` (draw a selection rectangle).
+
+Display adjustment (brightness, contrast, gamma; :meth:`EditorCanvas.set_display`)
+changes only the pixels shown for the base image, never the image data.
 """
 
 from __future__ import annotations
@@ -72,6 +76,28 @@ class ArrayLayerItem(QGraphicsItem):
         painter.drawImage(target, self._img, target)
 
 
+def display_lut(brightness: float = 0.0, contrast: float = 1.0, gamma: float = 1.0) -> np.ndarray | None:
+    """uint8 LUT for ``v' = (v**(1/gamma) + brightness - 0.5) * contrast + 0.5`` on v in [0, 1]
+    (brightness as a fraction of full scale, added before the contrast gain about mid-grey);
+    None for the identity."""
+    if brightness == 0 and contrast == 1 and gamma == 1:
+        return None
+    v = np.arange(256, dtype=np.float64) / 255.0
+    v = (v ** (1.0 / max(gamma, 1e-3)) + brightness - 0.5) * contrast + 0.5
+    return np.clip(np.round(v * 255.0), 0, 255).astype(np.uint8)
+
+
+def auto_display(rgb: np.ndarray, low: float = 1.0, high: float = 99.0) -> tuple[float, float, float]:
+    """(brightness, contrast, gamma) mapping the ``low``..``high`` luminance percentiles to 0..1:
+    brightness centres the range on mid-grey (always within +-0.5), contrast stretches it."""
+    lum = np.asarray(rgb, np.float32)[::2, ::2] @ np.array([0.299, 0.587, 0.114], np.float32)
+    lo, hi = (float(v) / 255.0 for v in np.percentile(lum, [low, high]))
+    if hi - lo < 1e-3:
+        return 0.0, 1.0, 1.0
+    contrast = float(np.clip(1.0 / (hi - lo), 0.1, 10.0))
+    return 0.5 - (lo + hi) / 2, contrast, 1.0
+
+
 class EditorCanvas(QGraphicsView):
     """Zoomable, pannable view of an image with toggleable overlay layers."""
 
@@ -116,6 +142,21 @@ class EditorCanvas(QGraphicsView):
         self.path_item.setZValue(49)
         self.scene().addItem(self.path_item)
         self._path = QPainterPath()
+        # Rubber band of the select tool: a black line under a white dashed one (visible on any image).
+        self.band_item = QGraphicsRectItem()
+        self._band_dash = QGraphicsRectItem(self.band_item)
+        for it, color, style in ((self.band_item, QColor(0, 0, 0), Qt.PenStyle.SolidLine),
+                                 (self._band_dash, QColor(255, 255, 255), Qt.PenStyle.DashLine)):
+            bpen = QPen(color, 0)
+            bpen.setCosmetic(True)
+            bpen.setStyle(style)
+            it.setPen(bpen)
+        self.band_item.setBrush(QBrush(QColor(255, 255, 255, 40)))
+        self.band_item.setZValue(48)
+        self.band_item.setVisible(False)
+        self.scene().addItem(self.band_item)
+        self._base_source = np.zeros((1, 1, 3), np.uint8)  # the base image as given, before display adjustment
+        self.display = (0.0, 1.0, 1.0)  # brightness, contrast, gamma
         self.brush_radius = 0.0
         self._pan_last: QPointF | None = None
         self._space = False
@@ -128,8 +169,23 @@ class EditorCanvas(QGraphicsView):
         rgb = np.asarray(rgb)
         if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
             raise ValueError(f"base image must be HxWx3 uint8 RGB, got {rgb.shape} {rgb.dtype}")
+        self._base_source = rgb
+        self._show_base()
+
+    def set_display(self, brightness: float = 0.0, contrast: float = 1.0, gamma: float = 1.0) -> None:
+        """Adjust how the base image is shown (display only: the arrays given are never changed)."""
+        self.display = (float(brightness), float(contrast), float(gamma))
+        self._show_base()
+
+    def auto_display(self) -> tuple[float, float, float]:
+        """Settings that stretch the shown base image's 1-99 % luminance range (not applied)."""
+        return auto_display(self._base_source)
+
+    def _show_base(self) -> None:
+        rgb = self._base_source
+        lut = display_lut(*self.display)
         arr = np.empty(rgb.shape[:2] + (4,), np.uint8)
-        arr[..., :3] = rgb
+        arr[..., :3] = rgb if lut is None else lut[rgb]
         arr[..., 3] = 255
         first = self.base.array.shape[:2] != arr.shape[:2]
         self.base.set_array(arr)
@@ -146,16 +202,18 @@ class EditorCanvas(QGraphicsView):
     def set_layer_opacity(self, name: str, opacity: float) -> None:
         self.layers[name].setOpacity(float(opacity))
 
-    def set_group_boxes(self, boxes: list[tuple[int, list[int], tuple[int, int, int], str]]) -> None:
-        """Draw dashed boxes: (group id, [x0, y0, x1, y1] inclusive, colour, caption); empty caption = none."""
+    def set_group_boxes(self, boxes: list[tuple]) -> None:
+        """Draw dashed boxes: (group id, [x0, y0, x1, y1] inclusive, colour, caption[, active]); empty
+        caption = none; an active group (new lights join it) gets a thicker solid line."""
         for it in self._group_items:
             self.scene().removeItem(it)
         self._group_items = []
-        for gid, b, color, caption in boxes:
+        for gid, b, color, caption, *rest in boxes:
+            active = bool(rest and rest[0])
             pen = QPen(QColor(*color), 0)
-            pen.setStyle(Qt.PenStyle.DashLine)
+            pen.setStyle(Qt.PenStyle.SolidLine if active else Qt.PenStyle.DashLine)
             pen.setCosmetic(True)
-            pen.setWidthF(1.5)
+            pen.setWidthF(2.5 if active else 1.5)
             r = QGraphicsRectItem(QRectF(b[0] - 0.5, b[1] - 0.5, b[2] - b[0] + 2, b[3] - b[1] + 2))
             r.setPen(pen)
             r.setZValue(10)
@@ -281,6 +339,7 @@ class EditorCanvas(QGraphicsView):
             if self.path_item.isVisible():
                 self._path.lineTo(QPointF(x, y))
                 self.path_item.setPath(self._path)
+            self._update_band()
             event.accept()
             return
         super().mouseMoveEvent(event)
@@ -296,9 +355,21 @@ class EditorCanvas(QGraphicsView):
             x, y = self.image_pos(event.position())
             self.handler.release(x, y, event)
             self.path_item.setVisible(False)
+            self.band_item.setVisible(False)
             event.accept()
             return
         super().mouseReleaseEvent(event)
+
+    def _update_band(self) -> None:
+        band = getattr(self.handler, "band_rect", lambda: None)()
+        if band is None:
+            self.band_item.setVisible(False)
+            return
+        x0, y0, x1, y1 = band  # inclusive pixel box
+        r = QRectF(x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+        self.band_item.setRect(r)
+        self._band_dash.setRect(r)
+        self.band_item.setVisible(True)
 
     def set_brush_radius(self, radius: float) -> None:
         """Show a circle of ``radius`` px around the mouse (0 hides it)."""

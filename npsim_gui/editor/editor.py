@@ -24,7 +24,7 @@ from npsim_core.superpixels import METHODS
 from .canvas import EditorCanvas
 from .overlays import boundary_rgba, class_color, labels_rgba, lights_region
 from .palette import ClassPalette, InstanceList
-from .session import EditorSession
+from .session import EditorSession, join_group
 from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, ShortcutDialog
 from .tools import Tool, ToolController, ToolOptions
 
@@ -48,7 +48,7 @@ class AnnotationEditor(QWidget):
         self.canvas = EditorCanvas(self)
         self.canvas.handler = self.controller
         self._lights_rgba = np.zeros((1, 1, 4), np.uint8)
-        self._shown_selection: set[int] = set()  # selection the light layer was drawn with
+        self._shown_highlight: set[int] = set()  # highlighted lights the light layer was drawn with
         self._stats: dict | None = None  # ann.stats() cache, dropped on every edit
         self._refresh_timer = QTimer(self)
         self._refresh_timer.setSingleShot(True)
@@ -125,15 +125,52 @@ class AnnotationEditor(QWidget):
         tl.addLayout(opts, 2, 0, 1, 3)
         pl.addWidget(tools)
 
+        # Display adjustment of the base image (never of the data).
+        view = QGroupBox("View (display only)")
+        vl = QHBoxLayout(view)
+        vl.setSpacing(3)
+        self.view_brightness = QSpinBox()
+        self.view_brightness.setRange(-100, 100)
+        self.view_brightness.setSuffix(" %")
+        self.view_brightness.setPrefix("b ")
+        self.view_brightness.setToolTip("brightness: added to the shown image (% of full scale)")
+        self.view_contrast = QDoubleSpinBox()
+        self.view_contrast.setRange(0.1, 10.0)
+        self.view_contrast.setSingleStep(0.1)
+        self.view_contrast.setDecimals(2)
+        self.view_contrast.setValue(1.0)
+        self.view_contrast.setPrefix("c ")
+        self.view_contrast.setToolTip("contrast: gain about mid-grey")
+        self.view_gamma = QDoubleSpinBox()
+        self.view_gamma.setRange(0.1, 5.0)
+        self.view_gamma.setSingleStep(0.1)
+        self.view_gamma.setDecimals(2)
+        self.view_gamma.setValue(1.0)
+        self.view_gamma.setPrefix("γ ")
+        self.view_gamma.setToolTip("gamma: > 1 brightens dark parts (shown = value^(1/gamma))")
+        for w in (self.view_brightness, self.view_contrast, self.view_gamma):
+            w.valueChanged.connect(self._on_display)
+            vl.addWidget(w)
+        self.view_auto = QPushButton("Auto")
+        self.view_auto.setToolTip("stretch the shown image's 1–99 % brightness range")
+        self.view_auto.clicked.connect(self.auto_display)
+        self.view_reset = QPushButton("Reset")
+        self.view_reset.clicked.connect(lambda: self.set_display(0.0, 1.0, 1.0))
+        vl.addWidget(self.view_auto)
+        vl.addWidget(self.view_reset)
+        pl.addWidget(view)
+
         # Top bar over the canvas: layer toggles with opacity, superpixel settings.
+        # Two rows, so the canvas column stays narrow enough for 1600-px screens.
         bar = QWidget()
-        bl = QHBoxLayout(bar)
+        bl = QGridLayout(bar)
         bl.setContentsMargins(4, 2, 4, 2)
-        bl.setSpacing(6)
+        bl.setHorizontalSpacing(6)
+        bl.setVerticalSpacing(0)
         self.layer_boxes: dict[str, QCheckBox] = {}
         self.layer_sliders: dict[str, QSlider] = {}
-        for name, title, key in (("labels", "Labels", "L"), ("superpixels", "Superpixels", "P"),
-                                 ("lights", "Lights", "M")):
+        for k, (name, title, key) in enumerate((("labels", "Labels", "L"), ("superpixels", "Superpixels", "P"),
+                                                ("lights", "Lights", "M"))):
             cb = QCheckBox(f"{title} ({key})")
             cb.setChecked(name != "labels")
             cb.toggled.connect(lambda v, n=name: self.canvas.set_layer_visible(n, v))
@@ -142,15 +179,15 @@ class AnnotationEditor(QWidget):
             sl_.setRange(0, 100)
             sl_.setValue(int(round(self.canvas.layers[name].opacity() * 100)))
             sl_.setToolTip(f"{title} opacity")
-            sl_.setFixedWidth(70)
+            sl_.setFixedWidth(50)
             sl_.valueChanged.connect(lambda v, n=name: self.canvas.set_layer_opacity(n, v / 100))
-            bl.addWidget(cb)
-            bl.addWidget(sl_)
+            bl.addWidget(cb, k // 2, 2 * (k % 2))
+            bl.addWidget(sl_, k // 2, 2 * (k % 2) + 1)
             self.layer_boxes[name] = cb
             self.layer_sliders[name] = sl_
-        bl.addStretch(1)
+        bl.setColumnStretch(4, 1)
         self.zoom_label = QLabel("")
-        bl.addWidget(self.zoom_label)
+        bl.addWidget(self.zoom_label, 0, 5)
         self.canvas.zoomChanged.connect(lambda z: self.zoom_label.setText(f"zoom {z:.2f}"))
         self.sp_method = QComboBox()
         self.sp_method.addItems(list(METHODS))
@@ -176,13 +213,14 @@ class AnnotationEditor(QWidget):
         for w in (self.sp_method, self.sp_size, self.sp_compact, apply_sp):
             sp_row.addWidget(w)
         opts.addRow("Superpixels", sp_row)
-        bl.insertWidget(bl.count() - 1, self.sp_status)  # next to the zoom read-out
+        bl.addWidget(self.sp_status, 1, 2, 1, 4)  # under the zoom read-out
 
         pal = QGroupBox("Classes")
         pal_l = QVBoxLayout(pal)
         self.palette = ClassPalette()
         self.palette.lightClassChosen.connect(self.session.set_current_class)
         self.palette.groupClassChosen.connect(self.session.set_current_class)
+        self.palette.filterDone.connect(self.canvas.setFocus)
         pal_l.addWidget(self.palette)
         pl.addWidget(pal)
 
@@ -248,8 +286,9 @@ class AnnotationEditor(QWidget):
         A["group"] = self._action("Group selection", "Ctrl+G", self.group_selected)
         A["ungroup"] = self._action("Ungroup", "Ctrl+Shift+G", self.ungroup_selected)
         A["delete"] = self._action("Delete selection", ["Delete", "Backspace"], self.delete_selected)
-        A["escape"] = self._action("Clear selection", "Esc", lambda: self.session.set_selection(set(), current=None)
-                                   or self.session.set_current(None))
+        A["activate"] = self._action("Activate group (new lights join it)", "A", self.toggle_active_group)
+        A["escape"] = self._action("Clear selection", "Esc", self.clear_selection)
+        A["filter"] = self._action("Filter classes", "Ctrl+F", self.focus_class_filter)
         A["split"] = self._action("One light per region", "R", self.split_box.toggle)
         A["similar"] = self._action("Similar colour only", "T", self.similar_box.toggle)
         A["fine"] = self._action("Fine superpixel scale", "D", self.fine_box.toggle)
@@ -267,6 +306,28 @@ class AnnotationEditor(QWidget):
     def set_base_image(self, rgb: np.ndarray | None) -> None:
         """Show another view (e.g. a depth visualisation) under the overlays; None = the image."""
         self.canvas.set_base_image(self.session.image if rgb is None else rgb)
+
+    def set_display(self, brightness: float = 0.0, contrast: float = 1.0, gamma: float = 1.0) -> None:
+        """Brightness (fraction of full scale, -1..1), contrast and gamma of the shown image (display only)."""
+        for w, v in ((self.view_brightness, int(round(brightness * 100))), (self.view_contrast, contrast),
+                     (self.view_gamma, gamma)):
+            w.blockSignals(True)
+            w.setValue(v)
+            w.blockSignals(False)
+        self._on_display()
+
+    def auto_display(self) -> None:
+        """Stretch the shown image's brightness range (e.g. for a dark real frame)."""
+        self.set_display(*self.canvas.auto_display())
+
+    def _on_display(self, *_):
+        self.canvas.set_display(self.view_brightness.value() / 100.0, self.view_contrast.value(),
+                                self.view_gamma.value())
+
+    def shutdown(self) -> None:
+        """Cancel background work (call when the editor is closed for good; deleting the editor or
+        quitting the application does it too)."""
+        self.session.shutdown()
 
     def set_tool(self, tool: Tool) -> None:
         self.controller.tool = Tool(tool)
@@ -291,25 +352,78 @@ class AnnotationEditor(QWidget):
 
     def new_light(self) -> None:
         def go():
-            cmd, iid = new_instance(self.session.ann, self.session.current_class)
-            self.session.apply(cmd)
-            self.session.set_selection({iid}, current=iid)
+            s = self.session
+            cmd, iid = new_instance(s.ann, s.current_class)
+            s.begin_stroke("new light")
+            try:
+                s.apply(cmd)
+                s.lights_created([iid])  # joins the active group in the same undo step
+            finally:
+                s.end_stroke()
+            s.set_selection({iid}, current=iid)
         self._safe(go)
 
     def selected_lights(self) -> list[int]:
-        return sorted(i for i in self.session.selection if is_light_class(class_of(i)))
+        return sorted(self.session.selected_lights())
 
     def group_selected(self) -> None:
+        """Group the selection: the selected lights and the lights of the selected groups become one group.
+
+        With exactly one group selected (and no other group class picked by hand) the other selected
+        lights join that group; otherwise a new group of the group class picked by hand, or else of the
+        lights' default group class, is made (lights leave their old groups). One undo step.
+        """
         def go():
-            lights = self.selected_lights()
+            s = self.session
+            groups = sorted(s.selected_groups())
+            lights = s.highlighted()
             if not lights:
-                self.show_message("select lights to group (Ctrl+click or the list)")
+                self.show_message("select lights to group: Shift/Ctrl+click, a box with the Select tool (V), "
+                                  "or the list")
                 return
-            cmd, gid = group_lights(self.session.ann, lights, self.session.group_class)
-            self.session.apply(cmd)
-            self.session.set_selection({gid})
+            if len(groups) == 1 and not (s.group_explicit and s.group_class not in (None, class_of(groups[0]))):
+                gid = groups[0]
+                cmd = join_group(s.ann, gid, lights)
+                if cmd is None:
+                    self.show_message(f"the selection already is {light_class(class_of(gid)).name} {gid}")
+                    return
+            else:
+                gclass = s.group_class_for(lights)
+                if gclass is None:
+                    names = sorted({light_class(class_of(i)).name for i in lights})
+                    self.show_message(f"{', '.join(names)} has no default group class: choose a group class "
+                                      "(Alt+1…Alt+9 or the Groups buttons), then Ctrl+G")
+                    return
+                cmd, gid = group_lights(s.ann, lights, gclass)
+            s.apply(cmd)
+            s.set_selection({gid})
             self.show_message(f"grouped {len(lights)} lights as {light_class(class_of(gid)).name} {gid}")
         self._safe(go)
+
+    def toggle_active_group(self) -> None:
+        """Key A: the group of the selection becomes active (new lights join it); again ends it."""
+        s = self.session
+        groups = s.selected_groups() | {g for i in s.selected_lights() if (g := s.ann.group_of(i)) is not None}
+        if s.active_group is not None and (not groups or groups == {s.active_group}):
+            s.set_active_group(None)
+            self.show_message("no active group: new lights are ungrouped")
+        elif len(groups) == 1:
+            s.set_active_group(groups.pop())
+            self.show_message(f"active group {light_class(class_of(s.active_group)).name} {s.active_group}: "
+                              "new lights join it (A or Esc ends)")
+        else:
+            self.show_message("select one group (or one of its lights) to make it active")
+
+    def clear_selection(self) -> None:
+        """Esc: no selection, no current light, no active group."""
+        s = self.session
+        s.set_active_group(None)
+        s.set_selection(set(), current=None)
+        s.set_current(None)
+
+    def focus_class_filter(self) -> None:
+        self.palette.filter_edit.setFocus()
+        self.palette.filter_edit.selectAll()
 
     def ungroup_selected(self) -> None:
         s = self.session
@@ -342,6 +456,9 @@ class AnnotationEditor(QWidget):
             try:
                 for i in ids:
                     target = s.group_class if is_group_class(class_of(i)) else s.current_class
+                    if target is None:  # a group, but no group class chosen: it keeps its class
+                        new_sel.add(i)
+                        continue
                     cmd, nid = change_class(s.ann, i, target)
                     s.apply(cmd)
                     new_sel.add(nid)
@@ -363,8 +480,8 @@ class AnnotationEditor(QWidget):
         self.canvas.set_layer("superpixels", np.zeros((H, W, 4), np.uint8))
         self._lights_rgba = np.zeros((H, W, 4), np.uint8)
         self._stats = None
-        self._shown_selection = set(s.selection)
-        lights_region(s.ann.instance_map, self._lights_rgba, None, s.selection)
+        self._shown_highlight = s.highlighted()
+        lights_region(s.ann.instance_map, self._lights_rgba, None, self._shown_highlight)
         self.canvas.set_layer("lights", self._lights_rgba)
         self.sp_status.setText("computing…")
         self._sync_superpixel_widgets()
@@ -416,34 +533,58 @@ class AnnotationEditor(QWidget):
             # One pixel more on each side: outlines of the unchanged neighbours may change too.
             x0, y0, x1, y1 = ch.rect
             rect = (x0 - 1, y0 - 1, x1 + 1, y1 + 1)
-            lights_region(self.session.ann.instance_map, self._lights_rgba, rect, self.session.selection)
+            hl = self.session.highlighted()
+            if hl != self._shown_highlight:  # e.g. an undone group: its lights' highlight changes too
+                rect = self._union_rect(rect, self._highlight_rect(hl ^ self._shown_highlight))
+                self._shown_highlight = hl
+            lights_region(self.session.ann.instance_map, self._lights_rgba, rect, hl)
             self.canvas.layers["lights"].update_rect(rect)
+        elif ch.structure:
+            self._on_selection()
         self._refresh_timer.start()
 
-    def _on_selection(self) -> None:
-        # Redraw only the boxes of the lights whose selected state changed.
-        sel = set(self.session.selection)
+    @staticmethod
+    def _union_rect(a, b):
+        if a is None or b is None:
+            return a or b
+        return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+
+    def _highlight_rect(self, ids) -> tuple[int, int, int, int] | None:
+        """Box (half-open) of the lights ``ids`` plus the one-pixel outer outline around them."""
         st = self._ann_stats()
-        boxes = [st[i]["bbox"] for i in self._shown_selection ^ sel if st.get(i, {}).get("bbox")]
-        self._shown_selection = sel
-        if boxes:
-            rect = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes) + 1,
-                    max(b[3] for b in boxes) + 1)
-            lights_region(self.session.ann.instance_map, self._lights_rgba, rect, sel)
+        boxes = [st[i]["bbox"] for i in ids if st.get(i, {}).get("bbox")]
+        if not boxes:
+            return None
+        return (min(b[0] for b in boxes) - 1, min(b[1] for b in boxes) - 1, max(b[2] for b in boxes) + 2,
+                max(b[3] for b in boxes) + 2)
+
+    def _on_selection(self) -> None:
+        # Redraw only the boxes of the lights whose highlighted state changed.
+        s = self.session
+        hl = s.highlighted()
+        rect = self._highlight_rect(self._shown_highlight ^ hl)
+        self._shown_highlight = hl
+        if rect is not None:
+            lights_region(s.ann.instance_map, self._lights_rgba, rect, hl)
             self.canvas.layers["lights"].update_rect(rect)
-        self.instance_list.set_selection(self.session.selection)
+        self.instance_list.set_selection(s.selection)
+        n_l, n_g = len(s.selected_lights()), len(s.selected_groups())
+        if n_l + n_g > 1:
+            self.show_message(f"selected: {n_l} lights, {n_g} groups — Ctrl+G groups them")
         self._refresh_timer.start()
 
     def _on_current(self) -> None:
         s = self.session
         self.palette.set_current(s.current_class, s.group_class)
         cur = f"current light {s.current_id}" if s.current_id else "next stroke starts a new light"
-        self.show_message(f"class {light_class(s.current_class).name}, group class "
-                          f"{light_class(s.group_class).name}; {cur}")
+        group = light_class(s.group_class).name if s.group_class is not None else "none (not grouped by default)"
+        active = (f"; new lights join {light_class(class_of(s.active_group)).name} {s.active_group}"
+                  if s.active_group is not None else "")
+        self.show_message(f"class {light_class(s.current_class).name}, group class {group}; {cur}{active}")
 
     def _refresh_lists(self) -> None:
         s = self.session
-        self.instance_list.rebuild(s.ann, s.selection, s.current_id)
+        self.instance_list.rebuild(s.ann, s.selection, s.current_id, s.active_group)
         st = self._ann_stats()
         boxes = []
         few = len(s.ann.groups) <= 6
@@ -452,10 +593,14 @@ class AnnotationEditor(QWidget):
             if b is not None:
                 # Selected groups (or groups of selected lights) in white with a caption;
                 # captions for all only when there are few, so busy scenes stay readable.
+                # The active group (new lights join it): solid, thicker, captioned.
                 sel = gid in s.selection or bool(set(s.ann.groups[gid].members) & s.selection)
-                color = (255, 255, 255) if sel else class_color(class_of(gid))
-                caption = f"{light_class(class_of(gid)).name} {gid}" if (sel or few) else ""
-                boxes.append((gid, b, color, caption))
+                active = gid == s.active_group
+                color = (255, 255, 255) if sel or active else class_color(class_of(gid))
+                caption = f"{light_class(class_of(gid)).name} {gid}" if (sel or few or active) else ""
+                if active:
+                    caption += " (active: new lights join)"
+                boxes.append((gid, b, color, caption, active))
         self.canvas.set_group_boxes(boxes)
 
     def refresh_now(self) -> None:

@@ -59,10 +59,37 @@ def boundary_rgba(labels: np.ndarray, color=(0, 230, 255)) -> np.ndarray:
     return out
 
 
+#: Outline colours. Every light gets a dark line on its border pixels and a light line on the free pixels
+#: just outside it, so one of the two stands out on any image (a white moving_front mask over a white lamp,
+#: a dark-red moving_rear over a black car). Selected lights swap to a white inner line and a green outer
+#: line (no class colour is green) over a more opaque fill.
+OUTLINE_DARK = (0, 0, 0)
+OUTLINE_LIGHT = (255, 255, 255)
+SELECTED_INNER = (255, 255, 255)
+SELECTED_OUTER = (40, 255, 40)
+OUTER_ALPHA = 170
+
+
+def _touches(mask: np.ndarray) -> np.ndarray:
+    """Pixels with a 4-neighbour in ``mask``."""
+    out = np.zeros(mask.shape, bool)
+    out[:, 1:] |= mask[:, :-1]
+    out[:, :-1] |= mask[:, 1:]
+    out[1:, :] |= mask[:-1, :]
+    out[:-1, :] |= mask[1:, :]
+    return out
+
+
 def lights_region(instance_map: np.ndarray, out: np.ndarray, rect: tuple[int, int, int, int] | None,
                   selected: frozenset[int] | set[int] = frozenset(), fill_alpha: int = 150) -> None:
-    """Fill ``out[rect]`` (RGBA) from ``instance_map``: translucent fill, opaque outlines,
-    selected lights brighter with white outlines. ``rect`` = (x0, y0, x1, y1) half-open."""
+    """Fill ``out[rect]`` (RGBA) from ``instance_map``. ``rect`` = (x0, y0, x1, y1) half-open.
+
+    Each light: translucent fill in its class colour, its border pixels (4-neighbour of another id) in
+    ``OUTLINE_DARK`` and the unlabelled pixels touching it in ``OUTLINE_LIGHT`` -- a dark/light double
+    outline. ``selected`` lights: fill more opaque, ``SELECTED_INNER`` / ``SELECTED_OUTER`` outlines.
+    A pixel's colour depends on its 4-neighbours only, so after an edit redrawing the edit's box
+    grown by one pixel is exact.
+    """
     H, W = instance_map.shape
     x0, y0, x1, y1 = rect if rect is not None else (0, 0, W, H)
     x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)
@@ -76,17 +103,26 @@ def lights_region(instance_map: np.ndarray, out: np.ndarray, rect: tuple[int, in
     edge[:, :-1] |= m[:, :-1] != m[:, 1:]
     edge[1:, :] |= m[1:, :] != m[:-1, :]
     edge[:-1, :] |= m[:-1, :] != m[1:, :]
+    lit = m != 0
+    outer = ~lit & _touches(lit)
+    sel = np.isin(m, np.fromiter(selected, np.int64)) if selected else None
+    outer_sel = outer & _touches(sel) if sel is not None else None
     sub = (slice(y0 - ey0, y1 - ey0), slice(x0 - ex0, x1 - ex0))
-    m, edge = m[sub], edge[sub] & (m[sub] != 0)
+    m, lit, edge, outer = m[sub], lit[sub], edge[sub] & lit[sub], outer[sub]
     lut = light_color_lut()
-    ids = np.clip(m, 0, MAX_ID)
-    rgb = lut[ids]
-    alpha = np.where(m != 0, fill_alpha, 0).astype(np.uint8)
-    if selected:
-        sel = np.isin(m, np.fromiter(selected, np.int64))
-        alpha[sel] = min(255, fill_alpha + 70)
-        rgb[edge & sel] = 255
+    rgb = lut[np.clip(m, 0, MAX_ID)]
+    alpha = np.where(lit, fill_alpha, 0).astype(np.uint8)
+    rgb[edge] = OUTLINE_DARK
     alpha[edge] = 255
+    rgb[outer] = OUTLINE_LIGHT
+    alpha[outer] = OUTER_ALPHA
+    if sel is not None:
+        sel, outer_sel = sel[sub], outer_sel[sub]
+        alpha[sel] = min(255, fill_alpha + 70)
+        rgb[edge & sel] = SELECTED_INNER
+        alpha[edge & sel] = 255
+        rgb[outer_sel] = SELECTED_OUTER
+        alpha[outer_sel] = 255
     region = out[y0:y1, x0:x1]
     region[..., :3] = rgb
     region[..., 3] = alpha

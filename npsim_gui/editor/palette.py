@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QEvent, Qt, Signal
 from PySide6.QtGui import QColor, QIcon, QPixmap
-from PySide6.QtWidgets import (QAbstractItemView, QButtonGroup, QGridLayout, QLabel, QSizePolicy, QToolButton,
-                               QTreeWidget, QTreeWidgetItem, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QAbstractItemView, QButtonGroup, QGridLayout, QLabel, QLineEdit, QSizePolicy,
+                               QToolButton, QTreeWidget, QTreeWidgetItem, QVBoxLayout, QWidget)
 
-from npsim_core.annotation import LightAnnotation, class_of
+from npsim_core.annotation import LightAnnotation, class_of, is_group_class
 from npsim_core.labels import light_class, light_classes
 
 from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS
@@ -19,15 +19,37 @@ def swatch(color, size: int = 12) -> QIcon:
     return QIcon(pm)
 
 
-class ClassPalette(QWidget):
-    """Buttons for the 12 light classes (by category) and the 9 group classes.
+class _FilterEdit(QLineEdit):
+    """The class filter: Esc clears it (instead of the editor's Esc), Return picks the only match."""
 
-    ``lightClassChosen`` / ``groupClassChosen`` fire on clicks; :meth:`set_current`
-    reflects the session without emitting.
+    done = Signal()
+
+    def event(self, ev) -> bool:
+        if ev.type() == QEvent.Type.ShortcutOverride and ev.key() in (Qt.Key.Key_Escape, Qt.Key.Key_Return,
+                                                                       Qt.Key.Key_Enter):
+            ev.accept()  # handled in keyPressEvent, not by the editor's shortcuts
+            return True
+        return super().event(ev)
+
+    def keyPressEvent(self, ev) -> None:  # noqa: N802
+        if ev.key() == Qt.Key.Key_Escape:
+            self.clear()
+            self.done.emit()
+            return
+        super().keyPressEvent(ev)
+
+
+class ClassPalette(QWidget):
+    """A filter box, then buttons for the 12 light classes (by category) and the 9 group classes.
+
+    ``lightClassChosen`` / ``groupClassChosen`` fire on clicks (and on Return in the
+    filter box when one class is left); :meth:`set_current` reflects the session
+    without emitting. ``filterDone`` asks the editor to give the keyboard back to the canvas.
     """
 
     lightClassChosen = Signal(int)
     groupClassChosen = Signal(int)
+    filterDone = Signal()
 
     CATEGORY_TITLES = {"building": "Building", "vehicle": "Vehicle", "object": "Object", "group": "Groups"}
 
@@ -37,9 +59,19 @@ class ClassPalette(QWidget):
         lay.setContentsMargins(0, 0, 0, 0)
         lay.setSpacing(1)
         self.setStyleSheet("QToolButton { padding: 1px 3px; } QToolButton:checked { font-weight: bold; }")
+        self.filter_edit = _FilterEdit()
+        self.filter_edit.setPlaceholderText("filter classes… (Ctrl+F)")
+        self.filter_edit.setClearButtonEnabled(True)
+        self.filter_edit.setToolTip("type part of a class name; Return picks the only match, Esc clears")
+        self.filter_edit.textChanged.connect(self.set_filter)
+        self.filter_edit.returnPressed.connect(self._pick_single)
+        self.filter_edit.done.connect(self.filterDone)
+        lay.addWidget(self.filter_edit)
         self.light_buttons = QButtonGroup(self)
         self.group_buttons = QButtonGroup(self)
         self.buttons: dict[int, QToolButton] = {}
+        self._sections: list[tuple[QLabel, QGridLayout, list[int]]] = []
+        self._names = {c.id: c.name for c in light_classes()}
         for cat in ("building", "vehicle", "object", "group"):
             title = QLabel(f"<b>{self.CATEGORY_TITLES[cat]}</b>")
             title.setContentsMargins(0, 2, 0, 0)
@@ -47,6 +79,7 @@ class ClassPalette(QWidget):
             grid = QGridLayout()
             grid.setSpacing(1)
             classes = [c for c in light_classes() if c.category == cat]
+            self._sections.append((title, grid, [c.id for c in classes]))
             for k, c in enumerate(classes):
                 key = GROUP_CLASS_KEYS.get(c.id) if c.is_group else LIGHT_CLASS_KEYS.get(c.id)
                 b = QToolButton(self)
@@ -65,11 +98,39 @@ class ClassPalette(QWidget):
         self.light_buttons.idClicked.connect(self.lightClassChosen)
         self.group_buttons.idClicked.connect(self.groupClassChosen)
 
-    def set_current(self, light_class_id: int, group_class_id: int) -> None:
+    def set_current(self, light_class_id: int, group_class_id: int | None) -> None:
+        """Check the current light class and group class (None: no group class button checked)."""
         for cid in (light_class_id, group_class_id):
-            b = self.buttons.get(cid)
+            b = self.buttons.get(cid) if cid is not None else None
             if b is not None and not b.isChecked():
                 b.setChecked(True)
+        if group_class_id is None and self.group_buttons.checkedButton() is not None:
+            self.group_buttons.setExclusive(False)  # an exclusive group cannot be left with none checked
+            self.group_buttons.checkedButton().setChecked(False)
+            self.group_buttons.setExclusive(True)
+
+    def set_filter(self, text: str) -> None:
+        """Show only the classes whose name contains ``text`` (case-insensitive); '' shows all."""
+        text = text.strip().lower()
+        for title, grid, ids in self._sections:
+            shown = [cid for cid in ids if text in self._names[cid].lower()]
+            for cid in ids:
+                grid.removeWidget(self.buttons[cid])
+                self.buttons[cid].setVisible(cid in shown)
+            for k, cid in enumerate(shown):  # re-flow the visible buttons, two per row
+                grid.addWidget(self.buttons[cid], k // 2, k % 2)
+            title.setVisible(bool(shown))
+
+    def visible_classes(self) -> list[int]:
+        return [cid for cid, b in self.buttons.items() if not b.isHidden()]
+
+    def _pick_single(self) -> None:
+        shown = self.visible_classes()
+        if len(shown) == 1:
+            cid = shown[0]
+            self.buttons[cid].setChecked(True)
+            (self.groupClassChosen if is_group_class(cid) else self.lightClassChosen).emit(cid)
+            self.filterDone.emit()
 
 
 class InstanceList(QTreeWidget):
@@ -92,8 +153,9 @@ class InstanceList(QTreeWidget):
         self._updating = False
         self.itemSelectionChanged.connect(self._on_selection)
 
-    def rebuild(self, ann: LightAnnotation, selection: set[int], current: int | None) -> None:
-        """Refill from the annotation (cheap: a few hundred rows at most)."""
+    def rebuild(self, ann: LightAnnotation, selection: set[int], current: int | None,
+                active_group: int | None = None) -> None:
+        """Refill from the annotation (cheap: a few hundred rows at most); the active group is bold."""
         self._updating = True
         try:
             self.clear()
@@ -106,6 +168,12 @@ class InstanceList(QTreeWidget):
                                             str(sum(areas.get(m, 0) for m in g.members)), f"{len(g.members)} lights"])
                 gi.setIcon(0, swatch(light_class(class_of(gid)).color))
                 gi.setData(0, Qt.ItemDataRole.UserRole, gid)
+                if gid == active_group:
+                    gi.setText(3, f"{len(g.members)} lights, active")
+                    for c in range(4):
+                        f = gi.font(c)
+                        f.setBold(True)
+                        gi.setFont(c, f)
                 self._items[gid] = gi
                 for m in g.members:
                     grouped[m] = gi

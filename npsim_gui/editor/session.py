@@ -5,22 +5,59 @@ through :meth:`EditorSession.apply` (an :mod:`npsim_core.annotation_ops`
 command on the undo stack) and is announced with ``changed(Change)``.
 Superpixels are computed in a worker thread; ``superpixelsReady`` fires when
 the result for the *current* image and settings arrives (stale results are
-dropped by a generation counter).
+dropped by a generation counter). A job whose session goes away (the editor
+is deleted, or the application quits while it computes) is cancelled: it
+stops before its next step and never emits into a deleted object.
 """
 
 from __future__ import annotations
 
+import threading
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
+from PySide6.QtCore import QCoreApplication, QObject, QRunnable, QThreadPool, Signal
 
-from npsim_core.annotation import (DEFAULT_GROUP_FOR_LIGHT, LightAnnotation, annotation_paths, check_image,
-                                   class_of, discard_recovery, image_checksum, is_light_class, save_annotation,
-                                   write_recovery)
-from npsim_core.annotation_ops import Change, MacroCommand, UndoStack
+from npsim_core.annotation import (GroupInstance, LightAnnotation, annotation_paths, check_image, class_of,
+                                   discard_recovery, image_checksum, is_group_class, is_light_class,
+                                   save_annotation, write_recovery)
+from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack
 from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default_region_size, superpixel_means
+
+#: Default group class per light class (docs/annotation.md "Default groups"). resources/light_classes.json
+#: only gives each light class a category, and the vehicle category holds both car and public-transport
+#: lights, so the table is written here: building windows -> windows_group (13); windows and lamps of
+#: parked and moving vehicles -> car_group (14); window_transport (windows of buses, trams, trains) ->
+#: bus_group (16, the common case in street scenes; train_group is Alt+7). Street lights,
+#: advertisements, clocks and inferred lights stand alone: no default group (Ctrl+G then asks for one).
+DEFAULT_GROUP_CLASS: dict[int, int | None] = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16,
+                                              8: None, 9: None, 10: None, 11: None, 12: None}
+
+
+def default_group_class(light_class_id: int) -> int | None:
+    """The group class preselected for a light class (None: the class is not grouped by default)."""
+    return DEFAULT_GROUP_CLASS.get(int(light_class_id))
+
+
+def join_group(ann: LightAnnotation, group_id: int, lights) -> EditCommand | None:
+    """Command adding existing ``lights`` to group ``group_id`` (they leave any other group; groups
+    emptied by that are removed). None when nothing changes."""
+    g = ann.groups[group_id]
+    add = set(int(i) for i in lights) - set(g.members)
+    if not add:
+        return None
+    before = Structure.of(ann)
+    groups = {}
+    for gid, other in ann.groups.items():
+        members = tuple(m for m in other.members if gid == group_id or m not in add)
+        if gid == group_id:
+            members = tuple(sorted(set(members) | add))
+        if members:
+            groups[gid] = GroupInstance(gid, members)
+    after = Structure(tuple(groups[k] for k in sorted(groups)), before.extra_ids)
+    return EditCommand(f"join {group_id}", None, before, after)
 
 
 class _Bridge(QObject):
@@ -28,20 +65,41 @@ class _Bridge(QObject):
 
 
 class _SuperpixelJob(QRunnable):
-    def __init__(self, bridge: _Bridge, generation: int, image: np.ndarray, key: str, params: SuperpixelParams):
+    """Coarse then fine superpixels in a pool thread. ``cancelled`` (job) and ``closed`` (session gone)
+    are checked before every step; an emit into a bridge deleted meanwhile is dropped silently."""
+
+    def __init__(self, bridge: _Bridge, generation: int, image: np.ndarray, key: str, params: SuperpixelParams,
+                 cancelled: threading.Event, closed: threading.Event):
         super().__init__()
         self.bridge, self.generation, self.image, self.key, self.params = bridge, generation, image, key, params
+        self.cancelled, self.closed = cancelled, closed
+
+    def _stopped(self) -> bool:
+        return self.cancelled.is_set() or self.closed.is_set()
+
+    def _emit(self, payload) -> bool:
+        if self._stopped():
+            return False
+        try:
+            self.bridge.done.emit(self.generation, payload)
+        except RuntimeError:  # "Signal source has been deleted": the editor went away meanwhile
+            self.closed.set()
+            return False
+        return True
 
     def run(self) -> None:
         try:
             # The coarse scale first: the tools can work while the fine one is computed.
             coarse = cached_superpixels(self.image, self.params, self.key)
+            if self._stopped():
+                return
             means = superpixel_means(self.image, coarse)
-            self.bridge.done.emit(self.generation, ("coarse", coarse, means))
+            if not self._emit(("coarse", coarse, means)):
+                return
             fine = cached_superpixels(self.image, self.params.fine(), self.key)
-            self.bridge.done.emit(self.generation, ("fine", fine, None))
+            self._emit(("fine", fine, None))
         except Exception as exc:  # noqa: BLE001 -- reported in the GUI, never kills the worker pool
-            self.bridge.done.emit(self.generation, exc)
+            self._emit(exc)
 
 
 class EditorSession(QObject):
@@ -75,10 +133,23 @@ class EditorSession(QObject):
         self._bridge = _Bridge()
         self._bridge.done.connect(self._on_superpixels)
         self.pool = QThreadPool.globalInstance()
+        # Jobs stop (and never emit) once the session is destroyed or the application quits.
+        self._closed = threading.Event()
+        self._job_cancel = threading.Event()
+        self.destroyed.connect(self._closed.set)
+        app = QCoreApplication.instance()
+        if app is not None:
+            app.aboutToQuit.connect(self._closed.set)
         self.current_class = 1
-        self.group_class = 13
+        #: Group class Ctrl+G uses; None = none chosen (the selected lights' default group is used).
+        self.group_class: int | None = 13
+        #: True when the group class was picked by hand (palette / Alt+1..9) after the last light class.
+        self.group_explicit = False
         self.current_id: int | None = None
         self.selection: set[int] = set()
+        #: Group new lights join while it is set (key A; docs/annotation.md "Groups").
+        self.active_group: int | None = None
+        self._created_run: set[int] = set()  # lights made by consecutive split strokes, kept selected
         self._meta_dirty = False
         self._was_dirty = False
         self._stroke: MacroCommand | None = None
@@ -101,6 +172,8 @@ class EditorSession(QObject):
         self.image_key = image_checksum(image)
         self.current_id = None
         self.selection = set()
+        self.active_group = None
+        self._created_run = set()
         self._meta_dirty = dirty
         self._was_dirty = dirty
         self.readonly_reason = None
@@ -121,7 +194,17 @@ class EditorSession(QObject):
             self.sp_auto_size = False
         self._sp_generation += 1
         self.sp_coarse = self.sp_fine = self.sp_means = self._sp_fine_means = None
-        self.pool.start(_SuperpixelJob(self._bridge, self._sp_generation, self.image, self.image_key, self.sp_params))
+        self._job_cancel.set()  # a previous job skips what it has not started (its result is stale)
+        self._job_cancel = threading.Event()
+        self.pool.start(_SuperpixelJob(self._bridge, self._sp_generation, self.image, self.image_key, self.sp_params,
+                                       self._job_cancel, self._closed))
+
+    def shutdown(self) -> None:
+        """Cancel the background work under way (the editor is closing): the job stops before its next
+        step and emits nothing. A later :meth:`load` or :meth:`request_superpixels` starts afresh.
+        Deleting the session or quitting the application does the same on its own."""
+        self._job_cancel.set()
+        self._sp_generation += 1
 
     def _on_superpixels(self, generation: int, result) -> None:
         if generation != self._sp_generation:
@@ -199,6 +282,9 @@ class EditorSession(QObject):
             if self.current_id is not None and self.current_id not in existing:
                 self.current_id = None
                 self.currentChanged.emit()
+            if self.active_group is not None and self.active_group not in self.ann.groups:
+                self.active_group = None
+                self.currentChanged.emit()
             if self.selection - existing:
                 self.selection &= existing
                 self.selectionChanged.emit()
@@ -209,19 +295,24 @@ class EditorSession(QObject):
 
     # ----------------------------------------------------------------- selection / current
     def set_current_class(self, class_id: int) -> None:
+        """A light class (also preselects its default group class) or a group class (chosen by hand)."""
         if is_light_class(class_id):
             self.current_class = class_id
-            self.group_class = DEFAULT_GROUP_FOR_LIGHT.get(class_id, self.group_class)
+            self.group_class = default_group_class(class_id)
+            self.group_explicit = False
             if self.current_id is not None and class_of(self.current_id) != class_id:
                 self.current_id = None  # the next stroke starts a light of the new class
         else:
             self.group_class = class_id
+            self.group_explicit = True
         self.currentChanged.emit()
 
     def set_current(self, instance_id: int | None) -> None:
         self.current_id = instance_id
         if instance_id is not None and is_light_class(class_of(instance_id)):
             self.current_class = class_of(instance_id)
+            if not self.group_explicit:
+                self.group_class = default_group_class(self.current_class)
         self.currentChanged.emit()
 
     def set_selection(self, ids, *, current: int | None = None) -> None:
@@ -231,6 +322,53 @@ class EditorSession(QObject):
             self.selectionChanged.emit()
         if current is not None:
             self.set_current(current)
+
+    def selected_lights(self) -> set[int]:
+        return {i for i in self.selection if is_light_class(class_of(i))}
+
+    def selected_groups(self) -> set[int]:
+        return {i for i in self.selection if i in self.ann.groups}
+
+    def highlighted(self) -> set[int]:
+        """Lights drawn as selected: the selected lights and the members of the selected groups."""
+        out = self.selected_lights()
+        for g in self.selected_groups():
+            out.update(self.ann.groups[g].members)
+        return out
+
+    def group_class_for(self, lights) -> int | None:
+        """Group class for grouping ``lights``: the one picked by hand, else the most common default
+        group of their classes (None when none of them has one)."""
+        if self.group_explicit and self.group_class is not None:
+            return self.group_class
+        votes = Counter(g for i in lights if (g := default_group_class(class_of(i))) is not None)
+        if not votes:
+            return None
+        best = max(votes.values())
+        return min(g for g, n in votes.items() if n == best)
+
+    def set_active_group(self, group_id: int | None) -> None:
+        """New lights join ``group_id`` while it is active (None ends it)."""
+        if group_id is not None and (group_id not in self.ann.groups or not is_group_class(class_of(group_id))):
+            raise ValueError(f"{group_id} is not a group")
+        if group_id != self.active_group:
+            self.active_group = group_id
+            self.currentChanged.emit()
+            self.selectionChanged.emit()  # the group boxes show which group is active
+
+    def lights_created(self, ids) -> None:
+        """Call after creating lights (inside the same stroke): they join the active group, if any."""
+        if self.active_group is not None and self.active_group in self.ann.groups and ids:
+            self.apply(join_group(self.ann, self.active_group, ids))
+
+    def select_created(self, ids, current: int | None = None) -> None:
+        """Select lights made by a split stroke; consecutive such strokes add up while the selection is
+        left alone (click each window with *one light per region*, then Ctrl+G)."""
+        ids = set(int(i) for i in ids)
+        if self._created_run and self.selection == self._created_run:
+            ids |= self._created_run
+        self._created_run = set(ids)
+        self.set_selection(ids, current=current)
 
     def instance_at(self, x: int, y: int) -> int:
         H, W = self.ann.shape

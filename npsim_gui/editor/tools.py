@@ -4,11 +4,18 @@ The :class:`ToolController` receives mouse events in image coordinates from
 the canvas and turns them into :mod:`npsim_core.annotation_ops` commands on the
 session. One press-drag-release is one undo step.
 
+Selection
+---------
+* Select tool: a click selects the light under the cursor (on no light: clears
+  the selection); Shift+click or Ctrl+click adds/removes it; a drag draws a
+  rubber band and selects every light it touches (Shift/Ctrl: adds them).
+* Group tool: every click adds/removes the light under the cursor; a band adds.
+
 Modifiers (every tool)
 ----------------------
 * right click: make the light under the cursor the current one (select it);
 * Ctrl+click: add/remove the light under the cursor to/from the selection;
-* Shift: remove instead of add (superpixel tool), erase (brush);
+* Shift: remove instead of add (superpixel tool), erase (brush), add/remove (select tool);
 * Alt: use the other superpixel scale (fine instead of coarse, or back when the
   panel's *Fine scale* toggle, key D, is on -- for window managers that take Alt+drag).
 """
@@ -60,6 +67,19 @@ def _mods(event) -> Qt.KeyboardModifier:
     return event.modifiers() if event is not None else Qt.KeyboardModifier.NoModifier
 
 
+def _view_pos(event):
+    """The event's position in the view (screen pixels), or None for synthetic calls."""
+    try:
+        p = event.position()
+        return float(p.x()), float(p.y())
+    except AttributeError:
+        return None
+
+
+#: A select-tool press that moves less than this (screen px, Manhattan) is a click, not a band.
+BAND_THRESHOLD = 4
+
+
 class ToolController:
     """Dispatches canvas mouse events to the active tool."""
 
@@ -74,6 +94,11 @@ class ToolController:
         self._seed: int | None = None
         self._remove = False
         self._target: int | None = None
+        self._band: tuple[float, float, float, float] | None = None  # select drag: image x0, y0, x1, y1
+        self._band_mods = Qt.KeyboardModifier.NoModifier
+        self._band_view: tuple[float, float] | None = None  # press position in the view
+        self._band_moved = False
+        self._band_press_pixel = (0, 0)
 
     # ----------------------------------------------------------------- dispatch
     def press(self, x: float, y: float, event=None) -> None:
@@ -87,9 +112,17 @@ class ToolController:
             if not iid:
                 s.set_current(None)
             return
-        if mods & Qt.KeyboardModifier.ControlModifier or self.tool in (Tool.SELECT, Tool.GROUP):
-            self._select_click(xi, yi, toggle=bool(mods & Qt.KeyboardModifier.ControlModifier)
-                               or self.tool == Tool.GROUP)
+        if self.tool in (Tool.SELECT, Tool.GROUP):
+            # Click or rubber band: decided on release (a click acts then too).
+            self._active = "select"
+            self._band = (x, y, x, y)
+            self._band_mods = mods
+            self._band_view = _view_pos(event)
+            self._band_moved = False
+            self._band_press_pixel = (xi, yi)
+            return
+        if mods & Qt.KeyboardModifier.ControlModifier:
+            self._select_click(xi, yi, toggle=True)
             return
         self._last = (x, y)
         if self.tool == Tool.SUPERPIXEL:
@@ -102,6 +135,15 @@ class ToolController:
             self._fill_click(xi, yi, mods)
 
     def move(self, x: float, y: float, event=None) -> None:
+        if self._active == "select":
+            self._band = self._band[:2] + (x, y)
+            vpos = _view_pos(event)
+            if self._band_view is not None and vpos is not None:
+                moved = abs(vpos[0] - self._band_view[0]) + abs(vpos[1] - self._band_view[1])
+            else:
+                moved = abs(x - self._band[0]) + abs(y - self._band[1])
+            self._band_moved |= moved >= BAND_THRESHOLD
+            return
         if self._active is None or self._last is None:
             return
         # Segments join the pixels the mouse was over (floor of the scene position).
@@ -116,6 +158,11 @@ class ToolController:
         if self._active is None:
             return
         self.move(x, y, event)
+        if self._active == "select":
+            band = self.band_rect()
+            self._active = None
+            self._select_release(band)
+            return
         active, self._active = self._active, None
         if active == "superpixel":
             self._sp_release()
@@ -125,6 +172,18 @@ class ToolController:
     def shows_path(self) -> bool:
         """True while a drag whose effect comes on release is under way (the canvas draws its path)."""
         return self._active == "superpixel" and self._sp_deferred()
+
+    def band_rect(self) -> tuple[int, int, int, int] | None:
+        """The rubber band as an inclusive pixel box (x0, y0, x1, y1), clipped to the image, while one is
+        dragged; None otherwise."""
+        if self._active != "select" or not self._band_moved:
+            return None
+        H, W = self.session.ann.shape
+        ax, ay, bx, by = self._band
+        x0, x1 = sorted((int(np.floor(ax)), int(np.floor(bx))))
+        y0, y1 = sorted((int(np.floor(ay)), int(np.floor(by))))
+        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W - 1, x1), min(H - 1, y1)
+        return (x0, y0, x1, y1) if x0 <= x1 and y0 <= y1 else None
 
     # ----------------------------------------------------------------- helpers
     def _fine(self, mods) -> bool:
@@ -138,9 +197,28 @@ class ToolController:
         if cur is None or class_of(cur) != s.current_class or not is_light_class(class_of(cur)):
             cmd, cur = new_instance(s.ann, s.current_class)
             s.apply(cmd)
+            s.lights_created([cur])  # joins the active group (same undo step: we are inside the stroke)
             s.set_current(cur)
             s.set_selection({cur})
         return cur
+
+    def _select_release(self, band: tuple[int, int, int, int] | None) -> None:
+        """A select/group-tool press ended: a click when ``band`` is None, else a rubber band."""
+        s = self.session
+        mods = self._band_mods
+        add = bool(mods & (Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier)) \
+            or self.tool == Tool.GROUP
+        self._band, self._band_moved = None, False
+        if band is None:  # a click
+            x, y = self._band_press_pixel
+            self._select_click(x, y, toggle=add)
+            return
+        x0, y0, x1, y1 = band
+        ids = {int(i) for i in np.unique(s.ann.instance_map[y0:y1 + 1, x0:x1 + 1]) if i}
+        sel = (s.selection | ids) if add else ids
+        lights = [i for i in ids if is_light_class(class_of(i))]
+        s.set_selection(sel, current=lights[0] if len(lights) == 1 and not add else None)
+        s.message.emit(f"{len(ids)} lights in the box; {len(sel)} selected")
 
     def _select_click(self, x: int, y: int, toggle: bool) -> None:
         s = self.session
@@ -215,8 +293,10 @@ class ToolController:
             cmd, new_ids = split_paint(s.ann, idx, s.current_class, overwrite=self.options.overwrite)
             s.apply(cmd)
             if new_ids:
-                s.set_selection(set(new_ids), current=new_ids[-1])
-                s.message.emit(f"{len(new_ids)} new {s.current_class_name()} lights; Ctrl+G groups them")
+                s.lights_created(new_ids)
+                s.select_created(new_ids, current=new_ids[-1])
+                s.message.emit(f"{len(new_ids)} new {s.current_class_name()} lights, {len(s.selection)} "
+                               "selected; Ctrl+G groups them")
         else:
             s.apply(paint(s.ann, idx, self._target, overwrite=self.options.overwrite))
 

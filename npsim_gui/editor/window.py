@@ -67,7 +67,7 @@ class EditorWindow(QMainWindow):
         f.addSeparator()
         self._menu_action(f, "Quit", "Ctrl+Q", self.close)
         e = mb.addMenu("&Edit")
-        for name in ("undo", "redo", "new", "class", "group", "ungroup", "delete"):
+        for name in ("undo", "redo", "new", "class", "group", "ungroup", "activate", "delete", "escape", "filter"):
             e.addAction(self.editor.actions_by_name[name])
         t = mb.addMenu("&Tools")
         for name, a in self.editor.actions_by_name.items():
@@ -243,6 +243,7 @@ class EditorWindow(QMainWindow):
     def closeEvent(self, event) -> None:  # noqa: N802
         if self.maybe_save("close"):
             self.autosave_timer.stop()
+            self.editor.shutdown()  # a superpixel job still running stops quietly
             event.accept()
         else:
             event.ignore()
