@@ -587,10 +587,15 @@ class MainWindow(QMainWindow):
         if screen is None:
             return
         avail = screen.availableGeometry()
-        if avail.width() < 1900 and self.viewer is not None:
+        self._tabify_right = avail.width() < 1900 and self.viewer is not None
+        self.resize(min(1680, avail.width()), min(1020, avail.height()))
+
+    def showEvent(self, event) -> None:  # noqa: N802 (Qt API)
+        super().showEvent(event)
+        if getattr(self, "_tabify_right", False):  # once, on a laid-out window (earlier leaves a stray tab bar)
+            self._tabify_right = False
             self.tabifyDockWidget(self.viewer_dock, self.render_dock)
             self.render_dock.raise_()
-        self.resize(min(1680, avail.width()), min(1020, avail.height()))
 
     def _restore_layout(self) -> None:
         s = QSettings(ORG, APP)
