@@ -75,7 +75,11 @@ def is_group_class(class_id: int) -> bool:
 
 
 #: The group class a light class naturally belongs to (editor's default for Ctrl+G).
-DEFAULT_GROUP_FOR_LIGHT = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16, 8: 20, 9: 20, 10: 21, 11: 21, 12: 21}
+#: The group class a light of each class goes into by default (docs/annotation.md "Selecting and grouping"):
+#: windows -> windows_group, vehicle lamps and panes -> car_group, transport windows -> bus_group; street
+#: lights, advertisements, clocks and inferred lights are not grouped by default (None).
+DEFAULT_GROUP_FOR_LIGHT: dict[int, int | None] = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16,
+                                                  8: None, 9: None, 10: None, 11: None, 12: None}
 
 
 @dataclass(frozen=True)

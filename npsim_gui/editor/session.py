@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QObject, QRunnable, QThreadPool, Signal
 
-from npsim_core.annotation import (GroupInstance, LightAnnotation, annotation_paths, check_image, class_of,
-                                   discard_recovery, image_checksum, is_group_class, is_light_class,
-                                   save_annotation, write_recovery)
+from npsim_core.annotation import (DEFAULT_GROUP_FOR_LIGHT, GroupInstance, LightAnnotation, annotation_paths,
+                                   check_image, class_of, discard_recovery, image_checksum, is_group_class,
+                                   is_light_class, save_annotation, write_recovery)
 from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack
 from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default_region_size, superpixel_means
 
@@ -32,8 +32,7 @@ from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default
 #: parked and moving vehicles -> car_group (14); window_transport (windows of buses, trams, trains) ->
 #: bus_group (16, the common case in street scenes; train_group is Alt+7). Street lights,
 #: advertisements, clocks and inferred lights stand alone: no default group (Ctrl+G then asks for one).
-DEFAULT_GROUP_CLASS: dict[int, int | None] = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16,
-                                              8: None, 9: None, 10: None, 11: None, 12: None}
+DEFAULT_GROUP_CLASS = DEFAULT_GROUP_FOR_LIGHT  # one table, in the core
 
 
 def default_group_class(light_class_id: int) -> int | None:
