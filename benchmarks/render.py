@@ -3,7 +3,12 @@
 Usage::
 
     python benchmarks/render.py [--quick] [--variants scalar_rgb,llvm_ad_rgb] [--out FILE.md]
+    python -m benchmarks.render --frontier [--sizes 512x256,2048x1024] [--plot docs/img/render_frontier.png]
+    python -m benchmarks.render --defaults [--size 2048x1024]
     npsim bench render [...]
+
+``--frontier`` measures the speed-error frontier of the nights (below, :func:`frontier`);
+``--defaults`` times the chain's defaults end to end (:func:`defaults`). The older tables:
 
 Scene: the synthetic street (ground-truth depth -> Worldsheet grid mesh), one
 fixed night (seed 1). For each Mitsuba variant and resolution it measures
@@ -184,13 +189,37 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="512x256 only")
     ap.add_argument("--variants", default=None, help="comma list (default: scalar_rgb plus llvm_ad_rgb if usable)")
     ap.add_argument("--out", default=None, help="also write the table (markdown) to this file")
-    ap.add_argument("--ref-spp", type=int, default=256, help="spp of the reference renders (default 256)")
+    ap.add_argument("--ref-spp", type=int, default=256,
+                    help="spp of the reference renders (default 256; 4096 with --frontier)")
     ap.add_argument("--triptych", default=None, metavar="PNG",
                     help="only write the day + three nights picture to PNG (e.g. docs/img/night_triptych.png)")
     ap.add_argument("--fast-final", metavar="BUDGET", type=int, default=0,
                     help="only time 2048x1024 finals at 64 spp (scalar_rgb) on a quadtree mesh of about BUDGET "
                          "faces, with one bounce and with direct light only (npsim night --face-budget/--max-depth)")
+    ap.add_argument("--frontier", action="store_true",
+                    help="the speed-error frontier: spp x denoiser x mesh (full, reduced) x path depth (see --sizes)")
+    ap.add_argument("--sizes", default="512x256,2048x1024", help="frontier sizes (default 512x256,2048x1024)")
+    ap.add_argument("--spp", default="4,8,16,64", help="frontier spp (default 4,8,16,64)")
+    ap.add_argument("--denoisers", default="none,guided,oidn",
+                    help="frontier denoisers: none, guided, oidn (default quality), oidn-balanced, oidn-high, "
+                         "oidn-meshguides (OIDN with the rasterised mesh as guides), oidn-noguides")
+    ap.add_argument("--replot", default=None, metavar="JSON",
+                    help="only redraw --plot from the JSON of an earlier --frontier --out run")
+    ap.add_argument("--depths", default="2,3", help="frontier path depths (default 2,3)")
+    ap.add_argument("--cache", default=None, help="folder for the frontier's reference renders (reused when present)")
+    ap.add_argument("--plot", default=None, metavar="PNG", help="frontier plot, e.g. docs/img/render_frontier.png")
+    ap.add_argument("--defaults", action="store_true",
+                    help="time the chain's defaults end to end (final 2048x1024 night, app preview at 512x256)")
+    ap.add_argument("--legacy", action="store_true", help="with --defaults: also the settings before session 3")
     args = ap.parse_args(argv)
+    if args.replot:
+        return replot(args.replot, args.plot or "docs/img/render_frontier.png")
+    if args.frontier:
+        return frontier(args.sizes, [int(v) for v in args.spp.split(",")], args.denoisers.split(","),
+                        [int(v) for v in args.depths.split(",")], 4096 if args.ref_spp == 256 else args.ref_spp,
+                        args.cache, args.out, args.plot)
+    if args.defaults:
+        return defaults(legacy=args.legacy, cache=args.cache)
     if args.fast_final:
         return fast_final(args.fast_final)
     if args.triptych:
@@ -247,6 +276,344 @@ def fast_final(budget: int, size: tuple[int, int] = (2048, 1024), spp: int = 64)
         _, t, c = _timed(lambda: render_final(built, spp=spp, seed=1, max_depth=depth))
         print(f"| {'one bounce' if depth == 3 else 'direct light only'} (max_depth {depth}) | {t:.1f} | {c:.1f} |",
               flush=True)
+    return 0
+
+
+# --------------------------------------------------------------------------- the speed-error frontier
+#: Fixed crops (x, y, w, h as fractions of the frame) where errors are measured on frames larger
+#: than :data:`FULL_FRAME_MAX` pixels: the street centre (far cars and their lamps, lit windows,
+#: the road), a façade with windows on the left, parked cars with lamps on the right.
+CROPS = ((0.4375, 0.33, 0.125, 0.125), (0.03, 0.26, 0.125, 0.125), (0.72, 0.40, 0.125, 0.125))
+FULL_FRAME_MAX = 512 * 256
+#: Samples per pixel per Mitsuba call (bounds the wavefront's memory), as the chain's finals do.
+PASS_SPP = 16
+
+
+def _srgb(img: np.ndarray) -> np.ndarray:
+    from npsim_core.render.camera_post import linear_to_srgb
+
+    return linear_to_srgb(img) * 255.0
+
+
+def ssim(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean SSIM (Wang et al. 2004: 11x11 Gaussian window, σ 1.5, K = 0.01, 0.03) of two linear
+    renders seen as 8-bit sRGB (exposure 0, no camera noise), averaged over the three channels."""
+    import cv2
+
+    x, y = _srgb(a).astype(np.float64), _srgb(b).astype(np.float64)
+    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
+
+    def g(z):
+        return cv2.GaussianBlur(z, (11, 11), 1.5)
+
+    mx, my = g(x), g(y)
+    vx, vy, cxy = g(x * x) - mx * mx, g(y * y) - my * my, g(x * y) - mx * my
+    m = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
+    return float(m[5:-5, 5:-5].mean())
+
+
+def _crops(W: int, H: int) -> list[tuple[int, int, int, int]] | None:
+    if W * H <= FULL_FRAME_MAX:
+        return None
+    return [(int(fx * W), int(fy * H), int(fw * W), int(fh * H)) for fx, fy, fw, fh in CROPS]
+
+
+def _cut(img: np.ndarray, crops) -> list[np.ndarray]:
+    return [img] if crops is None else [img[y:y + h, x:x + w] for x, y, w, h in crops]
+
+
+def _render(built, spp: int, seed: int, max_depth: int, crop=None) -> np.ndarray:
+    """Mean of ``spp`` samples in calls of at most :data:`PASS_SPP` (distinct seeds)."""
+    from npsim_core.render.render import render_linear
+
+    per = PASS_SPP if crop is None else 8 * PASS_SPP
+    acc, done, k = None, 0, 0
+    while done < spp:
+        n = min(per, spp - done)
+        img = render_linear(built, spp=n, seed=seed * 100003 + k, max_depth=max_depth, crop=crop) * n
+        acc = img if acc is None else acc + img
+        done, k = done + n, k + 1
+    return acc / spp
+
+
+def _reference(built, W: int, H: int, crops, ref_spp: int, cache: Path | None, log):
+    """Two independent one-bounce renders of ``ref_spp / 2`` samples each on the full mesh (the
+    frame, or each crop). Their mean is the reference; a quarter of their mean squared sRGB difference
+    estimates the reference's own error variance. Cached in ``cache`` (npz) when given."""
+    name = f"ref_{W}x{H}_{ref_spp}spp_{'full' if crops is None else 'crops'}.npz"
+    if cache is not None and (cache / name).exists():
+        z = np.load(cache / name)
+        log(f"  reference from {cache / name}")
+        return [z[f"a{i}"] for i in range(len(z.files) // 2)], [z[f"b{i}"] for i in range(len(z.files) // 2)], 0.0
+    t0 = time.perf_counter()
+    a, b = [], []
+    for crop in (crops or [None]):
+        a.append(_render(built, ref_spp // 2, 9001, 3, crop))
+        b.append(_render(built, ref_spp // 2, 9002, 3, crop))
+        log(f"  reference part {len(a)}: {time.perf_counter() - t0:.0f} s")
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        np.savez(cache / name, **{f"a{i}": x for i, x in enumerate(a)}, **{f"b{i}": x for i, x in enumerate(b)})
+    return a, b, time.perf_counter() - t0
+
+
+def _errors(img: np.ndarray, crops, ref: list[np.ndarray], ref_var: float) -> tuple[float, float, float]:
+    """(RMSE in sRGB levels, the same with the reference's own variance taken out, mean SSIM)."""
+    parts = _cut(img, crops)
+    mse = float(np.mean(np.concatenate([((_srgb(p) - _srgb(r)) ** 2).ravel() for p, r in zip(parts, ref)])))
+    return (float(np.sqrt(mse)), float(np.sqrt(max(mse - ref_var, 0.0))),
+            float(np.mean([ssim(p, r) for p, r in zip(parts, ref)])))
+
+
+#: Denoiser specs of the frontier: the chain's three, OIDN's other presets, and OIDN fed with the
+#: mesh rasterised through pixel centres instead of Mitsuba's AOVs, or with no guides at all.
+DENOISER_SPECS = ("none", "guided", "oidn", "oidn-balanced", "oidn-high", "oidn-meshguides", "oidn-noguides")
+
+
+def _denoise_params(spec: str):
+    """A spec of :data:`DENOISER_SPECS` -> (denoiser, DenoiseParams, which guides: aov, mesh or none)."""
+    from dataclasses import replace
+
+    from npsim_core.chain import ChainParams
+
+    if spec not in DENOISER_SPECS:
+        raise SystemExit(f"unknown denoiser {spec!r}; choose from {', '.join(DENOISER_SPECS)}")
+    base = ChainParams().denoise
+    if spec in ("oidn-meshguides", "oidn-noguides"):
+        return "oidn", base, spec[5:-6]
+    if spec.startswith("oidn-"):
+        return "oidn", replace(base, oidn_quality=spec.split("-", 1)[1]), "aov"
+    return spec, base, {"oidn": "aov", "guided": "mesh", "none": "none"}[spec]
+
+
+def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: Path | None, log,
+                  tolerance: float = 0.01) -> tuple[list[dict], dict]:
+    """The frontier at one size on the synthetic street (see :func:`frontier`); returns rows and facts."""
+    from npsim_core.chain import Chain, ChainParams
+    from npsim_core.chain.stages import light_table, render_mesh
+    from npsim_core.render.denoise import denoise_guides, denoise_night
+    from npsim_core.render.render import render_guides, render_linear
+    from npsim_core.render.scene_builder import BuildParams, build_scene
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W, H)
+    chain = Chain(s)
+    params = ChainParams().with_value("night", "seed", 1)
+    res, t_chain, _ = _timed(lambda: chain.compute(params))
+    mats = chain.engine.run("materials", params).results["materials"]
+    prot = mats.light_classes > 0
+    table = light_table(params.night)
+    active = chain.activate(params)
+    bp = BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch)
+    (reduced, what), t_red, _ = _timed(lambda: render_mesh(res.mesh_result, tolerance))
+    facts = {"size": f"{W}x{H}", "mesh_s": t_chain, "reduce_s": t_red, "faces": {}, "build_s": {}, "guides_s": {},
+             "load_start": os.getloadavg()[0]}
+    log(f"{W}x{H}: chain {t_chain:.1f} s, full mesh {res.mesh.n_faces} faces, reduced {reduced.n_faces} "
+        f"({what}, {t_red:.1f} s)")
+    built, aov = {}, {}
+    for name, mesh in (("full", res.mesh), ("reduced", reduced)):
+        b, t, _ = _timed(lambda: build_scene(mesh, res.intrinsics, mats.materials, table, chain.annotation, active,
+                                             bp))
+        for d in depths:  # compile the kernels before timing
+            render_linear(b, spp=1, max_depth=d)
+        g, tg, _ = _timed(lambda: render_guides(b, s.labels, prot))
+        built[name], aov[name] = b, g
+        facts["faces"][name], facts["build_s"][name], facts["guides_s"][f"aov {name}"] = mesh.n_faces, t, tg
+        log(f"  {name}: build {t:.1f} s, AOV guides {tg:.2f} s, variant {b.variant}")
+    raster, tg, _ = _timed(lambda: denoise_guides(res.mesh, res.intrinsics, mats.materials.albedo, s.labels, prot))
+    facts["guides_s"]["mesh raster"] = tg
+    facts["variant"] = built["full"].variant
+    crops = _crops(W, H)
+    a, b, t_ref = _reference(built["full"], W, H, crops, ref_spp, cache, log)
+    ref = [(x + y) / 2 for x, y in zip(a, b)]
+    ref_var = float(np.mean(np.concatenate([((_srgb(x) - _srgb(y)) ** 2).ravel() for x, y in zip(a, b)]))) / 4
+    facts.update(ref_spp=ref_spp, ref_s=t_ref, ref_rmse=float(np.sqrt(ref_var)), crops=crops)
+    log(f"  reference {ref_spp} spp: own RMSE about {np.sqrt(ref_var):.2f} levels")
+    rows = []
+    for name in ("full", "reduced"):
+        for depth in depths:
+            for spp in spps:
+                img, t_r, _ = _timed(lambda: _render(built[name], spp, 17 * spp + depth, depth))
+                for spec in denoisers:
+                    dn, dp, kind = _denoise_params(spec)
+                    g = {"none": None, "mesh": raster, "aov": aov[name]}[kind]
+                    out, t_d, _ = _timed(lambda: denoise_night(img, g, dp, prot, denoiser=dn))
+                    rmse, rmse_c, ss = _errors(out, crops, ref, ref_var)
+                    rows.append({"size": f"{W}x{H}", "mesh": name, "faces": facts["faces"][name], "depth": depth,
+                                 "spp": spp, "denoiser": spec, "render": t_r, "denoise": t_d, "total": t_r + t_d,
+                                 "rmse": rmse, "rmse_c": rmse_c, "ssim": ss, "load": os.getloadavg()[0]})
+                    log(f"  {name} depth {depth} {spp:3d} spp {spec:13s} render {t_r:6.1f} s + {t_d:5.2f} s  "
+                        f"RMSE {rmse:6.2f} ({rmse_c:6.2f})  SSIM {ss:.3f}  load {rows[-1]['load']:.1f}")
+    facts["load_end"] = os.getloadavg()[0]
+    return rows, facts
+
+
+def format_frontier(rows: list[dict], facts: list[dict]) -> str:
+    out = []
+    for f in facts:
+        out.append(f"{f['size']} ({f['variant']}): full mesh {f['faces']['full']} faces, reduced "
+                   f"{f['faces']['reduced']} (reduction {f['reduce_s']:.1f} s); scene build "
+                   f"{f['build_s']['full']:.1f} s full / {f['build_s']['reduced']:.1f} s reduced; guides "
+                   + ", ".join(f"{k} {v:.2f} s" for k, v in f["guides_s"].items())
+                   + f"; reference {f['ref_spp']} spp on the full mesh, one bounce"
+                   + ("" if f["crops"] is None else f", on the crops {f['crops']}")
+                   + f" (its own RMSE about {f['ref_rmse']:.2f} levels); load {f['load_start']:.1f} at the "
+                   f"start, {f['load_end']:.1f} at the end")
+    out += ["", "| size | mesh | depth | spp | denoiser | render s | denoise s | total s | RMSE | RMSE* | SSIM | load |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['size']} | {r['mesh']} | {r['depth']} | {r['spp']} | {r['denoiser']} | {r['render']:.2f} | "
+                   f"{r['denoise']:.2f} | {r['total']:.2f} | {r['rmse']:.2f} | {r['rmse_c']:.2f} | {r['ssim']:.3f} | "
+                   f"{r['load']:.1f} |")
+    out += ["", "RMSE in 8-bit sRGB levels (exposure 0, no camera noise); RMSE* the same with the reference's own "
+                "noise variance subtracted; total = render + denoise (scene build and guides are per scene, above)."]
+    return "\n".join(out)
+
+
+def plot_frontier(rows: list[dict], facts: list[dict], path: str, baseline=("full", 3, 64, "guided"),
+                  chosen=("full", 3, 16, "oidn")) -> None:
+    """Error against time, one panel per size: colour = denoiser, marker = mesh, line = path depth;
+    the settings before session 3 (``baseline``) as a dotted line, the chosen defaults as a star."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sizes = list(dict.fromkeys(r["size"] for r in rows))
+    fig, axes = plt.subplots(1, len(sizes), figsize=(6.5 * len(sizes), 6.0), squeeze=False)
+    colours = {"none": "tab:grey", "guided": "tab:blue", "oidn": "tab:red", "oidn-balanced": "tab:orange",
+               "oidn-high": "tab:purple", "oidn-meshguides": "tab:green", "oidn-noguides": "tab:brown"}
+    for ax, size, f in zip(axes[0], sizes, facts):
+        sub = [r for r in rows if r["size"] == size]
+        for key in dict.fromkeys((r["denoiser"], r["mesh"], r["depth"]) for r in sub):
+            pts = sorted((r for r in sub if (r["denoiser"], r["mesh"], r["depth"]) == key), key=lambda r: r["spp"])
+            ax.plot([r["total"] for r in pts], [r["rmse"] for r in pts], marker="o" if key[1] == "full" else "s",
+                    linestyle="-" if key[2] == 3 else "--", color=colours.get(key[0], "k"),
+                    mfc="none" if key[1] == "reduced" else None,
+                    label=f"{key[0]}, {key[1]} mesh, {'one bounce' if key[2] == 3 else 'direct'}")
+            for r in pts:
+                if key == ("oidn", "full", 3):
+                    ax.annotate(f"{r['spp']} spp", (r["total"], r["rmse"]), textcoords="offset points",
+                                xytext=(3, -10), fontsize=7)
+        base = [r for r in sub if (r["mesh"], r["depth"], r["spp"], r["denoiser"]) == baseline]
+        if base:
+            ax.axhline(base[0]["rmse"], color="tab:blue", linestyle=":", linewidth=1)
+            ax.text(0.01, base[0]["rmse"], " before: 64 spp, full mesh, one bounce, guided filter", fontsize=7,
+                    color="tab:blue", va="bottom", transform=ax.get_yaxis_transform())
+        star = [r for r in sub if (r["mesh"], r["depth"], r["spp"], r["denoiser"]) == chosen]
+        if star:
+            ax.plot([star[0]["total"]], [star[0]["rmse"]], marker="*", markersize=16, color="gold", mec="k",
+                    linestyle="none", zorder=5, label="chosen default")
+        ax.set_xscale("log")
+        ax.set_xlabel("render + denoise, s (log)")
+        ax.set_ylabel("RMSE, 8-bit sRGB levels" + ("" if f["crops"] is None else " (3 fixed crops)"))
+        ax.set_title(f"{size}, {f['variant']}, load {f['load_start']:.1f}-{f['load_end']:.1f}", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.suptitle("Night renders: error against a 4096-spp reference vs render + denoise time "
+                 "(labels: spp of OIDN, full mesh, one bounce)", fontsize=10)
+    fig.tight_layout(rect=(0, 0.16, 1, 1))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def frontier(argv_sizes: str, spps, denoisers, depths, ref_spp: int, cache: str | None, out: str | None,
+             plot: str | None) -> int:
+    """RMSE and SSIM against a high-spp one-bounce reference on the full mesh, over spp x denoiser x
+    mesh (full, error-bounded reduction) x path depth (direct light, one bounce) (docs/relight.md)."""
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    rows, facts = [], []
+    for size in argv_sizes.split(","):
+        W, H = (int(v) for v in size.lower().split("x"))
+        r, f = frontier_size(W, H, spps, denoisers, depths, ref_spp, Path(cache) if cache else None, log)
+        rows += r
+        facts.append(f)
+        if plot:
+            plot_frontier(rows, facts, plot)
+    head = f"Night speed-error frontier ({time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} cores)"
+    text = head + "\n\n" + format_frontier(rows, facts)
+    print(text)
+    if out:
+        import json
+
+        Path(out).write_text(text + "\n")
+        Path(out).with_suffix(".json").write_text(json.dumps({"rows": rows, "facts": facts}, indent=1))
+    return 0
+
+
+def replot(json_path: str, plot: str) -> int:
+    """Redraw the frontier plot from the JSON a ``--frontier --out FILE.md`` run wrote next to FILE.md."""
+    import json
+
+    doc = json.loads(Path(json_path).read_text())
+    plot_frontier(doc["rows"], doc["facts"], plot)
+    return 0
+
+
+def defaults(size: tuple[int, int] = (2048, 1024), preview: tuple[int, int] = (512, 256), legacy: bool = False,
+             cache: str | None = None) -> int:
+    """Time the chain's defaults end to end on the synthetic street: a final night at ``size`` (scene
+    build, guides, render, denoise, camera; the mesh before it is not counted) and the app's preview
+    of a ``preview``-sized frame at preview scale 1 (first denoised frame, cold after the mesh and
+    warm after a new seed). ``legacy`` also times the settings before session 3 (64 spp, full
+    mesh, guided filter). With ``cache`` and a cached reference of that size, errors are printed."""
+    from npsim_core.chain import Chain, ChainParams
+    from npsim_core.render.denoise import denoise_night
+    from npsim_core.synthetic import street_scene
+
+    def report(label, chain, res, params):
+        load0 = os.getloadavg()[0]
+        frame = chain.night_final(res, params, seed=1)
+        second = chain.night_final(res, params, seed=2)
+        t = frame.timings
+        print(f"| {label} | {frame.faces} | {params.night.final_spp} | {params.night.final_max_depth} | "
+              f"{frame.denoiser} | {t['night_inputs']:.1f} | {t['render']:.1f} | {t['denoise']:.2f} | "
+              f"{t['camera']:.2f} | {frame.elapsed:.1f} | {second.elapsed:.1f} | {load0:.1f} |", flush=True)
+        W, H = size
+        name = Path(cache or ".") / f"ref_{W}x{H}_4096spp_{'full' if _crops(W, H) is None else 'crops'}.npz"
+        if cache and name.exists():
+            z = np.load(name)
+            n = len(z.files) // 2
+            a, b = [z[f"a{i}"] for i in range(n)], [z[f"b{i}"] for i in range(n)]
+            ref = [(x + y) / 2 for x, y in zip(a, b)]
+            var = float(np.mean(np.concatenate([((_srgb(x) - _srgb(y)) ** 2).ravel() for x, y in zip(a, b)]))) / 4
+            _, guides, mats, _ = chain.night_inputs(params)
+            clean = denoise_night(frame.linear, guides, params.denoise, mats.light_classes > 0,
+                                  denoiser=frame.denoiser)
+            e = _errors(clean, _crops(W, H), ref, var)
+            print(f"|   error of that night | RMSE {e[0]:.2f} (RMSE* {e[1]:.2f}), SSIM {e[2]:.3f} |", flush=True)
+
+    s = street_scene(*size)
+    chain = Chain(s)
+    params = ChainParams()
+    res, t, _ = _timed(lambda: chain.compute(params))
+    print(f"final night at {size[0]}x{size[1]} (synthetic street; mesh {t:.1f} s before, not counted)")
+    print("| settings | faces rendered | spp | depth | denoiser | build + guides s | render s | denoise s | camera s "
+          "| night s | next night s | load |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    report("defaults", chain, res, params)
+    if legacy:
+        old = params.with_sets(["mesh.render_tolerance=0", "night.denoiser=guided", "night.final_spp=64",
+                                "night.final_max_depth=3"])
+        report("before (64 spp, full mesh, guided)", chain, res, old)
+    s = street_scene(*preview)
+    chain = Chain(s)
+    params = ChainParams().with_value("night", "preview_scale", 1.0)
+    res = chain.compute(params)
+    print(f"\napp preview of a {preview[0]}x{preview[1]} frame at scale 1 (film {preview[0]}x{preview[1]})")
+    print("| run | first frame spp | first denoised frame s | last frame spp | last frame s | load |")
+    print("|---|---|---|---|---|---|")
+    for label, p in (("cold (scene build + guides)", params), ("warm (new seed)", params.with_value("night", "seed", 7)),
+                     ("warm (another seed)", params.with_value("night", "seed", 8))):
+        load0 = os.getloadavg()[0]
+        frames = []
+        t0 = time.perf_counter()
+        for f in chain.night_preview(res, p):
+            frames.append((f.spp, time.perf_counter() - t0))
+        print(f"| {label} | {frames[0][0]} | {frames[0][1]:.2f} | {frames[-1][0]} | {frames[-1][1]:.2f} | "
+              f"{load0:.1f} |", flush=True)
     return 0
 
 

@@ -44,7 +44,7 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> None:
-    """--params, --preset, --set, --seed, --spp, --fov (and --nights when ``nights`` is not None)."""
+    """--params, --preset, --set, --seed, --spp, --denoiser, --fov (and --nights when ``nights`` is not None)."""
     p.add_argument("--params", help="JSON file of parameters (a project.json 'params', an export manifest, "
                                     "or the sections themselves)")
     p.add_argument("--preset", choices=["appendix_b", "section_3_4_3"], help="λ preset (default appendix_b)")
@@ -54,7 +54,11 @@ def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> 
     if nights is not None:
         p.add_argument("--nights", type=int, default=nights, help=f"number of night images (default {nights})")
     p.add_argument("--seed", type=int, default=None, help="seed of the first night (night k uses seed+k)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel of the nights (default 64)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel of the nights (default 16)")
+    p.add_argument("--denoiser", choices=["oidn", "guided", "none"], default=None,
+                   help="Monte Carlo denoiser of the nights: oidn (Intel Open Image Denoise with albedo/normal "
+                        "guides, default), guided (the mesh-guided à-trous filter; strengths --set denoise.FIELD=V) "
+                        "or none (night.denoiser)")
     p.add_argument("--fov", type=float, default=None, help="horizontal field of view in degrees (overrides intrinsics)")
     p.add_argument("--depth", dest="depth_source", choices=DEPTH_SOURCES, default=None,
                    help="input depth per frame: auto (default: the frame's own depth file, else the dataset's stereo, "
@@ -83,6 +87,10 @@ def params_from_args(args: argparse.Namespace) -> ChainParams:
         if args.spp < 1:
             raise NpsimInputError(f"--spp must be >= 1, got {args.spp}")
         params = params.with_value("night", "final_spp", int(args.spp))
+    if getattr(args, "denoiser", None):
+        params = params.with_value("night", "denoiser", args.denoiser)
+        if args.denoiser != "none":  # an explicit choice switches denoising on
+            params = params.with_value("night", "denoise", True)
     if args.fov is not None:
         if not 0 < args.fov < 180:
             raise NpsimInputError(f"--fov must be a horizontal field of view in (0, 180) degrees, got {args.fov}")

@@ -36,8 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--group-all-together", action="store_true", help="each light group switches as one")
     p.add_argument("--motion-blur", type=int, default=None, help="horizontal blur (px) of moving vehicles")
     p.add_argument("--no-denoise", action="store_true",
-                   help="keep the Monte Carlo noise (default: filtered, guided by the mesh's depth, normals and "
-                        "labels; strengths: --set denoise.FIELD=VALUE)")
+                   help="keep the Monte Carlo noise (same as --denoiser none; default: --denoiser oidn)")
     p.add_argument("--light-table", default=None, help="user light table JSON merged over the default")
     p.add_argument("--mesh", choices=["auto", "grid"], default="auto",
                    help="auto: refined depth + post-processed mesh (full chain); grid: plain grid mesh of the "
@@ -47,7 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-depth", type=int, default=None, choices=[2, 3, 4],
                    help="path length: 2 = direct light only (fast), 3 = one bounce (default), 4 = two")
     p.add_argument("--face-budget", type=int, default=None,
-                   help="render a quadtree-reduced mesh of about this many faces (0 = full mesh)")
+                   help="reduce the chain's mesh to about this many faces (0 = no budget; the nights are rendered "
+                        "from the mesh reduced within mesh.render_tolerance of the full mesh's depth anyway)")
     add_param_options(p, nights=None)
     p.set_defaults(func=run)
 

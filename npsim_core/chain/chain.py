@@ -92,7 +92,8 @@ class ChainResults:
 @dataclass
 class NightFrame:
     """A night: 8-bit sRGB ``image``, the ``linear`` render, ``spp`` so far, ``elapsed`` seconds,
-    the Mitsuba ``variant``, the light states ``active`` and per-step ``timings`` (s)."""
+    the Mitsuba ``variant``, the light states ``active``, per-step ``timings`` (s), the
+    ``denoiser`` that ran (``oidn``, ``guided`` or ``none``) and the rendered mesh's ``faces``."""
 
     image: np.ndarray
     linear: np.ndarray
@@ -101,6 +102,8 @@ class NightFrame:
     variant: str
     active: Any = None
     timings: dict[str, float] = field(default_factory=dict)
+    denoiser: str = ""
+    faces: int = 0
 
 
 class Chain:
@@ -178,8 +181,9 @@ class Chain:
 
     # ------------------------------------------------------------------ night
     def night_inputs(self, params: ChainParams, *, cancel=None, progress: ProgressFn = None):
-        """(built Mitsuba scene, denoise guides or None, materials result), built once per mesh."""
-        targets = ("night_scene", "materials") + (("guides",) if params.night.denoise else ())
+        """(built Mitsuba scene, denoise guides or None, materials result, the engine run), built once
+        per mesh (the guides once per mesh and denoiser)."""
+        targets = ("night_scene", "materials") + (("guides",) if params.night.denoiser_used != "none" else ())
         with self._lock:
             run = self.engine.run(targets, params, cancel=cancel, progress=_progress_adapter(progress))
         built = run.results["night_scene"]
@@ -196,17 +200,19 @@ class Chain:
 
     def finish(self, linear: np.ndarray, params: ChainParams, guides, materials, *,
                labels: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, float]]:
-        """Linear render -> denoised (docs/method.md §6.5) -> camera -> 8-bit sRGB; returns it and the
-        seconds of each step."""
+        """Linear render -> denoised by ``night.denoiser_used`` (docs/method.md §6.5) -> camera ->
+        8-bit sRGB; returns it and the seconds of each step."""
         from ..render.camera_post import CameraParams, apply_camera
         from ..render.denoise import denoise_night
 
         n = params.night
         t0 = time.perf_counter()
-        clean = denoise_night(linear, guides if n.denoise else None, params.denoise, materials.light_classes > 0)
+        used = n.denoiser_used
+        clean = denoise_night(linear, guides if used != "none" else None, params.denoise,
+                              materials.light_classes > 0, denoiser=used)
         t1 = time.perf_counter()
         cam = CameraParams(exposure_ev=n.exposure, iso=(n.iso or None) if n.noise else None, seed=n.seed,
-                           motion_blur_px=int(n.motion_blur_px))
+                           motion_blur_px=int(n.motion_blur_px), bloom=float(n.bloom))
         same = labels is not None and labels.shape == clean.shape[:2]
         srgb, _ = apply_camera(clean, cam, labels=labels if same else None,
                                light_classes=materials.light_classes if same else None)
@@ -225,10 +231,11 @@ class Chain:
         n = params.night
         first = min(4, int(n.spp))  # a quick first frame, then the rest in one pass
         pp = PreviewParams(scale=n.preview_scale, schedule=(first,) + ((int(n.spp) - first,) if n.spp > first else ()),
-                           seed=n.seed)
+                           seed=n.seed, max_depth=int(n.preview_max_depth))
         for frame in render_preview(built, pp, cancel=cancel):
             srgb, tm = self.finish(frame.image, params, guides, mats)
-            yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm)
+            yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm,
+                             n.denoiser_used, built.n_faces)
 
     def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
                     cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
@@ -249,7 +256,8 @@ class Chain:
         t3 = time.perf_counter()
         srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
-        return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings)
+        return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings,
+                          n.denoiser_used, built.n_faces)
 
 
 def _progress_adapter(progress: ProgressFn):

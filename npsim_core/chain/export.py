@@ -273,6 +273,10 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         on = len(frame.active.on_ids)
         built = chain.night_inputs(params)[0]
         nights_info.append({"night": k, "seed": seed, "spp": frame.spp, "variant": frame.variant,
+                            "denoiser": frame.denoiser,
+                            "denoiser_quality": (params.denoise.oidn_quality if frame.denoiser == "oidn" else ""),
+                            "max_depth": int(params.night.final_max_depth), "render_faces": frame.faces,
+                            "render_mesh": built.info.get("render_mesh", ""),
                             "lights_on": on, "lights": len(frame.active.lights),
                             "lights_without_faces": sorted(int(i) for i in set(frame.active.lights)
                                                            - set(built.area_keys)),

@@ -2,8 +2,8 @@
 
 Data flow (names are the engine's; ``frame`` and ``annotation`` are sources)::
 
-    frame ─► geometry ─► filter ─► uncertain ─► refine ─► mesh ─► night_scene
-                │                       │                  │  └─► guides
+    frame ─► geometry ─► filter ─► uncertain ─► refine ─► mesh ─► night_scene ─► guides (oidn: AOVs)
+                │                       │                  │  └─► guides (guided: the mesh)
     annotation ─┴──────────► materials ─┴──────────────────┘
 
 ``geometry`` gives the camera and the input depth and normals (the frame's own, or the
@@ -31,7 +31,8 @@ from .params import ChainParams
 
 __all__ = ["GeometryResult", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
            "uncertain_stage", "refine_stage", "mesh_stage", "materials_stage", "night_scene_stage",
-           "guides_stage", "removed_faces", "light_table", "mesh_needs", "input_geometry"]
+           "guides_stage", "guides_needs", "render_mesh", "removed_faces", "light_table", "mesh_needs",
+           "input_geometry"]
 
 
 # --------------------------------------------------------------------------- results
@@ -244,11 +245,25 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
     return MaterialsResult(mats, light_cls)
 
 
+def render_mesh(m: MeshResult, tolerance: float) -> tuple[SceneMesh, str]:
+    """The mesh the nights are rendered from: the quadtree reduction of the post-processed sheets
+    within ``tolerance`` (relative depth, ``mesh.render_tolerance``) of the full mesh; the mesh
+    itself when ``tolerance`` is 0, it was reduced to a face budget already or has no sheets.
+    Returns (mesh, what it is)."""
+    if not tolerance or m.layers is None or m.reduced:
+        return m.mesh, "the chain's mesh" + (f" (face budget, {m.reduced})" if m.reduced else "")
+    from ..mesh.reduce import ReduceParams, reduce_mesh
+
+    red = reduce_mesh(m.layers, m.intrinsics, ReduceParams(tol=float(tolerance)))
+    return red.mesh, f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
+
+
 def night_scene_stage(inputs: dict, params, ctx):
-    """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place)."""
+    """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place), from the
+    error-bounded reduction of the mesh (:func:`render_mesh`)."""
     from ..render.scene_builder import BuildParams, build_scene
 
-    light_table_path, variant = params
+    light_table_path, variant, tolerance = params
     m: MeshResult = inputs["mesh"]
     s = inputs["geometry"].scene
     if m.mesh.width != s.width or m.mesh.height != s.height:
@@ -261,16 +276,38 @@ def night_scene_stage(inputs: dict, params, ctx):
 
     table = light_table(NightParams(light_table=light_table_path))
     bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch)
-    return build_scene(m.mesh, m.intrinsics, inputs["materials"].materials, table, inputs.get("annotation"), None,
-                       bp, variant=variant or None)
+    t0 = time.perf_counter()
+    mesh, what = render_mesh(m, tolerance)
+    t_reduce = time.perf_counter() - t0
+    ctx.cancel()
+    built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs.get("annotation"), None,
+                        bp, variant=variant or None)
+    built.info.update(render_mesh=what, full_mesh_faces=int(m.mesh.n_faces), reduce_s=round(t_reduce, 3))
+    return built
+
+
+def guides_needs(params: ChainParams) -> tuple[str, ...]:
+    """What the denoising guides read: the mesh for the guided filter, the night scene's AOVs for
+    OIDN, nothing without a denoiser."""
+    return {"guided": ("frame", "mesh", "materials"), "oidn": ("frame", "materials", "night_scene"),
+            "none": ()}[params.night.denoiser_used]
 
 
 def guides_stage(inputs: dict, params, ctx):
-    """Denoising guides: albedo, and the mesh's depth, normal and label seen through each pixel."""
+    """Denoising guides for the denoiser ``params`` (``night.denoiser_used``): for ``guided`` the
+    albedo and the mesh's depth, normal and label seen through each pixel centre; for ``oidn``
+    Mitsuba's albedo/normal/depth AOVs of the night scene (box-filtered like the render); None
+    for ``none``."""
+    if params == "none":
+        return None
+    mats: MaterialsResult = inputs["materials"]
+    if params == "oidn":
+        from ..render.render import render_guides
+
+        return render_guides(inputs["night_scene"], inputs["frame"].labels, mats.light_classes > 0)
     from ..render.denoise import denoise_guides
 
     m: MeshResult = inputs["mesh"]
-    mats: MaterialsResult = inputs["materials"]
     return denoise_guides(m.mesh, m.intrinsics, mats.materials.albedo, inputs["frame"].labels,
                           mats.light_classes > 0)
 
@@ -285,6 +322,7 @@ STAGES: tuple[Stage, ...] = (
           lambda p: (p.mesh, p.postprocess), needs=mesh_needs),
     Stage("materials", materials_stage, ("frame", "annotation")),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "annotation"),
-          lambda p: (p.night.light_table, p.night.variant)),
-    Stage("guides", guides_stage, ("frame", "mesh", "materials")),
+          lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance)), version=2),
+    Stage("guides", guides_stage, ("frame", "mesh", "materials", "night_scene"), lambda p: p.night.denoiser_used,
+          needs=guides_needs, version=2),
 )

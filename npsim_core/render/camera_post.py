@@ -2,9 +2,10 @@
 
 Order (a simple camera pipeline): firefly removal (isolated Monte Carlo outliers,
 light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
-render -> optional horizontal motion blur of moving vehicles -> heteroscedastic
-Gaussian noise ``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in
-linear units where 1.0 = sensor white) -> white balance (per-channel gains) ->
+render -> optional horizontal motion blur of moving vehicles -> optional glare (bloom)
+around what exceeds sensor white -> heteroscedastic Gaussian noise
+``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in linear units where
+1.0 = sensor white) -> white balance (per-channel gains) ->
 clip to [0, 1] -> sRGB encoding -> 8-bit quantisation (round half up). Labels
 are never touched: the label map of a night is the day's, copied unchanged.
 
@@ -55,6 +56,12 @@ class CameraParams:
     white_balance : per-channel gains (R, G, B) applied after the noise.
     motion_blur_px : horizontal blur length for vehicles carrying moving lights (0 = off).
     seed : noise seed.
+    bloom : glare strength in [0, 1] (0 = off, the default): that fraction of the light above
+        ``bloom_threshold`` (after exposure; 1.0 = sensor white) is spread by a glare
+        point-spread function (:func:`bloom`), so lamps get halos; energy is conserved.
+    bloom_threshold : linear level above which light glares.
+    bloom_radius : σ of the PSF's core as a fraction of the image width (the wider lobes are
+        3x and 9x it), so a preview at a smaller scale shows the same halo.
 
     The render's own Monte Carlo noise (fireflies, speckle) is removed before the camera by
     :func:`.denoise.denoise_night`, so the camera's physical noise is added to a clean image.
@@ -67,6 +74,16 @@ class CameraParams:
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     motion_blur_px: int = 0
     seed: int = 0
+    bloom: float = 0.0
+    bloom_threshold: float = 1.0
+    bloom_radius: float = 0.002
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= float(self.bloom) <= 1.0:
+            raise NpsimInputError(f"bloom must be in [0, 1] (0 = off), got {self.bloom}")
+        if not (float(self.bloom_threshold) >= 0 and float(self.bloom_radius) > 0):
+            raise NpsimInputError(f"bloom_threshold must be >= 0 and bloom_radius > 0, got "
+                                  f"{self.bloom_threshold}, {self.bloom_radius}")
 
     def betas(self) -> tuple[float, float]:
         if self.beta1 is not None and self.beta2 is not None:
@@ -136,6 +153,30 @@ def motion_blur(linear: np.ndarray, mask: np.ndarray, length: int) -> np.ndarray
     return np.where(grow[..., None], blurred, linear).astype(np.float32)
 
 
+#: Glare PSF: Gaussian lobes of σ = (1, 3, 9) x ``bloom_radius`` x width with these weights (sum 1),
+#: a short-tailed stand-in for a lens's veiling glare.
+BLOOM_LOBES = ((1.0, 0.6), (3.0, 0.3), (9.0, 0.1))
+
+
+def bloom(linear: np.ndarray, strength: float, threshold: float = 1.0, radius: float = 0.002) -> np.ndarray:
+    """Glare around bright emitters: ``strength`` of the light above ``threshold`` (per channel) is
+    replaced by its convolution with the PSF of :data:`BLOOM_LOBES` (σ relative to the width).
+    Energy-conserving (the image sum is unchanged up to the border); light below the threshold is
+    untouched, so only lamps (and whatever else clips) get halos. ``strength`` 0 returns the input."""
+    lin = np.asarray(linear, dtype=np.float32)
+    if strength <= 0:
+        return lin
+    excess = np.maximum(lin - np.float32(threshold), 0.0)
+    if not excess.any():
+        return lin
+    W = lin.shape[1]
+    glare = np.zeros_like(excess)
+    for k, weight in BLOOM_LOBES:
+        sigma = max(0.5, float(radius) * W * k)
+        glare += np.float32(weight) * cv2.GaussianBlur(excess, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    return (lin + np.float32(strength) * (glare - excess)).astype(np.float32)
+
+
 def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, labels: np.ndarray | None = None,
                  light_classes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Linear render -> (8-bit sRGB image, noisy white-balanced linear image before clipping).
@@ -143,7 +184,7 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     Parameters
     ----------
     linear : (H, W, 3) float32 linear RGB (Mitsuba radiance units).
-    params : exposure, noise, white balance, motion blur.
+    params : exposure, noise, white balance, motion blur, bloom.
     labels, light_classes : (H, W) maps of the render's size: motion blur needs both.
     """
     lin = np.asarray(linear, dtype=np.float32)
@@ -155,6 +196,8 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     if params.motion_blur_px > 1 and labels is not None and light_classes is not None \
             and np.asarray(light_classes).shape == lin.shape[:2]:
         x = motion_blur(x, moving_vehicle_mask(labels, light_classes), int(params.motion_blur_px))
+    if params.bloom > 0:
+        x = bloom(x, float(params.bloom), float(params.bloom_threshold), float(params.bloom_radius))
     b1, b2 = params.betas()
     if b1 > 0 or b2 > 0:
         x = add_noise(x, b1, b2, np.random.default_rng(int(params.seed)))

@@ -18,6 +18,17 @@ through the pixel, its label, its albedo -- and can steer an edge-avoiding filte
 It runs on the linear render before the camera simulation, so the camera's own
 (physical) noise is added to a clean image. Vectorised numpy: 125 shifted-array
 passes; about 0.5 s at 512x256.
+
+The alternative (and the default since session 3, ``night.denoiser``): Intel Open Image
+Denoise (:func:`denoise_oidn`, the ``pyoidn`` package; its trained "RT" filter for HDR
+renders) fed with an albedo and a normal guide. Those come from Mitsuba's ``aov``
+integrator on the night scene itself (:func:`.render.render_guides`): box-filtered like
+the render, so they match it at every edge, which the mesh rasterised through pixel
+centres does not (docs/relight.md has the comparison). OIDN gets the raw render: removing
+fireflies first takes energy it would otherwise put back, and pasting the light-source
+pixels back over its output made them worse (both measured, docs/relight.md).
+
+:data:`DENOISERS`: ``oidn``, ``guided`` (the filter above) or ``none`` (fireflies only).
 """
 
 from __future__ import annotations
@@ -30,7 +41,14 @@ import numpy as np
 from ..camera import Intrinsics
 from ..errors import NpsimInputError
 
-__all__ = ["DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise", "denoise_night"]
+__all__ = ["DENOISERS", "OIDN_QUALITIES", "DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise",
+           "denoise_oidn", "denoise_night"]
+
+#: Monte Carlo denoisers of a night render: Intel Open Image Denoise, the guided à-trous
+#: filter, or none (isolated fireflies are still removed).
+DENOISERS = ("oidn", "guided", "none")
+#: OIDN's quality presets (on a CPU "high" runs the same network as "balanced").
+OIDN_QUALITIES = ("fast", "balanced", "high")
 
 _B3 = np.array([1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16], np.float32)
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -49,6 +67,8 @@ class DenoiseParams:
         luminance (plus ``firefly_floor``) takes the median colour; light-source pixels are
         never touched (0 = off). Applied even when the filter is off.
     firefly_floor : absolute luminance margin of that test (linear radiance units).
+    oidn_quality : Open Image Denoise's preset (:data:`OIDN_QUALITIES`) when the denoiser is
+        ``oidn``; the firefly test does not run before OIDN (it would remove real energy).
     """
 
     iterations: int = 5
@@ -58,8 +78,12 @@ class DenoiseParams:
     min_albedo: float = 0.03
     firefly_ratio: float = 4.0
     firefly_floor: float = 0.01
+    oidn_quality: str = "fast"
 
     def __post_init__(self) -> None:
+        if self.oidn_quality not in OIDN_QUALITIES:
+            raise NpsimInputError(f"denoise.oidn_quality must be one of {', '.join(OIDN_QUALITIES)}, "
+                                  f"got {self.oidn_quality!r}")
         if not 0 <= int(self.iterations) <= 8:
             raise NpsimInputError(f"denoise iterations must be in 0..8, got {self.iterations}")
         if not (self.firefly_ratio >= 0 and self.firefly_floor >= 0):
@@ -75,7 +99,11 @@ class DenoiseGuides:
     """Per-pixel guides at the image's full resolution (resized to the render when it is smaller).
 
     albedo (H, W, 3) linear; depth (H, W) metres, NaN where the camera sees no surface;
-    normals (H, W, 3) unit; labels (H, W) labelIds; protect (H, W) bool light-source pixels.
+    normals (H, W, 3) unit, camera frame (OpenCV: x right, y down, z forward), NaN or 0 where
+    the camera sees no surface; labels (H, W) labelIds; protect (H, W) bool light-source pixels.
+    kind : ``"mesh"`` -- the mesh rasterised through each pixel centre (:func:`denoise_guides`,
+    for the guided filter) -- or ``"aov"`` -- Mitsuba's albedo/normal/depth AOVs, box-filtered
+    over each pixel like the render (:func:`.render.render_guides`, for OIDN).
     """
 
     albedo: np.ndarray
@@ -83,18 +111,23 @@ class DenoiseGuides:
     normals: np.ndarray
     labels: np.ndarray
     protect: np.ndarray
+    kind: str = "mesh"
 
     def at(self, height: int, width: int) -> "DenoiseGuides":
-        """The guides at a render size (nearest neighbour: labels and depths are not blended)."""
+        """The guides at a render size: labels, light pixels and mesh guides nearest (not blended);
+        AOVs area-averaged, i.e. box-filtered over the smaller render's pixels as the render is."""
         if self.depth.shape == (height, width):
             return self
 
-        def rs(a):
-            return cv2.resize(np.ascontiguousarray(a), (width, height), interpolation=cv2.INTER_NEAREST)
+        def rs(a, blend=False):
+            smaller = height <= a.shape[0] and width <= a.shape[1]
+            interp = cv2.INTER_AREA if blend and smaller else cv2.INTER_NEAREST
+            return cv2.resize(np.ascontiguousarray(a), (width, height), interpolation=interp)
 
-        return DenoiseGuides(rs(self.albedo.astype(np.float32)), rs(self.depth.astype(np.float32)),
-                             rs(self.normals.astype(np.float32)), rs(self.labels.astype(np.uint8)),
-                             rs(self.protect.astype(np.uint8)).astype(bool))
+        aov = self.kind == "aov"
+        return DenoiseGuides(rs(self.albedo.astype(np.float32), aov), rs(self.depth.astype(np.float32)),
+                             rs(self.normals.astype(np.float32), aov), rs(self.labels.astype(np.uint8)),
+                             rs(self.protect.astype(np.uint8)).astype(bool), self.kind)
 
 
 def denoise_guides(mesh, intrinsics: Intrinsics, albedo: np.ndarray, labels: np.ndarray,
@@ -168,18 +201,49 @@ def denoise(linear: np.ndarray, guides: DenoiseGuides, params: DenoiseParams = D
     return np.where(src_ok[..., None], x * alb, lin).astype(np.float32)
 
 
+def denoise_oidn(linear: np.ndarray, guides: DenoiseGuides | None = None,
+                 params: DenoiseParams = DenoiseParams()) -> np.ndarray:
+    """Intel Open Image Denoise (``pyoidn``, filter "RT", HDR input) of a linear night render,
+    guided by ``guides.albedo`` and ``guides.normals`` when given (resized to the render with
+    :meth:`DenoiseGuides.at`); quality ``params.oidn_quality``. Returns float32 (H, W, 3) >= 0."""
+    lin = np.ascontiguousarray(linear, dtype=np.float32)
+    if lin.ndim != 3 or lin.shape[2] != 3:
+        raise NpsimInputError(f"denoise: linear image must be HxWx3, got {lin.shape}")
+    try:
+        import pyoidn
+    except ImportError as exc:  # pragma: no cover - a dependency; guard for broken installs
+        raise NpsimInputError(f"the 'oidn' denoiser needs the pyoidn package ({exc}); install it "
+                              "(pip install pyoidn) or choose --denoiser guided") from None
+    aux = {}
+    if guides is not None:
+        g = guides.at(*lin.shape[:2])
+        aux["albedo"] = np.ascontiguousarray(np.clip(np.nan_to_num(g.albedo, nan=0.0), 0.0, 1.0), np.float32)
+        aux["normal"] = np.ascontiguousarray(np.clip(np.nan_to_num(g.normals, nan=0.0), -1.0, 1.0), np.float32)
+    out = pyoidn.denoise(lin, hdr=True, quality=params.oidn_quality, **aux)
+    return np.maximum(np.nan_to_num(out, nan=0.0, posinf=0.0), 0.0).astype(np.float32)
+
+
 def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: DenoiseParams = DenoiseParams(),
-                  protect: np.ndarray | None = None) -> np.ndarray:
-    """A linear night render cleaned of its Monte Carlo noise: fireflies removed, then (with
-    ``guides``) the edge-avoiding filter of :func:`denoise`. ``protect`` (H, W) bool: light-source
-    pixels at any resolution (resized nearest to the render). Returns float32 (H, W, 3)."""
+                  protect: np.ndarray | None = None, denoiser: str = "guided") -> np.ndarray:
+    """A linear night render cleaned of its Monte Carlo noise by ``denoiser`` (:data:`DENOISERS`):
+
+    * ``guided``: fireflies removed, then (with ``guides``) the edge-avoiding filter of :func:`denoise`;
+    * ``oidn``: Open Image Denoise on the raw render (:func:`denoise_oidn`; ``guides`` optional);
+    * ``none``: fireflies removed only.
+
+    ``protect`` (H, W) bool: light-source pixels at any resolution (resized nearest to the
+    render), never taken for fireflies. Returns float32 (H, W, 3)."""
     from .camera_post import remove_fireflies
 
+    if denoiser not in DENOISERS:
+        raise NpsimInputError(f"unknown denoiser {denoiser!r}; choose one of {', '.join(DENOISERS)}")
     lin = np.asarray(linear, np.float32)
     if lin.ndim != 3 or lin.shape[2] != 3:
         raise NpsimInputError(f"denoise: linear image must be HxWx3, got {lin.shape}")
     if not np.isfinite(lin).all():
         raise NpsimInputError("linear image contains NaN/inf; the render failed")
+    if denoiser == "oidn":
+        return denoise_oidn(lin, guides, params)
     H, W = lin.shape[:2]
     if params.firefly_ratio > 0 and H >= 3 and W >= 3:
         prot = None
@@ -188,6 +252,6 @@ def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: Deno
             if prot.shape != (H, W):  # preview renders are smaller than the annotation
                 prot = cv2.resize(prot.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
         lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, prot)
-    if guides is not None:
+    if guides is not None and denoiser == "guided":
         lin = denoise(lin, guides, params)
     return lin

@@ -130,6 +130,50 @@ def render_final(built: BuiltScene, *, spp: int = 64, seed: int = 0, scale: floa
     return acc / passes
 
 
+#: Samples per pixel of the denoising guides (:func:`render_guides`): albedo and normal converge
+#: almost at once (only the pixel footprint is sampled); 8 and 64 gave the same OIDN error.
+GUIDE_SPP = 8
+
+
+def render_guides(built: BuiltScene, labels: np.ndarray, protect: np.ndarray | None = None, *,
+                  spp: int = GUIDE_SPP, seed: int = 0, scale: float = 1.0):
+    """Denoising guides from Mitsuba's ``aov`` integrator on the night scene itself -> a
+    :class:`~.denoise.DenoiseGuides` of kind ``"aov"`` (for Open Image Denoise).
+
+    albedo (``albedo`` AOV: the BSDF's reflectance), normals (``sh_normal``, the world = OpenCV
+    camera frame, 0 on the sky) and depth (the ``depth`` AOV is the distance along the ray; here
+    converted to z, NaN on the sky), each box-filtered over the pixel exactly as the render's
+    film is, at ``scale`` of the full resolution; ``labels`` and ``protect`` (the light-source
+    pixels) are the frame's, resized nearest. Lights and their states do not change them, so
+    they are rendered once per scene.
+    """
+    import cv2
+    import mitsuba as mi
+
+    from .denoise import DenoiseGuides
+
+    w, h = _size(built, scale)
+    with thread_env_scope(mi, built.thread_env):
+        integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,normal:sh_normal,depth:depth"})
+        aov = np.array(mi.render(built.scene, sensor=built.sensor(w, h), integrator=integrator, spp=int(spp),
+                                 seed=int(seed)), dtype=np.float32)
+    K = built.intrinsics
+    sx, sy = w / K.width, h / K.height  # the film's pixel centres in the full-resolution camera
+    u, v = np.meshgrid((np.arange(w) + 0.5) / sx - 0.5, (np.arange(h) + 0.5) / sy - 0.5)
+    ray = np.sqrt(((u - K.cx) / K.fx) ** 2 + ((v - K.cy) / K.fy) ** 2 + 1.0).astype(np.float32)
+    dist = aov[..., 6]
+    depth = np.where(dist > 0, dist / ray, np.nan).astype(np.float32)
+
+    def nearest(a):
+        a = np.asarray(a)
+        return a if a.shape[:2] == (h, w) else cv2.resize(np.ascontiguousarray(a), (w, h),
+                                                          interpolation=cv2.INTER_NEAREST)
+
+    prot = np.zeros((h, w), bool) if protect is None else nearest(np.asarray(protect, np.uint8)).astype(bool)
+    return DenoiseGuides(np.ascontiguousarray(aov[..., 0:3]), depth, np.ascontiguousarray(aov[..., 3:6]),
+                         nearest(np.asarray(labels, np.uint8)), prot, kind="aov")
+
+
 def render_labels(built_label_scene: BuiltScene, *, passes: int = 8, seed: int = 0) -> np.ndarray:
     """Decode a :func:`scene_builder.build_label_scene` render -> (H, W) int32 labelIds, -1 = no surface (sky).
 
