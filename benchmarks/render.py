@@ -211,7 +211,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--defaults", action="store_true",
                     help="time the chain's defaults end to end (final 2048x1024 night, app preview at 512x256)")
     ap.add_argument("--legacy", action="store_true", help="with --defaults: also the settings before session 3")
+    ap.add_argument("--crops-figure", default=None, metavar="PNG",
+                    help="the 2048x1024 crops raw / before / now / reference, e.g. docs/img/denoiser_crops.png")
     args = ap.parse_args(argv)
+    if args.crops_figure:
+        return crops_figure(args.crops_figure, cache=args.cache)
     if args.replot:
         return replot(args.replot, args.plot or "docs/img/render_frontier.png")
     if args.frontier:
@@ -380,7 +384,7 @@ def _denoise_params(spec: str):
         raise SystemExit(f"unknown denoiser {spec!r}; choose from {', '.join(DENOISER_SPECS)}")
     base = ChainParams().denoise
     if spec in ("oidn-meshguides", "oidn-noguides"):
-        return "oidn", base, spec[5:-6]
+        return "oidn", base, "mesh" if spec == "oidn-meshguides" else "none"
     if spec.startswith("oidn-"):
         return "oidn", replace(base, oidn_quality=spec.split("-", 1)[1]), "aov"
     return spec, base, {"oidn": "aov", "guided": "mesh", "none": "none"}[spec]
@@ -470,6 +474,26 @@ def format_frontier(rows: list[dict], facts: list[dict]) -> str:
     return "\n".join(out)
 
 
+def format_pivot(rows: list[dict]) -> str:
+    """The frontier as one line per (size, mesh, path depth, spp): the render time, then RMSE / SSIM
+    of each denoiser (with its denoising time when it is not negligible)."""
+    specs = list(dict.fromkeys(r["denoiser"] for r in rows))
+    out = ["| size | mesh | depth | spp | render s | " + " | ".join(f"{d}: RMSE / SSIM" for d in specs) + " | load |",
+           "|---" * (6 + len(specs)) + "|"]
+    keys = list(dict.fromkeys((r["size"], r["mesh"], r["depth"], r["spp"]) for r in rows))
+    for k in keys:
+        sub = {r["denoiser"]: r for r in rows if (r["size"], r["mesh"], r["depth"], r["spp"]) == k}
+        first = next(iter(sub.values()))
+        cells = []
+        for d in specs:
+            r = sub.get(d)
+            cells.append("-" if r is None else f"{r['rmse']:.1f} / {r['ssim']:.3f}"
+                         + (f" (+{r['denoise']:.1f} s)" if r["denoise"] >= 0.05 else ""))
+        out.append(f"| {k[0]} | {k[1]} | {'one bounce' if k[2] == 3 else 'direct' if k[2] == 2 else k[2]} | {k[3]} | "
+                   f"{first['render']:.1f} | " + " | ".join(cells) + f" | {first['load']:.1f} |")
+    return "\n".join(out)
+
+
 def plot_frontier(rows: list[dict], facts: list[dict], path: str, baseline=("full", 3, 64, "guided"),
                   chosen=("full", 3, 16, "oidn")) -> None:
     """Error against time, one panel per size: colour = denoiser, marker = mesh, line = path depth;
@@ -533,7 +557,7 @@ def frontier(argv_sizes: str, spps, denoisers, depths, ref_spp: int, cache: str 
         if plot:
             plot_frontier(rows, facts, plot)
     head = f"Night speed-error frontier ({time.strftime('%Y-%m-%d %H:%M')}, {os.cpu_count()} cores)"
-    text = head + "\n\n" + format_frontier(rows, facts)
+    text = head + "\n\n" + format_frontier(rows, facts) + "\n\n" + format_pivot(rows)
     print(text)
     if out:
         import json
@@ -543,12 +567,64 @@ def frontier(argv_sizes: str, spps, denoisers, depths, ref_spp: int, cache: str 
     return 0
 
 
+def crops_figure(path: str, size: tuple[int, int] = (2048, 1024), cache: str | None = None) -> int:
+    """The frontier's three crops side by side: 16 spp raw, before (64 spp + guided filter), now
+    (16 spp + OIDN, the defaults) and the 4096-spp reference (from ``cache`` when there, else
+    1024 spp) -- exposure 0, no camera noise, 2x nearest zoom."""
+    import cv2
+
+    from npsim_core.chain import Chain, ChainParams
+    from npsim_core.render.denoise import denoise_night
+    from npsim_core.synthetic import street_scene
+
+    W, H = size
+    s = street_scene(W, H)
+    chain = Chain(s)
+    params = ChainParams().with_value("night", "seed", 1)
+    res = chain.compute(params)
+    built, aov, mats, _ = chain.night_inputs(params)
+    guided_guides = chain.night_inputs(params.with_value("night", "denoiser", "guided"))[1]
+    built.apply_lights(chain.activate(params))
+    prot = mats.light_classes > 0
+    crops = _crops(W, H) or [(0, 0, W, H)]
+    raw16, raw64 = _render(built, 16, 17 * 16 + 3, 3), _render(built, 64, 17 * 64 + 3, 3)
+    now = denoise_night(raw16, aov, params.denoise, prot, denoiser="oidn")
+    before = denoise_night(raw64, guided_guides, params.denoise, prot, denoiser="guided")
+    name = Path(cache or ".") / f"ref_{W}x{H}_4096spp_crops.npz"
+    if cache and name.exists():
+        z = np.load(name)
+        ref = [(z[f"a{i}"] + z[f"b{i}"]) / 2 for i in range(len(crops))]
+    else:
+        ref = [_render(built, 1024, 9001, 3, c) for c in crops]
+    cols = [("16 spp, no denoiser", _cut(raw16, crops)), ("before: 64 spp + guided", _cut(before, crops)),
+            ("now: 16 spp + OIDN", _cut(now, crops)), ("reference 4096 spp", ref)]
+    tiles = []
+    for r in range(len(crops)):
+        row = []
+        for title, imgs in cols:
+            t = cv2.resize(_srgb(imgs[r]).astype(np.uint8), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+            if r == 0:
+                (tw, th), _ = cv2.getTextSize(title, cv2.FONT_HERSHEY_SIMPLEX, 0.6, 1)
+                cv2.rectangle(t, (0, 0), (tw + 12, th + 14), (0, 0, 0), -1)
+                cv2.putText(t, title, (6, th + 6), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
+            row += [t, np.full((t.shape[0], 4, 3), 255, np.uint8)]
+        tiles += [np.concatenate(row[:-1], axis=1)]
+        tiles += [np.full((4, tiles[-1].shape[1], 3), 255, np.uint8)]
+    from npsim_core.io import write_image
+
+    write_image(path, np.concatenate(tiles[:-1], axis=0))
+    print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
 def replot(json_path: str, plot: str) -> int:
-    """Redraw the frontier plot from the JSON a ``--frontier --out FILE.md`` run wrote next to FILE.md."""
+    """Redraw the frontier plot (and print the table) from the JSON a ``--frontier --out FILE.md`` run
+    wrote next to FILE.md."""
     import json
 
     doc = json.loads(Path(json_path).read_text())
     plot_frontier(doc["rows"], doc["facts"], plot)
+    print(format_pivot(doc["rows"]))
     return 0
 
 
