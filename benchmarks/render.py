@@ -3,12 +3,17 @@
 Usage::
 
     python benchmarks/render.py [--quick] [--variants scalar_rgb,llvm_ad_rgb] [--out FILE.md]
-    python -m benchmarks.render --frontier [--sizes 512x256,2048x1024] [--plot docs/img/render_frontier.png]
-    python -m benchmarks.render --defaults [--size 2048x1024]
+    python -m benchmarks.render --frontier [--sizes 512x256,2048x1024] [--spp 4,8,16,64]
+        [--denoisers none,guided,oidn] [--depths 2,3] [--cache DIR] [--out FILE.md] [--plot PNG]
+    python -m benchmarks.render --replot FILE.json --plot docs/img/render_frontier.png
+    python -m benchmarks.render --defaults [--legacy] [--cache DIR]
+    python -m benchmarks.render --crops-figure docs/img/denoiser_crops.png [--cache DIR]
     npsim bench render [...]
 
-``--frontier`` measures the speed-error frontier of the nights (below, :func:`frontier`);
-``--defaults`` times the chain's defaults end to end (:func:`defaults`). The older tables:
+``--frontier`` measures the speed-error frontier of the nights (:func:`frontier`: RMSE and SSIM
+against a 4096-spp reference over spp x denoiser x mesh x path depth); ``--defaults`` times the
+chain's defaults end to end (:func:`defaults`); ``--crops-figure`` shows the frontier's crops
+(:func:`crops_figure`). Results: docs/relight.md. The older tables (no option):
 
 Scene: the synthetic street (ground-truth depth -> Worldsheet grid mesh), one
 fixed night (seed 1). For each Mitsuba variant and resolution it measures

@@ -46,8 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-depth", type=int, default=None, choices=[2, 3, 4],
                    help="path length: 2 = direct light only (fast), 3 = one bounce (default), 4 = two")
     p.add_argument("--face-budget", type=int, default=None,
-                   help="reduce the chain's mesh to about this many faces (0 = no budget; the nights are rendered "
-                        "from the mesh reduced within mesh.render_tolerance of the full mesh's depth anyway)")
+                   help="reduce the chain's mesh to about this many faces (0 = the full mesh, default; "
+                        "--set mesh.render_tolerance=0.01 renders an error-bounded reduction instead)")
     add_param_options(p, nights=None)
     p.set_defaults(func=run)
 

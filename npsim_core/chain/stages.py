@@ -259,8 +259,9 @@ def render_mesh(m: MeshResult, tolerance: float) -> tuple[SceneMesh, str]:
 
 
 def night_scene_stage(inputs: dict, params, ctx):
-    """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place), from the
-    error-bounded reduction of the mesh (:func:`render_mesh`)."""
+    """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place): the
+    chain's mesh, or its error-bounded reduction when ``mesh.render_tolerance`` > 0
+    (:func:`render_mesh`)."""
     from ..render.scene_builder import BuildParams, build_scene
 
     light_table_path, variant, tolerance = params
