@@ -98,3 +98,16 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     skip = pytest.mark.skip(reason=reason)
     for it in gui:
         it.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def cityscapes_layout(tmp_path_factory):
+    """A factory of Cityscapes-layout datasets from the synthetic street (stereo, no ground truth):
+    ``cityscapes_layout(frames=, size=, corrupt=)`` -> (root, frame stems)."""
+    def make(*, frames: int, size: tuple[int, int], corrupt: int):
+        from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
+
+        root = tmp_path_factory.mktemp("cityscapes")
+        return root, write_cityscapes_fixture(root, frames=frames, size=size, corrupt=corrupt)
+
+    return make

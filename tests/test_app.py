@@ -237,12 +237,8 @@ def test_export_twice_reports_once_each(window, qtbot, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def real_layout(tmp_path_factory):
-    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
-
-    root = tmp_path_factory.mktemp("cs")
-    stems = write_cityscapes_fixture(root, frames=2, size=(W, H), corrupt=0)
-    return root, stems
+def real_layout(cityscapes_layout):
+    return cityscapes_layout(frames=2, size=(W, H), corrupt=0)
 
 
 def test_opens_a_real_layout_frame_by_image_and_by_dataset_root(qtbot, real_layout):

@@ -11,7 +11,6 @@ from npsim_cli.main import main
 from npsim_core.chain import ChainParams, iter_frames, verify_frame
 from npsim_core.chain import batch as batch_mod
 from npsim_core.io import read_image
-from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
 
 W, H = 96, 48
 QUICK = ChainParams().with_value("refine", "steps", 8).with_value("night", "final_spp", 1)
@@ -19,10 +18,8 @@ FAST = ["--set", "refine.steps=8", "--spp", "1"]
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("cs")
-    stems = write_cityscapes_fixture(root, frames=3, size=(W, H), corrupt=0)
-    return root, stems
+def dataset(cityscapes_layout):
+    return cityscapes_layout(frames=3, size=(W, H), corrupt=0)
 
 
 def _mtimes(folder):
@@ -85,7 +82,7 @@ def test_local_worker_processes_and_cityscapes_layout(dataset, tmp_path, capsys)
 
 
 def test_ray_tasks_on_a_local_instance(dataset, tmp_path, capsys):
-    pytest.importorskip("ray")
+    import ray  # noqa: F401  -- a dev dependency: missing is a failure, not a skip
     root, stems = dataset
     out = tmp_path / "out"
     assert main(["batch", str(root), "-o", str(out), "--ray", "local", "--nights", "0", "--limit", "2"] + FAST) == 0

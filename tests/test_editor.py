@@ -10,7 +10,6 @@ import pytest
 
 # Importing Qt never needs a display (only creating the QApplication does, and tests/conftest.py skips
 # every test here when there is none); a missing or broken Qt install skips the module instead.
-pytest.importorskip("PySide6.QtWidgets", reason="PySide6 (Qt) is not importable")
 pytestmark = pytest.mark.gui
 
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402

@@ -13,17 +13,15 @@ from npsim_core.chain import Chain, ChainParams, iter_frames, verify_frame
 from npsim_core.errors import NpsimInputError
 from npsim_core.scoring import reference_of, score_depth
 from npsim_core.synthetic import street_scene
-from npsim_core.synthetic.cityscapes import fixture_seed, write_cityscapes_fixture
+from npsim_core.synthetic.cityscapes import fixture_seed
 
 W, H = 128, 64
 FAST = ["--set", "refine.steps=10", "--spp", "1"]
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("cityscapes")
-    stems = write_cityscapes_fixture(root, frames=3, size=(W, H), corrupt=1)
-    return root, stems
+def dataset(cityscapes_layout):
+    return cityscapes_layout(frames=3, size=(W, H), corrupt=1)
 
 
 def _image(root, stem):

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from npsim_core.chain import (Chain, ChainParams, check_output_folder, export_frame, frame_errors, iter_frames,
-                              load_frame, verify_frame)
+                              load_frame)
 from npsim_core.errors import NpsimInputError
 
 from ..options import add_param_options, log, params_from_args, stage_logger
