@@ -6,9 +6,11 @@ import argparse
 import re
 import sys
 import time
+from dataclasses import replace
+from pathlib import Path
 
 from npsim_core.chain import ChainParams
-from npsim_core.chain.params import DEPTH_SOURCES
+from npsim_core.chain.params import DEPTH_SOURCES, LIGHT_SOURCES
 from npsim_core.errors import NpsimInputError
 
 
@@ -67,6 +69,12 @@ def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> 
                    help="also write the full mesh, 16-bit depth/normal PNGs, normals .npy and linear nights .npy "
                         "(default: only what a frame needs: about 30 MB at 2048x1024)")
     p.add_argument("--checkpoint", default=None, help="local depth-network checkpoint folder (for --depth network/auto)")
+    p.add_argument("--lights", default=None, metavar="auto|annotation|proposed|none|FILE",
+                   help="the light sources the nights switch on: auto (default: the frame's hand annotation, else the "
+                        "automatic proposals of 'npsim propose'), annotation (hand annotation only), proposed, none, "
+                        "or a light annotation FILE (<name>_lights.json or COCO JSON; one frame only)")
+    p.add_argument("--min-confidence", type=float, default=None,
+                   help="proposals below this confidence are not used (lights.min_confidence, default 0.5)")
 
 
 def params_from_args(args: argparse.Namespace) -> ChainParams:
@@ -101,6 +109,18 @@ def params_from_args(args: argparse.Namespace) -> ChainParams:
         params = params.with_value("depth", "checkpoint", str(args.checkpoint))
     if getattr(args, "depth_source", None):
         params = params.with_value("depth", "source", args.depth_source)
+    lights = getattr(args, "lights", None)
+    if lights:
+        if lights in LIGHT_SOURCES and lights != "file":
+            params = params.with_value("lights", "source", lights)
+        else:
+            path = Path(lights)
+            if not path.is_file():
+                raise NpsimInputError(f"--lights {lights}: neither {', '.join(s for s in LIGHT_SOURCES if s != 'file')} "
+                                      "nor an existing light annotation file")
+            params = replace(params, lights=replace(params.lights, source="file", file=str(path.resolve())))
+    if getattr(args, "min_confidence", None) is not None:
+        params = params.with_value("lights", "min_confidence", float(args.min_confidence))
     if getattr(args, "nights", 0) is not None and getattr(args, "nights", 0) < 0:
         raise NpsimInputError(f"--nights must be >= 0, got {args.nights}")
     return params

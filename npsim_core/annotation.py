@@ -533,6 +533,24 @@ def load_annotation(folder: str | Path, stem: str) -> LightAnnotation:
     return parse_annotation_doc(doc, raw, paths["json"])
 
 
+def load_annotation_file(path: str | Path) -> LightAnnotation:
+    """A light annotation from one file: the editor's ``<stem>_lights.json`` (its instance PNG
+    beside it) or a COCO JSON (:func:`to_coco`). Errors name the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise NpsimInputError(f"{path}: light annotation not found; give a <name>_lights.json written by "
+                              "'npsim annotate' or 'npsim propose', or a COCO JSON")
+    doc = read_json(path)
+    if isinstance(doc, dict) and doc.get("format") == FORMAT_NAME:
+        if not path.name.endswith("_lights.json"):
+            raise NpsimInputError(f"{path}: an NPSim light annotation must be named <name>_lights.json, beside "
+                                  "its <name>_lights_instanceIds.png")
+        return load_annotation(path.parent, path.name[:-len("_lights.json")])
+    if isinstance(doc, dict) and ("annotations" in doc or doc.get("format") == COCO_FORMAT_NAME):
+        return from_coco(doc, str(path))
+    raise NpsimInputError(f"{path}: neither an NPSim light annotation (format {FORMAT_NAME!r}) nor a COCO JSON")
+
+
 def check_image(ann: LightAnnotation, image: np.ndarray) -> bool:
     """True when ``ann`` was saved for exactly these pixels (or carries no checksum)."""
     want = ann.meta.get("image_sha256")
@@ -659,6 +677,12 @@ def discover_items(path: str | Path) -> list[AnnotationItem]:
     return items
 
 
+def annotation_stem(image_path: str | Path) -> str:
+    """The stem of an image's annotation files, written beside it (``X_leftImg8bit.png`` and
+    ``X_rgb.png`` -> ``X``: ``X_lights.json``, ``X_lights_instanceIds.png``...)."""
+    return re.sub(r"(_rgb|_leftImg8bit)$", "", Path(image_path).stem)
+
+
 def _image_items(folder: Path, files: list[Path]) -> list[AnnotationItem]:
     out = []
     for f in files:
@@ -667,7 +691,7 @@ def _image_items(folder: Path, files: list[Path]) -> list[AnnotationItem]:
         stem = f.stem
         if _NOT_IMAGES.search(stem):
             continue
-        base = re.sub(r"(_rgb|_leftImg8bit)$", "", stem)
+        base = annotation_stem(f)
         cands = [folder / f"{base}_labelIds.png", folder / f"{base}_gtFine_labelIds.png"]
         lab = next((c for c in cands if c.exists()), None)
         out.append(AnnotationItem(base, f, lab, folder, base))

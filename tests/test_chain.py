@@ -128,7 +128,8 @@ def test_chain_caching_follows_the_parameters():
     assert chain.compute(p.with_value("filter", "sigma_s", 4.0), until="refine").recomputed == [
         "filter", "uncertain", "refine"]
     m = chain.compute(p)
-    assert m.recomputed == ["mesh"] and m.mesh.n_faces > 0
+    # no hand annotation: the lights are proposed (lights.source auto), then meshed
+    assert m.recomputed == ["lights", "mesh"] and m.mesh.n_faces > 0 and m.lights.source == "proposed"
     assert chain.compute(p.with_value("night", "seed", 3)).recomputed == []  # nights do not touch the mesh
     # a mesh of the input depth reads neither the refinement nor its parameters
     grid = p.with_value("mesh", "depth", "input").with_value("mesh", "postprocess", False)

@@ -95,10 +95,8 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     on_stage = stage_logger(cmd, scene.name)
 
     log(cmd, f"{scene.name}: {scene.width}x{scene.height}")
-    if scene.lights is None:
-        log(cmd, f"{scene.name}: no light annotation, so only the ego headlights and the night sky light the "
-                 "nights (label lights with 'npsim annotate')")
     res = chain.compute(params, progress=on_stage)
+    log(cmd, f"{scene.name}: lights: {res.lights.note}" if res.lights is not None else f"{scene.name}: no lights")
     log(cmd, f"{scene.name}: depth from {res.depth_source}; stages "
         + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()) + f"; mesh {res.mesh.n_faces} faces")
     if res.refine is not None and res.refine.diverged:
@@ -144,6 +142,10 @@ def run_batch(args: argparse.Namespace) -> int:
     from npsim_core.chain.batch import run_batch as run_frames
 
     params = params_from_args(args)
+    if params.lights.source == "file":
+        raise NpsimInputError(f"--lights {params.lights.file}: one annotation file cannot light every frame of a "
+                              "batch; save each frame's annotation beside its image ('npsim annotate DATASET') and "
+                              "use --lights auto or annotation")
     if args.limit is not None and args.limit < 1:
         raise NpsimInputError(f"--limit must be >= 1, got {args.limit}")
     if args.workers is not None and args.workers < 1:

@@ -2,8 +2,8 @@
 per-night steps. The app, every command, the batch and the sweep go through it.
 
 A change of one parameter reruns its stage and what reads it: λ reruns refine → mesh,
-σs reruns filter and everything after it, an annotation edit reruns the mesh (light ids
-per vertex), materials and the night scene, and a new seed only re-activates lights in
+σs reruns filter and everything after it, an annotation edit reruns the lights, the mesh
+(light ids per vertex), materials and the night scene, and a new seed only re-activates lights in
 the already built night scene.
 """
 
@@ -22,7 +22,7 @@ from ..mesh.types import MeshPart, SceneMesh
 from ..scene import Scene
 from .engine import Engine, content_key
 from .params import ChainParams
-from .stages import STAGES, GeometryResult, MeshResult, mesh_needs, light_table
+from .stages import STAGES, GeometryResult, LightsResult, MeshResult, light_table, mesh_needs
 
 __all__ = ["Chain", "ChainResults", "NightFrame", "DEPTH_STAGES"]
 
@@ -48,6 +48,7 @@ class ChainResults:
     uncertain: np.ndarray | None = None
     refine: Any = None
     mesh_result: MeshResult | None = None
+    lights: LightsResult | None = None
     mesh_key: str = ""
     scene: Scene | None = None
     timings: dict[str, float] = field(default_factory=dict)
@@ -131,6 +132,12 @@ class Chain:
             self._annotation_version += 1
             self.engine.set_source("annotation", ann, key=f"ann-{self._annotation_version}")
 
+    def lights(self, params: ChainParams, *, cancel: threading.Event | None = None) -> LightsResult:
+        """The light annotation the nights of ``params`` use (``lights`` section: the hand annotation,
+        the proposals, a file or none) and where it came from; cached like every stage."""
+        with self._lock:
+            return self.engine.run(("lights",), params, cancel=cancel).results["lights"]
+
     # ------------------------------------------------------------------ depth and mesh
     def compute(self, params: ChainParams, until: str = "mesh", *, cancel: threading.Event | None = None,
                 progress: ProgressFn = None) -> ChainResults:
@@ -153,7 +160,7 @@ class Chain:
         geo: GeometryResult = out["geometry"]
         return ChainResults(intrinsics=geo.scene.intrinsics, depth_in=geo.scene.depth, normals_in=geo.scene.normals,
                             depth_source=geo.source, filtered=out.get("filter"), uncertain=out.get("uncertain"),
-                            refine=out.get("refine"), mesh_result=out.get("mesh"),
+                            refine=out.get("refine"), mesh_result=out.get("mesh"), lights=out.get("lights"),
                             mesh_key=run.keys.get("mesh", "") if "mesh" in out else "", scene=self.scene,
                             timings=dict(run.timings), recomputed=list(run.recomputed))
 
@@ -173,7 +180,7 @@ class Chain:
                 from ..mesh.grid import grid_mesh
 
                 stride = int(np.ceil(np.sqrt(mesh.n_faces / max_faces)))
-                ann = self.annotation
+                ann = results.lights.annotation if results.lights is not None else self.annotation
                 shown = grid_mesh(results.mesh_result.depth, results.intrinsics, self.scene.labels,
                                   ann.instance_map if ann is not None else None, stride=stride)
             self._display = {"key": key, "mesh": shown}
@@ -194,7 +201,7 @@ class Chain:
         """One night's light states for ``params.night.seed`` (``light_override``: forced on/off)."""
         from ..render.lights import activate_lights
 
-        return activate_lights(self.annotation, light_table(params.night), params.night.seed,
+        return activate_lights(self.lights(params).annotation, light_table(params.night), params.night.seed,
                                group_all_together=params.night.group_all_together, image=self.scene.image,
                                force=light_override)
 

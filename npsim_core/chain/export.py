@@ -296,7 +296,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         "mesh": mesh_info,
         "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
                                                    "message": res.refine.message},
-        "lights_annotated": 0 if chain.annotation is None else len(chain.annotation.instance_ids()),
+        "lights": _lights_info(chain.lights(params)),
         "errors": frame_errors(chain, res, params.depth.stereo_max_m), "nights": nights_info, "kinds": list(kinds),
         "files": names, "checksums": {nm: file_checksum(staging / nm) for nm in names}, "versions": versions()}
     if cancel is not None and cancel.is_set():
@@ -306,3 +306,14 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
     if progress is not None:
         progress(1.0, f"exported {len(out)} files")
     return out
+
+
+def _lights_info(lights) -> dict:
+    """The manifest's record of the light annotation the nights used (:class:`~.stages.LightsResult`)."""
+    ann = lights.annotation
+    ids = [] if ann is None else ann.instance_ids()
+    info = {"source": lights.source, "note": lights.note, "count": len(ids),
+            "groups": 0 if ann is None else len(ann.groups)}
+    if lights.confidence:
+        info["confidence"] = {str(k): round(float(v), 3) for k, v in sorted(lights.confidence.items())}
+    return info

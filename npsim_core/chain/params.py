@@ -20,8 +20,8 @@ from ..refine.optimize import PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DENOISERS, DenoiseParams
 
-__all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "MESH_DEPTHS", "DEPTH_SOURCES",
-           "parse_value"]
+__all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "LightsParams",
+           "LIGHT_SOURCES", "MESH_DEPTHS", "DEPTH_SOURCES", "parse_value"]
 
 #: The only fields where infinity means something (keep every visible vertex's depth).
 INFINITE_OK = {("postprocess", "keep_consistent")}
@@ -222,6 +222,33 @@ class ExportParams:
             raise NpsimInputError(f"export.mesh_formats: unknown {bad or 'empty'}; choose from {', '.join(FORMATS)}")
 
 
+#: Where a frame's light annotation comes from (``lights.source``; docs/method.md §6.2).
+LIGHT_SOURCES = ("auto", "annotation", "proposed", "none", "file")
+
+
+@dataclass(frozen=True)
+class LightsParams:
+    """The inactive light sources a frame's nights switch on.
+
+    source : ``auto`` (default) uses the frame's hand annotation when it has one, else the
+        automatic proposals (:mod:`npsim_core.proposals`); ``annotation`` only the hand annotation
+        (none = only the ego headlights and the sky light the night); ``proposed`` always the
+        proposals; ``none`` no light sources; ``file`` the annotation in ``file``.
+    file : a light annotation (the editor's ``<name>_lights.json`` or a COCO JSON) for ``file``.
+    min_confidence : proposals below this confidence in [0, 1] are not used.
+    """
+
+    source: str = "auto"
+    file: str = ""
+    min_confidence: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.source not in LIGHT_SOURCES:
+            raise NpsimInputError(f"lights.source must be one of {', '.join(LIGHT_SOURCES)}, got {self.source!r}")
+        if not 0.0 <= float(self.min_confidence) <= 1.0:
+            raise NpsimInputError(f"lights.min_confidence must be in [0, 1], got {self.min_confidence}")
+
+
 @dataclass(frozen=True)
 class ChainParams:
     """Every parameter of the chain, one frozen section per stage."""
@@ -236,6 +263,7 @@ class ChainParams:
     night: NightParams = NightParams()
     denoise: DenoiseParams = DenoiseParams()
     export: ExportParams = ExportParams()
+    lights: LightsParams = LightsParams()
 
     # ------------------------------------------------------------------ edits
     def with_value(self, section: str, name: str, value: Any) -> "ChainParams":

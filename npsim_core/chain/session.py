@@ -63,12 +63,30 @@ def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: boo
     return scaled_frame(scene, scale)
 
 
+def load_source(src) -> Scene:
+    """A dataset entry's scene (:class:`~npsim_core.datasets.SceneSource`) with the light annotation
+    the editor saved beside its image, when there is one (module-level: picklable for workers)."""
+    from ..annotation import annotation_paths, annotation_stem, load_annotation
+
+    scene = src.load()
+    image = Path(src.image_path)
+    stem = annotation_stem(image)
+    path = annotation_paths(image.parent, stem)["json"]
+    if scene.lights is not None or not path.exists():
+        return scene
+    ann = load_annotation(image.parent, stem)
+    if ann.shape != (scene.height, scene.width):
+        raise NpsimInputError(f"{path}: the light annotation is {ann.shape[1]}x{ann.shape[0]} but {image.name} is "
+                              f"{scene.width}x{scene.height}; it belongs to another image (move or delete it)")
+    return scene.with_(lights=ann, provenance={**scene.provenance, "lights": str(path)})
+
+
 def _dataset_image(path: Path, hfov_deg: float | None, trainids: bool) -> Scene:
     from ..datasets import iter_dataset
 
     for src in iter_dataset(path.parent, trainids=trainids, hfov_deg=hfov_deg):
         if Path(src.image_path).resolve() == path.resolve():
-            return src.load()
+            return load_source(src)
     raise NpsimInputError(f"{path}: no labels found for this image; put {path.stem}_labelIds.png beside it or use "
                           "a Cityscapes/ACDC folder layout")
 
@@ -79,7 +97,7 @@ def _dataset_folder(path: Path, hfov_deg: float | None, trainids: bool) -> Scene
 
     frames = list(iter_folder(path, trainids=trainids, hfov_deg=hfov_deg))
     if len(frames) == 1:
-        return frames[0].load()
+        return load_source(frames[0])
     if not frames:
         raise NpsimInputError(f"{path}: neither a scene folder (scene.json / intrinsics.json), a project "
                               "(project.json) nor a frame's files (X.png or X_leftImg8bit.png with "
@@ -103,7 +121,7 @@ def iter_frames(root: str | Path, *, trainids: bool = False, hfov_deg: float | N
         return [FrameSource(d.name, d, functools.partial(load_scene, d)) for d in scene_dirs]
     from ..datasets import open_dataset
 
-    return [FrameSource(s.name, Path(s.image_path), s.load, s.split, s.group)
+    return [FrameSource(s.name, Path(s.image_path), functools.partial(load_source, s), s.split, s.group)
             for s in open_dataset(root, trainids=trainids, hfov_deg=hfov_deg)]
 
 

@@ -4,7 +4,7 @@ Data flow (names are the engine's; ``frame`` and ``annotation`` are sources)::
 
     frame ─► geometry ─► filter ─► uncertain ─► refine ─► mesh ─► night_scene ─► guides (oidn: AOVs)
                 │                       │                  │  └─► guides (guided: the mesh)
-    annotation ─┴──────────► materials ─┴──────────────────┘
+    annotation ─┴─► lights ─► materials ─┴─────────────────┘   (lights: annotation, proposals or a file)
 
 ``geometry`` gives the camera and the input depth and normals (the frame's own, or the
 semantic pop-up prior when it has none); ``filter``, ``uncertain`` and ``refine`` are
@@ -29,7 +29,7 @@ from ..scene import Scene
 from .engine import Stage
 from .params import ChainParams
 
-__all__ = ["GeometryResult", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
+__all__ = ["GeometryResult", "LightsResult", "lights_stage", "lights_needs", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
            "uncertain_stage", "refine_stage", "mesh_stage", "materials_stage", "night_scene_stage",
            "guides_stage", "guides_needs", "render_mesh", "removed_faces", "light_table", "mesh_needs",
            "input_geometry"]
@@ -43,6 +43,18 @@ class GeometryResult:
 
     scene: Scene
     source: str
+
+
+@dataclass
+class LightsResult:
+    """The light annotation the nights use (None: no light sources) and where it came from:
+    ``source`` is ``annotation``, ``proposed``, ``file`` or ``none``; ``note`` says it in words;
+    ``confidence`` holds the proposals' confidences (light and group id -> [0, 1])."""
+
+    annotation: Any
+    source: str
+    note: str
+    confidence: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -165,10 +177,53 @@ def refine_stage(inputs: dict, params, ctx):
                         progress=on_step, cancel=ctx.cancel_flag)
 
 
+# --------------------------------------------------------------------------- lights
+def lights_needs(params: ChainParams) -> tuple[str, ...]:
+    """What the lights stage reads: the geometry (for the proposals' depth) only when it may propose."""
+    return ("frame", "annotation") + (("geometry",) if params.lights.source in ("auto", "proposed") else ())
+
+
+def lights_stage(inputs: dict, params, ctx) -> LightsResult:
+    """The frame's light annotation by ``lights.source`` (docs/method.md §6.2): the hand annotation,
+    the automatic proposals above ``min_confidence``, a file, or none."""
+    lp = params
+    ann = inputs.get("annotation")
+    s: Scene = inputs["frame"]
+    if lp.source == "none":
+        return LightsResult(None, "none", "no light sources (lights.source=none)")
+    if lp.source == "file":
+        from ..annotation import load_annotation_file
+
+        if not lp.file:
+            raise NpsimInputError("lights.source 'file' needs lights.file, a light annotation JSON "
+                                  "(CLI: --lights FILE)")
+
+        ann = load_annotation_file(lp.file)
+        if ann.shape != (s.height, s.width):
+            raise NpsimInputError(f"{lp.file}: the light annotation is {ann.shape[1]}x{ann.shape[0]} but the frame "
+                                  f"{s.name!r} is {s.width}x{s.height}; give the annotation of this frame")
+        return LightsResult(ann, "file", f"{len(ann.instance_ids())} lights from {lp.file}")
+    if ann is not None and lp.source in ("auto", "annotation"):
+        return LightsResult(ann, "annotation", f"{len(ann.instance_ids())} annotated lights")
+    if lp.source == "annotation":
+        return LightsResult(None, "annotation", "no light annotation: only the ego headlights and the night sky "
+                                                "light the nights (label lights with 'npsim annotate')")
+    from ..proposals import propose_for_scene
+
+    geo: GeometryResult = inputs["geometry"]
+    props = propose_for_scene(s, depth=geo.scene.depth)
+    kept = props.above(lp.min_confidence)
+    ids = kept.instance_ids()
+    conf = {i: float(c) for i, c in props.confidence.items() if i in set(ids) or i in kept.groups}
+    return LightsResult(kept if ids else None, "proposed",
+                        f"{len(ids)} proposed lights (confidence >= {lp.min_confidence:g}; "
+                        f"{len(props.annotation.instance_ids())} proposed in all)", conf)
+
+
 # --------------------------------------------------------------------------- mesh
 def mesh_needs(params: ChainParams) -> tuple[str, ...]:
     """The inputs the mesh stage reads for ``params`` (the depth it meshes, U only when post-processing)."""
-    base = ("geometry", "annotation")
+    base = ("geometry", "lights")
     if params.mesh.stride == 1 and params.mesh.postprocess:
         base += ("uncertain",)
     return base + {"refined": ("refine",), "filtered": ("filter",), "input": ()}[params.mesh.depth]
@@ -183,7 +238,7 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
     s = inputs["geometry"].scene
     depth = {"refined": lambda: inputs["refine"].depth, "filtered": lambda: inputs["filter"],
              "input": lambda: s.depth}[mp.depth]().astype(np.float32)
-    ann = inputs.get("annotation")
+    ann = inputs["lights"].annotation
     light_ids = ann.instance_map if ann is not None else None
     intr = s.intrinsics
     if mp.postprocess and mp.stride == 1:
@@ -239,7 +294,7 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
     """Albedo/roughness from the frame's maps or the per-class fallback (docs/method.md §6.1)."""
     from ..render.materials import estimate_materials
 
-    s, ann = inputs["frame"], inputs.get("annotation")
+    s, ann = inputs["frame"], inputs["lights"].annotation
     light_cls = ann.class_map() if ann is not None else np.zeros(s.labels.shape, np.uint8)
     mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness, light_classes=light_cls)
     return MaterialsResult(mats, light_cls)
@@ -281,7 +336,7 @@ def night_scene_stage(inputs: dict, params, ctx):
     mesh, what = render_mesh(m, tolerance)
     t_reduce = time.perf_counter() - t0
     ctx.cancel()
-    built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs.get("annotation"), None,
+    built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs["lights"].annotation, None,
                         bp, variant=variant or None)
     built.info.update(render_mesh=what, full_mesh_faces=int(m.mesh.n_faces), reduce_s=round(t_reduce, 3))
     return built
@@ -319,10 +374,11 @@ STAGES: tuple[Stage, ...] = (
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
     Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),
-    Stage("mesh", mesh_stage, ("geometry", "annotation", "uncertain", "filter", "refine"),
-          lambda p: (p.mesh, p.postprocess), needs=mesh_needs),
-    Stage("materials", materials_stage, ("frame", "annotation")),
-    Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "annotation"),
+    Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
+    Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),
+          lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=2),
+    Stage("materials", materials_stage, ("frame", "lights"), version=2),
+    Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance)), version=2),
     Stage("guides", guides_stage, ("frame", "mesh", "materials", "night_scene"), lambda p: p.night.denoiser_used,
           needs=guides_needs, version=2),
