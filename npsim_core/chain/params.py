@@ -222,7 +222,7 @@ class ExportParams:
             raise NpsimInputError(f"export.mesh_formats: unknown {bad or 'empty'}; choose from {', '.join(FORMATS)}")
 
 
-#: Where a frame's light annotation comes from (``lights.source``; docs/method.md §6.2).
+#: Where a frame's light annotation comes from (``lights.source``; docs/method.md §7.5).
 LIGHT_SOURCES = ("auto", "annotation", "proposed", "none", "file")
 
 

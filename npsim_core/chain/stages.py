@@ -184,7 +184,7 @@ def lights_needs(params: ChainParams) -> tuple[str, ...]:
 
 
 def lights_stage(inputs: dict, params, ctx) -> LightsResult:
-    """The frame's light annotation by ``lights.source`` (docs/method.md §6.2): the hand annotation,
+    """The frame's light annotation by ``lights.source`` (docs/method.md §7.5): the hand annotation,
     the automatic proposals above ``min_confidence``, a file, or none."""
     lp = params
     ann = inputs.get("annotation")
@@ -233,6 +233,7 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
     """Worldsheet grid of the chosen depth + post-processing kernel, light ids per vertex
     (docs/method.md §4–§5). ``stride`` > 1 gives a strided grid without post-processing."""
     from ..mesh.grid import grid_mesh
+    from ..render.ego import no_mesh_labels
 
     mp, pp = params
     s = inputs["geometry"].scene
@@ -244,8 +245,10 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
     if mp.postprocess and mp.stride == 1:
         from ..mesh.postprocess import postprocess_mesh
 
+        # The ego vehicle and the frame borders are not part of the street (docs/relight.md, "The ego vehicle").
         res = postprocess_mesh(depth, intr, s.labels, inputs["uncertain"], light_ids=light_ids,
-                               params=replace(pp, far_limit=mp.far_limit), normals=s.normals)
+                               params=replace(pp, far_limit=mp.far_limit, exclude=no_mesh_labels(pp.exclude)),
+                               normals=s.normals)
         ctx.cancel()
         out = MeshResult(res.mesh, depth, intr, removed_faces(depth, intr, s.labels, res.layers), res.layers,
                          dict(res.counts))
@@ -255,7 +258,8 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
             red = reduce_mesh(res.layers, intr, ReduceParams(budget=int(mp.face_budget)))
             out.mesh, out.reduced = red.mesh, red.steps
         return out
-    mesh = grid_mesh(depth, intr, s.labels, light_ids, stride=int(mp.stride), far_limit=mp.far_limit)
+    mesh = grid_mesh(depth, intr, s.labels, light_ids, stride=int(mp.stride), far_limit=mp.far_limit,
+                     exclude=no_mesh_labels(None))
     return MeshResult(mesh, depth, intr, counts={"faces": mesh.n_faces})
 
 
@@ -376,7 +380,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),
     Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
     Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),
-          lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=2),
+          lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=3),
     Stage("materials", materials_stage, ("frame", "lights"), version=2),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance)), version=2),
