@@ -151,6 +151,17 @@ class SceneSource:
             field = {"stereo": "depth_stereo", "gt": "depth_gt", "input": "depth"}[disparity_as]
             arrays[field] = depth
             prov["stereo_depth"] = f"{self.disparity_path.name} -> {field}"
+        # Instance ids (X_gtFine_instanceIds.png beside X_gtFine_labelIds.png) feed the light proposals.
+        inst_path = self.label_path.with_name(
+            self.label_path.name.replace("_labelTrainIds.png", "_instanceIds.png").replace("_labelIds.png",
+                                                                                          "_instanceIds.png"))
+        if inst_path != self.label_path and inst_path.exists():
+            inst = read_image(inst_path, color=False)
+            if inst.ndim != 2 or inst.shape != (H, W):
+                raise NpsimInputError(f"{inst_path}: instanceIds must be a single-channel {W}x{H} PNG like the "
+                                      f"labels, got shape {inst.shape}")
+            arrays["instances"] = inst.astype(np.int32)
+            prov["instances"] = str(inst_path)
         return Scene(name=self.name, image=image, labels=labels, intrinsics=intr, camera_height=cam_height,
                      camera_pitch=pitch, provenance=prov, **arrays)
 

@@ -67,6 +67,9 @@ class Scene:
         Metres above the ground and downward pitch in radians (for the pop-up prior).
     provenance : dict
         Where each piece came from (files, generator and its parameters).
+    instances : optional (H, W) integer
+        Cityscapes instanceIds (``labelId*1000 + k`` on instance classes), when the dataset has them;
+        only the light proposals (docs/proposals.md) read them.
     """
 
     name: str
@@ -84,6 +87,7 @@ class Scene:
     camera_height: float = DEFAULT_CAMERA_HEIGHT
     camera_pitch: float = DEFAULT_CAMERA_PITCH
     provenance: dict[str, Any] = field(default_factory=dict)
+    instances: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         validate_scene(self)
@@ -137,6 +141,12 @@ def validate_scene(s: Scene) -> None:
             raise NpsimInputError(f"{where}: {name} has shape {a.shape}, expected {(H, W, 3)}")
         if not np.issubdtype(a.dtype, np.floating):
             raise NpsimInputError(f"{where}: {name} must be floating point, got {a.dtype}")
+    if s.instances is not None:
+        if not isinstance(s.instances, np.ndarray) or s.instances.shape != (H, W):
+            raise NpsimInputError(f"{where}: instances have shape {getattr(s.instances, 'shape', None)}, "
+                                  f"expected {(H, W)} like the labels")
+        if not np.issubdtype(s.instances.dtype, np.integer):
+            raise NpsimInputError(f"{where}: instances must be integer instanceIds, got {s.instances.dtype}")
     if s.lights is not None:
         if s.lights.shape != (H, W):
             raise NpsimInputError(f"{where}: light annotation is {s.lights.shape}, image is {(H, W)}")

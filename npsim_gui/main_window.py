@@ -17,7 +17,7 @@ import cv2
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
-                               QMessageBox, QProgressDialog, QVBoxLayout, QWidget)
+                               QMessageBox, QProgressDialog, QToolButton, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import find_recovery, load_recovery
 from npsim_core.errors import NpsimCancelled, NpsimInputError
@@ -101,10 +101,7 @@ class MainWindow(QMainWindow):
         self.frames_dock = self._dock("Frames", self.frame_list, Qt.DockWidgetArea.LeftDockWidgetArea)
         self.tabifyDockWidget(self.params_dock, self.frames_dock)
         self.params_dock.raise_()
-        self.frames_dock.hide()  # shown when a dataset is opened
-        if self.viewer is not None:  # default split of the right column (a saved layout overrides it)
-            self.resizeDocks([self.viewer_dock, self.render_dock], [420, 480], Qt.Orientation.Vertical)
-            self.resizeDocks([self.viewer_dock], [560], Qt.Orientation.Horizontal)
+        self.frames_dock.hide()  # shown when a dataset is opened; fit_to arranges the docks for the screen
 
     def _dock(self, title: str, widget: QWidget, area) -> QDockWidget:
         d = QDockWidget(title, self)
@@ -130,7 +127,17 @@ class MainWindow(QMainWindow):
         self._action(m, "Quit", "Ctrl+Q", self.close)
         r = self.menuBar().addMenu("&Run")
         self._action(r, "Recompute", "F5", self.recompute)
-        self._action(r, "Render night preview", "F6", self.request_render)
+        self._action(r, "Render night preview", "F6", lambda: self.request_render(force=True))
+        # Esc is the editor's "clear selection" too: it cancels when there is nothing to clear
+        # (AnnotationEditor.escapeUnused) or when the focus is outside the editor (keyPressEvent)
+        self.act_cancel = self._action(r, "Cancel running job (Esc)", "", self.cancel_jobs)
+        self.act_cancel.setToolTip("Stop the running computation, night render or export (Esc)")
+        self.act_cancel.setEnabled(False)
+        self.cancel_btn = QToolButton()
+        self.cancel_btn.setDefaultAction(self.act_cancel)
+        self.cancel_btn.setText("Cancel")
+        self.cancel_btn.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        self.statusBar().addPermanentWidget(self.cancel_btn)
         v = self.menuBar().addMenu("&View")
         for d in (self.params_dock, self.frames_dock, self.render_dock, self.log_dock) + \
                 ((self.viewer_dock,) if self.viewer else ()):
@@ -140,7 +147,8 @@ class MainWindow(QMainWindow):
 
     def _action(self, menu, text: str, shortcut: str, fn) -> QAction:
         a = QAction(text, self)
-        a.setShortcut(QKeySequence(shortcut))
+        if shortcut:
+            a.setShortcut(QKeySequence(shortcut))
         a.triggered.connect(fn)
         menu.addAction(a)
         return a
@@ -165,7 +173,12 @@ class MainWindow(QMainWindow):
         self.render_panel.seedChanged.connect(lambda s: self.on_param_changed("night", "seed", int(s)))
         self.render_panel.denoiserChanged.connect(lambda d: self.on_param_changed("night", "denoiser", str(d)))
         self.render_panel.lightsToggled.connect(self.on_lights_toggled)
-        self.render_panel.renderRequested.connect(self.request_render)
+        self.render_panel.renderRequested.connect(lambda: self.request_render(force=True))
+        self.render_dock.visibilityChanged.connect(self._on_render_dock_visible)
+        self.editor.escapeUnused.connect(self.cancel_jobs)
+        self.editor.proposal_source = self._proposal_job
+        for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
+            ch.busy.connect(self._update_cancel)
         self.editor.dirtyChanged.connect(self._update_title)
         self.editor.session.changed.connect(lambda *_: self._annotation_edited())
         self.autosave_timer = QTimer(self)
@@ -176,6 +189,38 @@ class MainWindow(QMainWindow):
 
     def _set_busy(self, text: str) -> None:
         self.busy_label.setText(text)
+
+    @property
+    def jobs_busy(self) -> bool:
+        """True while a pipeline, render, export or view job is pending or running."""
+        return any(ch.is_busy for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs))
+
+    def _update_cancel(self, *_a) -> None:
+        busy = self.jobs_busy
+        self.act_cancel.setEnabled(busy)
+        if not busy and getattr(self, "_cancelling", False):
+            self._cancelling = False
+            self._set_busy("cancelled — F5 recomputes, F6 renders")
+        dlg = getattr(self, "_export_dialog", None)
+        if dlg is not None and not self.export_jobs.is_busy:
+            dlg.reset()  # a cancelled or failed export never leaves its dialog up
+
+    def cancel_jobs(self) -> None:
+        """Stop every running job (Cancel button, Esc); the views keep what they show."""
+        if not self.jobs_busy:
+            return
+        self._set_busy("cancelling…")
+        self._cancelling = True
+        for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
+            ch.cancel()
+        self.log.log("cancelled by the user")
+        self._update_cancel()
+
+    def keyPressEvent(self, event) -> None:  # noqa: N802 (Qt API)
+        if event.key() == Qt.Key.Key_Escape and self.jobs_busy:
+            self.cancel_jobs()
+            return
+        super().keyPressEvent(event)
 
     # ----------------------------------------------------------------- scene
     def set_scene(self, scene: Scene, params: ChainParams | None = None) -> None:
@@ -257,9 +302,32 @@ class MainWindow(QMainWindow):
         self.recompute()
 
     def _annotation_edited(self) -> None:
+        """An edit only changes the lights: the depth, normal and 3D views stay as they are; the mesh
+        (light ids per vertex) and the night scene are rebuilt by the night render, and only when
+        the night preview is shown (else when it is shown next)."""
         if self.chain is not None:
             self.chain.set_annotation(self.editor.session.ann)
-            self.recompute()
+            self.request_render()
+
+    def _proposal_job(self):
+        """The editor's "Propose lights" on this frame: with its camera and the best depth at hand
+        (ground truth, stereo, else the chain's refined depth)."""
+        from npsim_core.proposals import propose_for_scene
+
+        if self.chain is None:
+            raise NpsimInputError("open a frame first (File > Open…)")
+        scene = self.chain.scene
+        depth = self.results.depth if self.results is not None else None
+        return lambda: propose_for_scene(scene, depth=depth)
+
+    def night_preview_shown(self) -> bool:
+        """True when the night preview is on screen (its dock open and, if tabbed, the current tab)."""
+        # a dock behind another tab stays "visible" (moved off-screen): its visible region is empty
+        return self.render_dock.isVisible() and not self.render_dock.visibleRegion().isEmpty()
+
+    def _on_render_dock_visible(self, visible: bool) -> None:
+        if visible and getattr(self, "_night_stale", False):
+            QTimer.singleShot(0, self.request_render)  # after the dock is laid out
 
     #: Wall-clock budget of the quick refinement shown first after a change (s); the full
     #: refinement follows in the same worker and replaces it when done.
@@ -372,10 +440,16 @@ class MainWindow(QMainWindow):
         self.light_override = dict(state)
         self.request_render()
 
-    def request_render(self) -> None:
+    def request_render(self, force: bool = False) -> None:
+        """Render the night preview in a worker; skipped (and remembered) while the preview is hidden,
+        unless ``force`` (F6, the Render button)."""
         if self.chain is None or self.results is None or self.results.mesh is None \
                 or not getattr(self, "results_final", True):
             return
+        if not force and not self.night_preview_shown():
+            self._night_stale = True
+            return
+        self._night_stale = False
         chain, params, res, override = self.chain, self.params, self.results, self.light_override
         t0 = self._t_change or time.perf_counter()
 
@@ -453,7 +527,10 @@ class MainWindow(QMainWindow):
             done = any(p.glob("*_lights.json")) if p.is_dir() else any(p.parent.glob(f"{f.name}*_lights.json"))
             self.frame_list.addItem(("✓ " if done else "   ") + f.name)
         self.frame_list.blockSignals(False)
-        self.frames_dock.show()
+        if self.frames_dock.isHidden():
+            self.frames_dock.show()
+            if not getattr(self, "_narrow", True):
+                self.resizeDocks([self.params_dock, self.frames_dock], [600, 160], Qt.Orientation.Vertical)
         self.log.log(f"dataset {root}: {len(frames)} frames (✓ = annotated); Ctrl+Right / Ctrl+Left step through them")
         self.open_frame(0)
 
@@ -578,32 +655,89 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(message, 10000)
         self.last_error = message
 
+    #: Screens narrower than this get one right-hand column: parameters over the night preview.
+    NARROW_SCREEN = 1500
+
     def _fit_screen(self) -> None:
-        """Start within the screen: on screens narrower than 1900 px the 3D view and the night
-        preview share one tabbed dock (a saved layout overrides this)."""
+        """Start within the screen (a saved layout that fits overrides this)."""
         from PySide6.QtGui import QGuiApplication
 
         screen = self.screen() or QGuiApplication.primaryScreen()
-        if screen is None:
-            return
-        avail = screen.availableGeometry()
-        self._tabify_right = avail.width() < 1900 and self.viewer is not None
+        if screen is not None:
+            self.fit_to(screen.availableGeometry())
+
+    def fit_to(self, avail) -> None:
+        """Size the window for the available screen rectangle ``avail`` (QRect) and choose the dock
+        arrangement: on screens narrower than :attr:`NARROW_SCREEN` px the parameters (tabbed with
+        the frame list) go over the night preview (tabbed with the 3D view) in one right-hand column;
+        wider, the parameters are on the left and the 3D view sits over the night preview."""
+        self._avail = avail
+        self._narrow = avail.width() < self.NARROW_SCREEN
+        self._arrange_pending = True
         self.resize(min(1680, avail.width()), min(1020, avail.height()))
+        if self.isVisible():
+            self._arrange()
+
+    def _arrange(self) -> None:
+        self._arrange_pending = False
+        right, left = Qt.DockWidgetArea.RightDockWidgetArea, Qt.DockWidgetArea.LeftDockWidgetArea
+        vertical = Qt.Orientation.Vertical
+        frames_open = not self.frames_dock.isHidden()
+        docks = [self.params_dock, self.frames_dock, self.render_dock] + ([self.viewer_dock] if self.viewer else [])
+        for d in docks:
+            self.removeDockWidget(d)
+        self.addDockWidget(right if self._narrow else left, self.params_dock, vertical)
+        if self._narrow or self.viewer is None:
+            self.addDockWidget(right, self.render_dock, vertical)
+            if self.viewer is not None:
+                self.tabifyDockWidget(self.render_dock, self.viewer_dock)
+        else:
+            self.addDockWidget(right, self.viewer_dock, vertical)
+            self.addDockWidget(right, self.render_dock, vertical)
+        if self._narrow:
+            self.tabifyDockWidget(self.params_dock, self.frames_dock)
+        else:  # the frame list under the parameters
+            self.splitDockWidget(self.params_dock, self.frames_dock, vertical)
+        for d in docks:
+            d.show()
+        self.frames_dock.setVisible(frames_open)
+        self.params_dock.raise_()
+        self.render_dock.raise_()
+        if self._narrow:
+            self.resizeDocks([self.params_dock, self.render_dock], [300, 400], vertical)
+        elif self.viewer is not None:
+            self.resizeDocks([self.viewer_dock, self.render_dock], [400, 500], vertical)
+            self.resizeDocks([self.viewer_dock], [self._avail.width() // 3], Qt.Orientation.Horizontal)
+        self.resizeDocks([self.log_dock], [140], vertical)
+        if frames_open and not self._narrow:
+            self.resizeDocks([self.params_dock, self.frames_dock], [600, 160], vertical)
 
     def showEvent(self, event) -> None:  # noqa: N802 (Qt API)
         super().showEvent(event)
-        if getattr(self, "_tabify_right", False):  # once, on a laid-out window (earlier leaves a stray tab bar)
-            self._tabify_right = False
-            self.tabifyDockWidget(self.viewer_dock, self.render_dock)
-            self.render_dock.raise_()
+        if getattr(self, "_arrange_pending", False):  # on a laid-out window (earlier leaves a stray tab bar)
+            self._arrange()
 
     def _restore_layout(self) -> None:
+        """Window geometry and dock state of the last session (QSettings), when they fit this screen."""
         s = QSettings(ORG, APP)
         geo, state = s.value("geometry"), s.value("state")
-        if geo is not None:
-            self.restoreGeometry(geo)
-        if state is not None:
-            self.restoreState(state)
+        if geo is None or state is None:
+            return
+        self.restoreGeometry(geo)
+        self.restoreState(state)
+        avail = getattr(self, "_avail", None)
+        hint = self.minimumSizeHint()
+        if avail is not None and (hint.width() > avail.width() or hint.height() > avail.height()
+                                  or not avail.contains(self.geometry())):
+            self.fit_to(avail)  # saved on a larger screen: the default arrangement for this one
+        else:
+            self._arrange_pending = False
+
+    def save_layout(self) -> None:
+        """Remember the window geometry and dock state for the next session (also done on close)."""
+        s = QSettings(ORG, APP)
+        s.setValue("geometry", self.saveGeometry())
+        s.setValue("state", self.saveState())
 
     def ask(self, title: str, text: str, buttons: list[str]) -> str:
         """Modal question; returns the chosen button's text (tests replace this method)."""
@@ -642,9 +776,7 @@ class MainWindow(QMainWindow):
             if not self.confirm_close():
                 event.ignore()
                 return
-        s = QSettings(ORG, APP)
-        s.setValue("geometry", self.saveGeometry())
-        s.setValue("state", self.saveState())
+        self.save_layout()
         for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
             ch.cancel()
         self.pipeline_jobs.shutdown()  # workers stop at their next cancellation check

@@ -114,11 +114,12 @@ class MeshViewer(QWidget):
         bar.addStretch(1)
         bar.addWidget(self.reset_btn)
         lay.addLayout(bar)
-        toggles = QHBoxLayout()  # a second row keeps the dock narrow
-        for w in (self.show_bg, self.show_fg, self.show_walls, self.show_removed, self.show_lights):
-            toggles.addWidget(w)
-        toggles.addStretch(1)
-        lay.addLayout(toggles)
+        for row in ((self.show_bg, self.show_fg, self.show_walls), (self.show_removed, self.show_lights)):
+            toggles = QHBoxLayout()  # two more rows keep the dock narrow (small screens)
+            for w in row:
+                toggles.addWidget(w)
+            toggles.addStretch(1)
+            lay.addLayout(toggles)
         self.plotter = QtInteractor(self, auto_update=False)
         self.plotter.set_background("#1b1d22")
         lay.addWidget(self.plotter.interactor, 1)

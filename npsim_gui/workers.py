@@ -86,11 +86,15 @@ class JobChannel(QObject):
         self.busy.emit(True)
 
     def cancel(self) -> None:
+        """Drop the pending job and ask the running one to stop; :attr:`busy` turns False when
+        it has stopped (at once when nothing runs)."""
         self._timer.stop()
         self._pending = None
         if self._cancel is not None:
             self._cancel.set()
         self._serial += 1
+        if self._running == 0:
+            self.busy.emit(False)
 
     def shutdown(self, timeout_ms: int = 5000) -> None:
         """Cancel and wait (bounded) for running jobs, e.g. before the window closes."""

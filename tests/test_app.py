@@ -47,7 +47,7 @@ def window(qtbot, scene):
 def test_opens_scene_builds_mesh_and_renders(window, scene):
     r = window.results
     assert r.mesh.n_faces > 1000
-    assert set(r.recomputed) <= {"filter", "uncertain", "refine", "mesh"}
+    assert set(r.recomputed) <= {"filter", "uncertain", "refine", "lights", "mesh"}
     night = window.render_panel.night
     assert night.shape == (H, W, 3)
     # a night: far darker than the day photo but not black (lights and ego headlights)

@@ -16,10 +16,15 @@ def test_bench_dispatch():
     assert cli_main(["bench", "no_such_benchmark"]) == 2
 
 
-def test_refine_benchmark_tiny_run(capsys):
-    assert cli_main(["bench", "refine", "--sizes", "64x32", "--adam-steps", "3", "--budgets", "2",
-                     "--kernel-budget", "2"]) == 0
+def test_refine_benchmark_tiny_run(capsys, tmp_path):
+    plot = tmp_path / "acc.png"
+    assert cli_main(["bench", "refine", "--sizes", "64x32", "--adam-steps", "3", "--lbfgs-steps", "2",
+                     "--fast-steps", "2", "--fixture", "64x32", "--fixture-frames", "1", "--cache", str(tmp_path),
+                     "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
-    for title in ("Cross-bilateral filter, 64x32", "Variance filter, 64x32", "Refinement, 64x32", "Whole kernel"):
+    for title in ("Cross-bilateral filter, 64x32", "Variance filter, 64x32", "Refinement accuracy against time, 64x32",
+                  "Whole kernel", "Stereo-only Cityscapes-layout fixture, 64x32"):
         assert title in out
-    assert "reaches Adam's final loss" in out
+    assert "Adam-3's accuracy" in out and "within 11.25°" in out
+    assert plot.stat().st_size > 1000
+    assert len(list(tmp_path.glob("adam_*.json"))) == 2  # Adam's curves cached (street and fixture frame)

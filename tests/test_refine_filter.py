@@ -6,7 +6,7 @@ import pytest
 from npsim_core.errors import NpsimInputError
 from npsim_core.refine.bilateral import FilterParams, cross_bilateral, cross_bilateral_reference
 
-SMALL = FilterParams(sigma_s=3.0)  # 9x9... 19x19 window keeps the brute force quick
+SMALL = FilterParams(sigma_s=3.0, scale_width=0)  # 9x9... 19x19 window keeps the brute force quick
 
 
 def blocks_scene(H=40, W=64, seed=0):
@@ -52,7 +52,7 @@ def test_fast_matches_reference_within_bound():
 
 def test_semantic_term_is_exact():
     d, img, lab = blocks_scene(seed=2)
-    p = FilterParams(mu=0.0, sigma_s=3.0)
+    p = FilterParams(mu=0.0, sigma_s=3.0, scale_width=0)
     np.testing.assert_allclose(cross_bilateral(d, img, lab, p), cross_bilateral_reference(d, img, lab, p),
                                rtol=2e-5, equal_nan=True)
 
@@ -64,7 +64,7 @@ def test_same_class_only_semantic_filter_does_not_mix_classes():
     lab[:, 15:] = 26
     d = np.where(lab == 7, 10.0, 40.0).astype(np.float32)
     img = np.full((H, W, 3), 128, np.uint8)
-    out = cross_bilateral(d, img, lab, FilterParams(mu=0.0, sigma_s=4))
+    out = cross_bilateral(d, img, lab, FilterParams(mu=0.0, sigma_s=4, scale_width=0))
     np.testing.assert_allclose(out, d, rtol=1e-6)
 
 
@@ -139,11 +139,11 @@ def test_inverse_domain_is_exact_on_a_ground_plane_rows():
     d = np.broadcast_to(100.0 / v, (H, W)).astype(np.float32)
     img = np.full((H, W, 3), 90, np.uint8)
     lab = np.full((H, W), 7, np.uint8)
-    p_inv = FilterParams(sigma_s=3.0, domain="inverse")
+    p_inv = FilterParams(sigma_s=3.0, domain="inverse", scale_width=0)
     out_inv = cross_bilateral_reference(d, img, lab, p_inv)
     inner = (slice(10, 30), slice(None))
     np.testing.assert_allclose(out_inv[inner], d[inner], rtol=1e-5)
-    out_dep = cross_bilateral_reference(d, img, lab, FilterParams(sigma_s=3.0))
+    out_dep = cross_bilateral_reference(d, img, lab, FilterParams(sigma_s=3.0, domain="depth", scale_width=0))
     assert np.all(out_dep[inner] > d[inner])  # Jensen: averaging the convex depth biases it up
     np.testing.assert_allclose(cross_bilateral(d, img, lab, p_inv), out_inv, rtol=1e-4)
     with pytest.raises(NpsimInputError, match="domain"):

@@ -58,7 +58,7 @@ def test_losses_vanish_on_a_consistent_plane_and_match_hand_values():
     assert float(prob.terms(prob.d_init)[0]) == pytest.approx(expect, rel=1e-4)
 
 
-@pytest.mark.parametrize("optimizer", ["fast", "adam_faithful"])
+@pytest.mark.parametrize("optimizer", ["fast", "lbfgs", "adam_faithful"])
 def test_tilted_plane_is_a_fixed_point(optimizer):
     d, N, intr = tilted_plane()
     r = refine_depth(d, N, intr, None, RefineParams(optimizer=optimizer, steps=10, dtype="float64"))
@@ -119,7 +119,7 @@ def test_cancel_from_another_thread():
         refine_depth(dn, N, intr, None, RefineParams(steps=5), cancel=lambda: True)
 
 
-@pytest.mark.parametrize("optimizer,lr", [("adam_faithful", 50.0), ("fast", 1e6)])
+@pytest.mark.parametrize("optimizer,lr", [("adam_faithful", 50.0), ("fast", 1e6), ("lbfgs", 1e6)])
 def test_divergence_detected_best_iterate_kept(optimizer, lr):
     dn, N, intr, _ = noisy_plane(3)
     r = refine_depth(dn, N, intr, None, RefineParams(optimizer=optimizer, lr=lr, steps=50,
@@ -143,7 +143,7 @@ def test_stability_hard_inputs():
     N[6, 6] = np.nan
     U = rng.random((H, W)) < 0.3
     for lam in [(0, 0, 0), (1e3, 1e3, 1e3), (1, 0, 0), (0, 0, 1)]:
-        for opt in ("fast", "adam_faithful"):
+        for opt in ("fast", "lbfgs", "adam_faithful"):
             r = refine_depth(d.astype(np.float16)[:, ::-1], N[:, ::-1], intr, U[:, ::-1],
                              RefineParams(lambdas=lam, optimizer=opt, steps=5))
             valid = (np.isfinite(d) & (d > 0))[:, ::-1]
@@ -159,7 +159,7 @@ def test_tiny_images(shape):
     intr = Intrinsics.from_fov(W, H, 60.0)
     d = np.full(shape, 3.0, np.float32)
     N = np.broadcast_to(np.array([0, 0, -1.0], np.float32), (H, W, 3))
-    for opt in ("fast", "adam_faithful"):
+    for opt in ("fast", "lbfgs", "adam_faithful"):
         r = refine_depth(d, N, intr, None, RefineParams(optimizer=opt, steps=3))
         assert r.depth.shape == shape and np.isfinite(r.depth).all()
 

@@ -383,3 +383,24 @@ def test_denoise_guides_from_the_mesh():
     assert (np.abs(np.linalg.norm(g.normals[ok], axis=1) - 1) < 1e-3).mean() > 0.95
     with pytest.raises(NpsimInputError):
         denoise_guides(mesh, s.intrinsics, s.albedo[:10], s.labels)
+
+
+def test_low_beam_pattern_cuts_off_below_the_horizon_and_rises_on_the_kerb_side():
+    """The ego lamps' texture (docs/relight.md, "People in the headlights"): row 0 = down, column 0 =
+    the kerb side (image right); full light just under -0.57 deg, 2 % above the line."""
+    import math
+
+    from npsim_core.render.scene_builder import LOW_BEAM_ABOVE, low_beam_pattern
+
+    cutoff, rows, cols = 35.0, 1024, 128
+    pat = low_beam_pattern(cutoff, rows, cols)
+    assert pat.shape == (rows, cols, 3) and pat.dtype == np.float32
+    t = math.tan(math.radians(cutoff))
+
+    def row_of(elev_deg):   # the row looking at this elevation straight ahead
+        return int((math.tan(math.radians(elev_deg)) / t * 0.5 + 0.5) * rows)
+
+    oncoming, kerb = cols - 1 - cols // 2 + 2, cols // 2 - 12  # a few degrees either side of straight ahead
+    assert pat[row_of(-2.0), oncoming, 0] > 0.9 and pat[row_of(0.5), oncoming, 0] == pytest.approx(LOW_BEAM_ABOVE)
+    assert pat[row_of(0.5), kerb, 0] > 0.9        # the kerb side's line has risen above 0.5 deg
+    assert pat[row_of(-20.0), oncoming, 0] >= 0.25

@@ -292,14 +292,19 @@ def test_import_is_cheap():
 
 
 def test_albedo_texture_is_consistent_with_image(scene):
-    # Textured albedo stays in [0, 1], is uniform on lights (untextured) and varies on the road.
+    # Textured albedo stays in [0, 1], varies on the road; lamps are uniform per light, building panes
+    # (scene version 5) vary inside: reflection gradient, frames, curtains (texture.light_factor).
     road = (scene.labels == 7) & (scene.lights.instance_map == 0)
     assert scene.albedo[road].std(axis=0).max() > 0.005
     on = scene.lights.instance_map > 0
-    for i in scene.lights.instance_ids()[:20]:
+    assert (scene.albedo[on] >= 0).all() and (scene.albedo[on] <= 1).all()
+    lamps = [i for i in scene.lights.instance_ids() if i // 1000 in (3, 4, 8, 10, 12)]
+    for i in lamps[:20]:
         m = scene.lights.instance_map == i
         assert np.ptp(scene.albedo[m], axis=0).max() < 1e-6
-    assert on.any()
+    panes = [i for i in scene.lights.instance_ids() if i // 1000 == 1 and (scene.lights.instance_map == i).sum() > 30]
+    assert any(np.ptp(scene.albedo[scene.lights.instance_map == i], axis=0).max() > 0.01 for i in panes)
+    assert on.any() and lamps
     # Brighter albedo -> brighter pixels on sunlit road (rank correlation is positive).
     lum = scene.image[road].astype(np.float32).mean(axis=1)
     alb = scene.albedo[road].mean(axis=1)
@@ -458,3 +463,20 @@ def test_variant_api_names_and_cache(tmp_path, monkeypatch):
             make_street_scene(16, 8, variant=bad)
         with pytest.raises(NpsimInputError, match="street variant"):
             street_scene(16, 8, variant=bad)
+
+
+def test_busy_variant_is_the_default_street_plus_its_objects():
+    """The busy street (docs/synthetic.md) adds people, riders, a truck or bus and the ego hood
+    after every default draw: its first primitives are the default street's, bit for bit."""
+    from npsim_core.synthetic.street import EGO_VEHICLE, build_street, frame_border_labels
+
+    for seed in (0, 1):
+        base, busy = build_street(seed), build_street(seed, "busy")
+        n = len(base.prims)
+        assert len(busy.prims) > n and base.groups == busy.groups and base.sun == busy.sun
+        for name in ("lo", "hi", "label", "light", "color", "material", "out"):
+            assert np.array_equal(getattr(busy.prims, name)[:n], getattr(base.prims, name)), name
+        extra = set(busy.prims.label[n:].tolist())
+        assert {24, 25, 33, EGO_VEHICLE} <= extra and extra & {27, 28}
+    border = frame_border_labels(200, 100)
+    assert set(np.unique(border).tolist()) == {0, 2, 3} and border[50, 0] == 3 and border[0, 0] == 2

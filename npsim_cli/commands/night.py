@@ -31,7 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variants", type=int, default=3, help="number of nights (default 3)")
     p.add_argument("--scale", type=float, default=1.0, help="render at this fraction of the frame's resolution")
     p.add_argument("--iso", type=int, default=None, help="camera noise preset ISO (0 = no noise; default 1600)")
-    p.add_argument("--exposure", type=float, default=None, help="exposure in stops (default 0)")
+    p.add_argument("--exposure", type=float, default=None,
+                   help="exposure in stops: a compensation added to the metered exposure with --exposure-mode auto "
+                        "(default), the whole exposure with manual (default 0)")
+    p.add_argument("--exposure-mode", choices=["auto", "manual"], default=None,
+                   help="auto (default): the camera meters the lit pixels and sets the exposure, bounded "
+                        "(night.exposure_target/min/max); manual: --exposure alone")
     p.add_argument("--no-ego-lights", action="store_true", help="switch off the ego vehicle's headlights")
     p.add_argument("--group-all-together", action="store_true", help="each light group switches as one")
     p.add_argument("--motion-blur", type=int, default=None, help="horizontal blur (px) of moving vehicles")
@@ -59,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         raise NpsimInputError(f"--variants must be >= 1, got {args.variants}")
     params = params_from_args(args)
     check_output_folder(args.out)
-    night = {"iso": args.iso, "exposure": args.exposure, "motion_blur_px": args.motion_blur,
+    night = {"iso": args.iso, "exposure": args.exposure, "exposure_mode": args.exposure_mode, "motion_blur_px": args.motion_blur,
              "light_table": args.light_table, "variant": args.variant, "final_max_depth": args.max_depth}
     for name, value in night.items():
         if value is not None:

@@ -94,7 +94,8 @@ class ChainResults:
 class NightFrame:
     """A night: 8-bit sRGB ``image``, the ``linear`` render, ``spp`` so far, ``elapsed`` seconds,
     the Mitsuba ``variant``, the light states ``active``, per-step ``timings`` (s), the
-    ``denoiser`` that ran (``oidn``, ``guided`` or ``none``) and the rendered mesh's ``faces``."""
+    ``denoiser`` that ran (``oidn``, ``guided`` or ``none``), the rendered mesh's ``faces`` and
+    the ``exposure`` chosen."""
 
     image: np.ndarray
     linear: np.ndarray
@@ -105,6 +106,9 @@ class NightFrame:
     timings: dict[str, float] = field(default_factory=dict)
     denoiser: str = ""
     faces: int = 0
+    #: ``exposure_mode``, ``exposure_ev`` (the stops applied), the meter's reading and the ego
+    #: compositing gain (:meth:`Chain.finish`).
+    exposure: dict = field(default_factory=dict)
 
 
 class Chain:
@@ -206,23 +210,41 @@ class Chain:
                                force=light_override)
 
     def finish(self, linear: np.ndarray, params: ChainParams, guides, materials, *,
-               labels: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, float]]:
-        """Linear render -> denoised by ``night.denoiser_used`` (docs/method.md §6.5) -> camera ->
-        8-bit sRGB; returns it and the seconds of each step."""
+               labels: np.ndarray | None = None, info: dict | None = None) -> tuple[np.ndarray, dict[str, float]]:
+        """Linear render -> denoised by ``night.denoiser_used`` (docs/method.md §6.5) -> ego vehicle
+        and frame borders composited from the day (:func:`~npsim_core.render.ego.composite_ego`) ->
+        exposure (``night.exposure_mode``: metered, or ``night.exposure`` stops) -> camera -> 8-bit
+        sRGB; returns it and the seconds of each step. ``info`` (a dict) receives the exposure chosen
+        (``exposure_ev``, stops), the meter's reading and the ego compositing gain."""
         from ..render.camera_post import CameraParams, apply_camera
         from ..render.denoise import denoise_night
+
+        from ..render.camera_post import auto_exposure
+        from ..render.ego import composite_ego, ego_mask
 
         n = params.night
         t0 = time.perf_counter()
         used = n.denoiser_used
-        clean = denoise_night(linear, guides if used != "none" else None, params.denoise,
-                              materials.light_classes > 0, denoiser=used)
+        lights = materials.light_classes > 0
+        clean = denoise_night(linear, guides if used != "none" else None, params.denoise, lights, denoiser=used)
         t1 = time.perf_counter()
-        cam = CameraParams(exposure_ev=n.exposure, iso=(n.iso or None) if n.noise else None, seed=n.seed,
+        # The ego vehicle and the frame borders: the day pixels darkened like the scene (docs/relight.md).
+        frame = self.scene
+        clean, ego = composite_ego(clean, frame.image, frame.labels, lights)
+        ev, meter = n.exposure, {}
+        if n.exposure_mode == "auto":
+            ev, meter = auto_exposure(clean, _resize_nearest(frame.labels, clean.shape[:2]),
+                                      _resize_nearest(lights, clean.shape[:2]) | _resize_nearest(
+                                          ego_mask(frame.labels), clean.shape[:2]),
+                                      target=n.exposure_target, bounds=(n.exposure_min, n.exposure_max),
+                                      compensation=n.exposure)
+        cam = CameraParams(exposure_ev=ev, iso=(n.iso or None) if n.noise else None, seed=n.seed,
                            motion_blur_px=int(n.motion_blur_px), bloom=float(n.bloom))
         same = labels is not None and labels.shape == clean.shape[:2]
         srgb, _ = apply_camera(clean, cam, labels=labels if same else None,
                                light_classes=materials.light_classes if same else None)
+        if info is not None:
+            info.update(exposure_mode=n.exposure_mode, exposure_ev=float(ev), **meter, **ego)
         return srgb, {"denoise": t1 - t0, "camera": time.perf_counter() - t1}
 
     def night_preview(self, results: ChainResults | None, params: ChainParams, *,
@@ -240,9 +262,10 @@ class Chain:
         pp = PreviewParams(scale=n.preview_scale, schedule=(first,) + ((int(n.spp) - first,) if n.spp > first else ()),
                            seed=n.seed, max_depth=int(n.preview_max_depth))
         for frame in render_preview(built, pp, cancel=cancel):
-            srgb, tm = self.finish(frame.image, params, guides, mats)
+            info: dict = {}
+            srgb, tm = self.finish(frame.image, params, guides, mats, info=info)
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm,
-                             n.denoiser_used, built.n_faces)
+                             n.denoiser_used, built.n_faces, info)
 
     def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
                     cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
@@ -261,10 +284,22 @@ class Chain:
         linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
                               passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
         t3 = time.perf_counter()
-        srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels)
+        info: dict = {}
+        srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings,
-                          n.denoiser_used, built.n_faces)
+                          n.denoiser_used, built.n_faces, info)
+
+
+def _resize_nearest(a: np.ndarray, hw: tuple[int, int]) -> np.ndarray:
+    """A label or mask map at a render's size (a preview is smaller than the frame)."""
+    a = np.asarray(a)
+    if a.shape[:2] == tuple(hw):
+        return a
+    import cv2
+
+    out = cv2.resize(a.astype(np.uint8), (hw[1], hw[0]), interpolation=cv2.INTER_NEAREST)
+    return out.astype(bool) if a.dtype == bool else out.astype(a.dtype)
 
 
 def _progress_adapter(progress: ProgressFn):

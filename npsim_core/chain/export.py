@@ -280,6 +280,9 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                             "lights_on": on, "lights": len(frame.active.lights),
                             "lights_without_faces": sorted(int(i) for i in set(frame.active.lights)
                                                            - set(built.area_keys)),
+                            "exposure": {k2: (None if isinstance(v, float) and not np.isfinite(v) else
+                                              round(v, 6) if isinstance(v, float) else v)
+                                         for k2, v in frame.exposure.items()},
                             "seconds": round(frame.elapsed, 3),
                             "timings": {k2: round(v, 3) for k2, v in frame.timings.items()}})
     # The night stages' times when they ran (their results are cached in the chain).

@@ -112,6 +112,10 @@ class MeshParams:
             raise NpsimInputError(f"mesh.depth must be one of {MESH_DEPTHS}, got {self.depth!r}")
 
 
+#: How a night's exposure is chosen: metered by the camera, or ``night.exposure`` stops.
+EXPOSURE_MODES = ("auto", "manual")
+
+
 @dataclass(frozen=True)
 class NightParams:
     """Night rendering and camera.
@@ -125,7 +129,14 @@ class NightParams:
         reference than 64 spp with the guided filter, docs/relight.md).
     final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct
         light only (about half the time), 4 = two bounces.
-    iso : camera noise preset (0 = no noise); exposure : stops.
+    iso : camera noise preset (0 = no noise).
+    exposure_mode : ``auto`` (default): the camera meters the lit pixels of the night (geometric
+        mean of their luminance, light sources, sky and ego vehicle left out) and exposes them to
+        ``exposure_target`` within [``exposure_min``, ``exposure_max``] stops; ``manual``: exactly
+        ``exposure`` stops (docs/relight.md, "Exposure").
+    exposure : stops; in ``auto`` mode an exposure compensation added to the metered value.
+    exposure_target : linear level (1 = sensor white) the metered value is brought to.
+    exposure_min, exposure_max : the automatic exposure's range, stops.
     ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
     denoise : remove the Monte Carlo noise before the camera noise (the on/off switch).
@@ -147,6 +158,10 @@ class NightParams:
     final_max_depth: int = 3
     iso: int = 1600
     exposure: float = 0.0
+    exposure_mode: str = "auto"
+    exposure_target: float = 0.025
+    exposure_min: float = -3.0
+    exposure_max: float = 4.0
     ego_headlights: bool = True
     group_all_together: bool = False
     noise: bool = True
@@ -175,6 +190,15 @@ class NightParams:
             raise NpsimInputError(f"night.bloom must be in [0, 1] (0 = off), got {self.bloom}")
         if self.variant not in ("", "scalar_rgb", "llvm_ad_rgb"):
             raise NpsimInputError(f"night.variant must be '', 'scalar_rgb' or 'llvm_ad_rgb', got {self.variant!r}")
+        if self.exposure_mode not in EXPOSURE_MODES:
+            raise NpsimInputError(f"night.exposure_mode must be one of {', '.join(EXPOSURE_MODES)}, "
+                                  f"got {self.exposure_mode!r}")
+        if not (math.isfinite(float(self.exposure_min)) and math.isfinite(float(self.exposure_max))
+                and float(self.exposure_min) <= float(self.exposure_max)):
+            raise NpsimInputError(f"night.exposure_min must be <= night.exposure_max (finite stops), got "
+                                  f"{self.exposure_min}, {self.exposure_max}")
+        if not (math.isfinite(float(self.exposure_target)) and float(self.exposure_target) > 0):
+            raise NpsimInputError(f"night.exposure_target must be a positive linear level, got {self.exposure_target}")
         if self.denoiser is None:  # ``--set night.denoiser=none`` parses as JSON null
             object.__setattr__(self, "denoiser", "none")
         if self.denoiser not in DENOISERS:

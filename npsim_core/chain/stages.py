@@ -233,12 +233,13 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
     """Worldsheet grid of the chosen depth + post-processing kernel, light ids per vertex
     (docs/method.md §4–§5). ``stride`` > 1 gives a strided grid without post-processing."""
     from ..mesh.grid import grid_mesh
-    from ..render.ego import no_mesh_labels
+    from ..render.ego import extend_over_margin, no_mesh_labels
 
     mp, pp = params
     s = inputs["geometry"].scene
     depth = {"refined": lambda: inputs["refine"].depth, "filtered": lambda: inputs["filter"],
              "input": lambda: s.depth}[mp.depth]().astype(np.float32)
+    depth = extend_over_margin(depth, s.labels)  # the bonnet's depth bleeds into the road above it
     ann = inputs["lights"].annotation
     light_ids = ann.instance_map if ann is not None else None
     intr = s.intrinsics

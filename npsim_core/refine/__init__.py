@@ -2,7 +2,8 @@
 
 * :mod:`.bilateral` -- dual-reference cross-bilateral filter (exact reference and fast).
 * :mod:`.uncertainty` -- dual-reference variance filter -> uncertain map U.
-* :mod:`.optimize` -- normal-guided depth refinement (faithful Adam, fast L-BFGS).
+* :mod:`.optimize` -- normal-guided depth refinement (default damped Gauss-Newton, faithful Adam, L-BFGS).
+* :mod:`.gauss_newton` -- the default solver's linearised system and preconditioned CG.
 
 The cached chain filter -> uncertain -> refine is :class:`npsim_core.chain.Chain`.
 """

@@ -32,23 +32,31 @@ Loss variants (``RefineParams.loss``):
 
 Optimisers (``RefineParams.optimizer``):
 
+``'fast'`` (default)
+    Damped Gauss-Newton (Levenberg-Marquardt): every step linearises the loss into a
+    sparse least-squares problem on the image grid and solves it by Jacobi-preconditioned
+    conjugate gradients (:mod:`.gauss_newton`); a step is kept only if the true loss falls,
+    and every pixel stays within ``max_rel_change`` of its input depth (default ±2 %).
+    Judged by accuracy against ground truth, it reaches the faithful Adam's normal error and
+    AbsRel at 2048x1024 in about a second (docs/refine.md §5).
 ``'adam_faithful'``
     torch Adam on the raw depth, lr 1e-4, 1000 steps (thesis). Adam moves each
     pixel by at most about lr per step, so the whole run changes depth by at
-    most ~0.1 m (reported as ``RefineResult.max_change_m``).
-``'fast'``
-    L-BFGS (torch, strong-Wolfe line search) on a diagonally preconditioned
-    variable ``d = d_est + s ⊙ x`` with s the pixel footprint: the normal term's
+    most ~0.1-0.2 m (reported as ``RefineResult.max_change_m``).
+``'lbfgs'``
+    The previous default: L-BFGS (torch, strong-Wolfe line search) on a diagonally
+    preconditioned variable ``d = d_est + s ⊙ x`` with s the pixel footprint: the normal term's
     curvature in d scales like (f/d)², so in x every pixel is equally well
     conditioned whatever its distance. Stops when the loss's relative decrease
-    over 5 iterations is below ``tol`` or after ``steps`` iterations.
+    over 5 iterations is below ``tol`` or after ``steps`` iterations. It lowers the loss
+    quickly but moves some depths by ~20 m before it matches Adam's accuracy.
 
-Both use the hand-derived gradient of :meth:`RefinementProblem.value_and_grad`
+Adam and L-BFGS use the hand-derived gradient of :meth:`RefinementProblem.value_and_grad`
 (1.5x faster than autograd at 2048x1024; ``total_autograd`` is the reference).
-Both keep the best iterate, stop on a non-finite loss or a blow-up (loss above
+All keep the best iterate, stop on a non-finite loss or a blow-up (loss above
 ``divergence_factor`` x the initial loss), check ``cancel`` every step (raising
-:class:`~npsim_core.errors.NpsimCancelled`) and call ``progress(step, total,
-losses)`` every step.
+:class:`~npsim_core.errors.NpsimCancelled`), call ``progress(step, total,
+losses)`` every step and honour the ``max_time_s`` budget (counted from the call).
 """
 
 from __future__ import annotations
@@ -72,8 +80,8 @@ PRESETS: dict[str, tuple[float, float, float]] = {
     "section_3_4_3": (1.0, 1.0, 5.0),   # as printed in the thesis's §3.4.3
 }
 
-_DEFAULT_STEPS = {"adam_faithful": 1000, "fast": 100}
-_DEFAULT_LR = {"adam_faithful": 1e-4, "fast": 1.0}
+_DEFAULT_STEPS = {"adam_faithful": 1000, "lbfgs": 100, "fast": 10}
+_DEFAULT_LR = {"adam_faithful": 1e-4, "lbfgs": 1.0, "fast": 1.0}
 
 
 @dataclass(frozen=True)
@@ -85,22 +93,27 @@ class RefineParams:
     lambdas : (float, float, float) or preset name
         (λ1 normal, λ2 continuity, λ3 depth); a name from :data:`PRESETS` is
         resolved on construction. Default: 'appendix_b' = (1, 5, 1).
-    optimizer : {'fast', 'adam_faithful'}
+    optimizer : {'fast', 'lbfgs', 'adam_faithful'}
+        'fast' (default): damped Gauss-Newton steps solved by preconditioned conjugate gradients
+        (:mod:`.gauss_newton`); 'lbfgs': the previous default, L-BFGS on footprint-scaled depth;
+        'adam_faithful': the thesis's Adam.
     steps : int or None
-        Iteration budget; None = 1000 for Adam (thesis), 100 for 'fast' (an upper bound; it stops on convergence).
+        Iteration budget; None = 1000 for Adam (thesis), 100 for 'lbfgs', 10 Gauss-Newton steps for
+        'fast' (upper bounds for the last two: they stop on convergence).
     lr : float or None
-        Learning rate; None = 1e-4 for Adam (thesis), 1.0 for L-BFGS (its natural step).
+        Learning rate; None = 1e-4 for Adam (thesis), 1.0 for L-BFGS (its natural step); unused by 'fast'.
     loss : {'thesis', 'scale_aware'}
         Loss variant (module docstring).
     dtype : {'float32', 'float64'}
     tol : float
-        'fast' convergence: relative loss decrease over 5 iterations below tol.
+        'lbfgs' convergence: relative loss decrease over 5 iterations below tol; 'fast': relative
+        decrease of one accepted Gauss-Newton step below tol.
     divergence_factor : float
         A loss above this multiple of the initial loss counts as divergence.
     history_size : int
         L-BFGS memory.
     coarse_factor, coarse_steps : int
-        'fast' only: first solve the problem downsampled ``coarse_factor`` times
+        'lbfgs' only: first solve the problem downsampled ``coarse_factor`` times
         (area-averaged depth and normals, resized intrinsics) for up to
         ``coarse_steps`` iterations, and start the full-resolution run from the
         input depth times the upsampled coarse correction d_coarse/d_coarse_init.
@@ -108,8 +121,21 @@ class RefineParams:
         there. ``coarse_factor=1`` (default) disables it: measured on the synthetic
         street it *raised* the full-resolution loss (see docs/refine.md).
     max_time_s : float or None
-        Wall-clock budget of the optimisation (both optimisers); the best iterate
-        so far is returned when it runs out (for live previews).
+        Wall-clock budget of the whole call, set-up included (every optimiser); the
+        best iterate so far is returned when it runs out (for live previews). The
+        clock is read every iteration (every CG iteration for 'fast'), so the
+        overshoot is one iteration plus one loss evaluation (~0.1 s at 2048x1024).
+        A budget below the set-up (~0.3-0.6 s at 2048x1024) returns the input depth.
+    cg_iters : int
+        'fast': conjugate-gradient iterations per Gauss-Newton step (at most).
+    cg_rtol : float
+        'fast': CG stops when its preconditioned residual falls below this fraction of the initial one.
+    damping : float
+        'fast': initial Levenberg-Marquardt damping μ (system ``A + μ diag A``); divided by 3 after
+        an accepted step, multiplied by 4 after a rejected one (the loss did not fall).
+    max_rel_change : float or None
+        'fast': bound on the relative move ``|d − d_in| / d_in`` of every pixel (a box constraint
+        applied after each step); None = unbounded. Default 0.02 (docs/refine.md).
     threads : int
         torch intra-op threads during the run (restored after); 0 = leave torch's setting.
         Default 1: on this 2-core machine shared with other jobs, 2 OpenMP threads
@@ -130,6 +156,10 @@ class RefineParams:
     coarse_factor: int = 1
     coarse_steps: int = 60
     max_time_s: float | None = None
+    cg_iters: int = 15
+    cg_rtol: float = 1e-3
+    damping: float = 0.01
+    max_rel_change: float | None = 0.02
 
     def __post_init__(self) -> None:
         lam = self.lambdas
@@ -165,6 +195,12 @@ class RefineParams:
             raise NpsimInputError(f"threads must be >= 0, got {self.threads}")
         if int(self.history_size) < 1:
             raise NpsimInputError(f"history_size must be >= 1, got {self.history_size}")
+        if int(self.cg_iters) < 1:
+            raise NpsimInputError(f"cg_iters must be >= 1, got {self.cg_iters}")
+        check_positive(self.cg_rtol, "RefineParams.cg_rtol", allow_zero=True)
+        check_positive(self.damping, "RefineParams.damping", allow_zero=True)
+        if self.max_rel_change is not None:
+            check_positive(self.max_rel_change, "RefineParams.max_rel_change")
 
     @classmethod
     def preset(cls, name: str, **kwargs) -> "RefineParams":
@@ -246,59 +282,70 @@ class RefinementProblem:
         anchor = depth if anchor is None else anchor
         va = valid_depth_mask(anchor)
         vd &= va
-        n = normals.astype(np.float64)
-        finite = np.isfinite(n).all(axis=-1)
-        n = np.where(finite[..., None], n, 0.0)
-        length = np.linalg.norm(n, axis=-1)
+        # Set-up in the working precision, on separate channels: rays K^-1 (u, v, 1) are separable
+        # (x by column, y by row), so r·N needs no HxWx3 ray array (3x faster set-up at 2048x1024).
+        npdt = np.float64 if dt == torch.float64 else np.float32
+        nx, ny, nz = (np.asarray(normals[..., i], npdt) for i in range(3))
+        finite = np.isfinite(nx) & np.isfinite(ny) & np.isfinite(nz)
+        nx, ny, nz = (np.where(finite, c, 0) for c in (nx, ny, nz))
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
         vn = finite & (length > 1e-6)
-        n = np.where(vn[..., None], n / np.maximum(length, 1e-12)[..., None], 0.0)
-        rays = intr.pixel_rays(np.float64)
-        away = vn & (np.einsum("ijk,ijk->ij", n, rays) > 0)
-        n[away] *= -1.0
+        inv_len = np.where(vn, 1 / np.maximum(length, 1e-12), 0).astype(npdt)
+        xs = ((np.arange(W, dtype=np.float64) - intr.cx) / intr.fx).astype(npdt)[None, :]   # (1, W)
+        ys = ((np.arange(H, dtype=np.float64) - intr.cy) / intr.fy).astype(npdt)[:, None]   # (H, 1)
+        b = (nx * xs + ny * ys + nz) * inv_len
+        away = vn & (b > 0)
+        sign = np.where(away, -inv_len, inv_len)
+        nx, ny, nz = nx * sign, ny * sign, nz * sign
+        b = np.where(away, -b, b)
         self.n_flipped = int(away.sum())
         self.valid = vd
-        d0 = np.where(vd, depth, 1.0).astype(np.float64)
-        da = np.where(vd, anchor, 1.0).astype(np.float64)
-        keep = 1.0 - uncertain.astype(np.float64)
-        t = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(dt)  # noqa: E731
+        d0 = np.where(vd, depth, 1.0).astype(npdt)
+        da = np.where(vd, anchor, 1.0).astype(npdt)
+        keep = ~np.asarray(uncertain, bool)
+        t = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=npdt))  # noqa: E731
         self.d_init = t(d0)
         self.d_est = t(da)
         # Normal term mask on the (H-1, W-1) grid of forward tangent pairs.
         mn = vd[:-1, :-1] & vd[:-1, 1:] & vd[1:, :-1] & vn[:-1, :-1]
         self.m_n = t(mn)
-        self.n_n = max(1.0, float(mn.sum()))
+        self.n_n = max(1.0, float(np.count_nonzero(mn)))
         # Continuity: residual_u(p) = d(p+x) a_u(p) − d(p) b(p), a_u = r(p+x)·N(p), b = r(p)·N(p).
-        b = np.einsum("ijk,ijk->ij", rays, n)
-        a_u = np.einsum("ijk,ijk->ij", rays[:, 1:], n[:, :-1])
-        a_v = np.einsum("ijk,ijk->ij", rays[1:, :], n[:-1, :])
+        a_u = b[:, :-1] + nx[:, :-1] * (xs[:, 1:] - xs[:, :-1])
+        a_v = b[:-1, :] + ny[:-1, :] * (ys[1:] - ys[:-1])
         mu = vd[:, :-1] & vd[:, 1:] & vn[:, :-1]
         mv = vd[:-1, :] & vd[1:, :] & vn[:-1, :]
         any_c = np.zeros((H, W), bool)
         any_c[:, :-1] |= mu
         any_c[:-1, :] |= mv
-        self.n_c = max(1.0, float(any_c.sum()))
-        self.n_d = max(1.0, float(vd.sum()))
+        self.n_c = max(1.0, float(np.count_nonzero(any_c)))
+        self.n_d = max(1.0, float(np.count_nonzero(vd)))
         f = math.sqrt(intr.fx * intr.fy)
+        wu = mu & keep[:, :-1]
+        wv = mv & keep[:-1, :]
         if params.loss == "scale_aware":
-            inv_s = f / da  # 1 / pixel footprint
-            wu = mu * keep[:, :-1] * inv_s[:, :-1] ** 2
-            wv = mv * keep[:-1, :] * inv_s[:-1, :] ** 2
+            inv_s2 = (f / da) ** 2  # 1 / pixel footprint²
+            wu = wu * inv_s2[:, :-1]
+            wv = wv * inv_s2[:-1, :]
             wd = vd / (da * da)
         else:
-            wu = mu * keep[:, :-1]
-            wv = mv * keep[:-1, :]
-            wd = vd.astype(np.float64)
+            wd = vd
         self.a_u, self.a_v = t(a_u), t(a_v)
         self.b_u, self.b_v = t(b[:, :-1]), t(b[:-1, :])
         self.fx, self.fy = float(intr.fx), float(intr.fy)
-        self.x0 = t(rays[:1, :-1, 0])   # (1, W-1): x0 depends on the column only
-        self.y0 = t(rays[:-1, :1, 1])   # (H-1, 1)
-        self.Nx, self.Ny, self.Nz = (t(n[:-1, :-1, i]) for i in range(3))
+        self.x0 = t(xs[:, :-1])   # (1, W-1): x0 depends on the column only
+        self.y0 = t(ys[:-1])      # (H-1, 1)
+        self.Nx, self.Ny, self.Nz = t(nx[:-1, :-1]), t(ny[:-1, :-1]), t(nz[:-1, :-1])
         self.w_u, self.w_v, self.w_d = t(wu), t(wv), t(wd)
-        # Preconditioner for the fast optimiser: pixel footprint in metres (1 where invalid: inert).
+        # Preconditioner for the L-BFGS optimiser: pixel footprint in metres (1 where invalid: inert).
         self.scale = t(np.where(vd, da / f, 1.0))
         self.lambdas = tuple(float(x) for x in params.lambdas)
-        self.m_n_sum = float(mn.sum())
+        self.m_n_sum = float(np.count_nonzero(mn))
+        # Ray x (by column) and y (by row) for the tangents of the Gauss-Newton solver.
+        self.rx = t(xs)     # (1, W)
+        self.ry = t(ys)     # (H, 1)
+        self.uncertain = ~keep
+        self.deadline: float | None = None  # set by refine_depth from max_time_s
         self._last_terms = None
 
     def terms(self, d: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -421,7 +468,7 @@ def _validate(depth, normals, intrinsics, uncertain):
 
 def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params: RefineParams | None = None, *,
                  anchor=None, progress: Callable[[int, int, dict], None] | None = None,
-                 cancel=None) -> RefineResult:
+                 cancel=None, on_iterate: Callable[[int, float, np.ndarray], None] | None = None) -> RefineResult:
     """Normal-guided depth refinement.
 
     Parameters
@@ -442,6 +489,11 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
         Called after every iterate with a dict of 'total', 'normal', 'continuity', 'depth'.
     cancel : threading.Event or callable returning bool, optional
         Checked every step; when set, raises NpsimCancelled.
+    on_iterate : callable(step, time_s, depth), optional
+        Called with every recorded iterate: its index, the optimiser's seconds so far and a
+        float32 HxW copy of its depth (placeholder 1 m at invalid pixels; the input's NaN are
+        not restored). Its own run time is excluded from ``time_s``, the history and the
+        ``max_time_s`` budget (for accuracy-against-time curves, e.g. benchmarks/refine.py).
 
     Returns
     -------
@@ -456,17 +508,21 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
     if a is not None and a.shape != d.shape:
         raise NpsimInputError(f"anchor has shape {a.shape}, depth {d.shape}; pass matching arrays")
     prob = RefinementProblem(d, n, intrinsics, u, params, anchor=a)
+    # The budget counts from the call, set-up included: it bounds what the caller waits.
+    prob.deadline = None if params.max_time_s is None else t_start + float(params.max_time_s)
     t_setup = time.perf_counter()
     if params.optimizer == "adam_faithful":
         run = _run_adam
+    elif params.optimizer == "fast":
+        run = _run_gauss_newton
     else:
-        def run(prob, params, progress, cancel):
-            return _run_fast(prob, params, progress, cancel, (d, n, intrinsics, u, a))
+        def run(prob, params, progress, cancel, on_iterate=None):
+            return _run_fast(prob, params, progress, cancel, (d, n, intrinsics, u, a), on_iterate=on_iterate)
     prev_threads = torch.get_num_threads()
     if params.threads:
         torch.set_num_threads(int(params.threads))
     try:
-        best, hist, info = run(prob, params, progress, cancel)
+        best, hist, info = run(prob, params, progress, cancel, on_iterate=on_iterate)
     finally:
         if params.threads:
             torch.set_num_threads(prev_threads)
@@ -511,7 +567,7 @@ NORMAL_DRIFT = 1.25
 class _Tracker:
     """History, best iterate, divergence and cancellation shared by both optimisers."""
 
-    def __init__(self, params: RefineParams, total_steps: int, progress, cancel):
+    def __init__(self, params: RefineParams, total_steps: int, progress, cancel, on_iterate=None):
         self.hist: dict[str, list] = {k: [] for k in ("total", "normal", "continuity", "depth", "time_s")}
         self.t0 = time.perf_counter()
         self.best_loss = math.inf
@@ -522,6 +578,8 @@ class _Tracker:
         self.total_steps = total_steps
         self.progress = progress
         self.cancel = cancel
+        self.on_iterate = on_iterate
+        self.deadline: float | None = None  # perf_counter() time at which max_time_s runs out
 
     def record(self, step: int, loss: torch.Tensor, terms, d: torch.Tensor) -> str | None:
         """Log iterate ``step`` (depth ``d``); returns a divergence reason or None."""
@@ -535,6 +593,13 @@ class _Tracker:
         if self.progress is not None:
             self.progress(step, self.total_steps, {"total": lv, "normal": vals[0], "continuity": vals[1],
                                                    "depth": vals[2]})
+        if self.on_iterate is not None:
+            t_cb = time.perf_counter()
+            self.on_iterate(step, self.hist["time_s"][-1], d.detach().cpu().numpy().astype(np.float32))
+            spent = time.perf_counter() - t_cb  # the observer's time is not the optimiser's
+            self.t0 += spent
+            if self.deadline is not None:
+                self.deadline += spent
         if not math.isfinite(lv) or not torch.isfinite(d).all():
             return f"loss became non-finite at step {step}"
         if self.initial is None:
@@ -553,13 +618,16 @@ class _Tracker:
             raise NpsimCancelled("depth refinement cancelled")
 
     def out_of_time(self) -> bool:
+        if self.deadline is not None:
+            return time.perf_counter() > self.deadline
         m = self.params.max_time_s
         return m is not None and time.perf_counter() - self.t0 > m
 
 
-def _run_adam(prob: RefinementProblem, params: RefineParams, progress, cancel):
+def _run_adam(prob: RefinementProblem, params: RefineParams, progress, cancel, on_iterate=None):
     steps = params.n_steps
-    tr = _Tracker(params, steps, progress, cancel)
+    tr = _Tracker(params, steps, progress, cancel, on_iterate)
+    tr.deadline = getattr(prob, "deadline", None)
     d = prob.d_init.clone().requires_grad_(True)
     opt = torch.optim.Adam([d], lr=params.learning_rate)
     reason = None
@@ -624,8 +692,9 @@ def _coarse_init(prob: RefinementProblem, params: RefineParams, inputs, tr: "_Tr
     return init
 
 
-def _run_fast(prob: RefinementProblem, params: RefineParams, progress, cancel, inputs):
-    tr = _Tracker(params, params.n_steps, progress, cancel)
+def _run_fast(prob: RefinementProblem, params: RefineParams, progress, cancel, inputs, on_iterate=None):
+    tr = _Tracker(params, params.n_steps, progress, cancel, on_iterate)
+    tr.deadline = getattr(prob, "deadline", None)
     with torch.no_grad():  # iterate 0 is the input itself, so histories of all methods start alike
         loss0, terms0 = prob.total(prob.d_init)
     reason = tr.record(0, loss0, terms0, prob.d_init)
@@ -714,4 +783,69 @@ def _run_lbfgs(prob: RefinementProblem, params: RefineParams, progress, cancel, 
     else:
         info["message"] = f"L-BFGS stopped at the {steps}-iteration budget"
     best = tr.best_d if tr.best_d is not None else base
+    return best, tr.hist, info
+
+
+def _run_gauss_newton(prob: RefinementProblem, params: RefineParams, progress, cancel, on_iterate=None):
+    """Levenberg-Marquardt on the linearised loss (:mod:`.gauss_newton`), moves boxed to ±max_rel_change."""
+    from .gauss_newton import LinearisedSystem, damped_pcg
+
+    steps = params.n_steps
+    tr = _Tracker(params, steps, progress, cancel, on_iterate)
+    tr.deadline = getattr(prob, "deadline", None)
+    d = prob.d_init.clone()
+    loss, terms = prob.total(d)
+    reason = tr.record(0, loss, terms, d)
+    cur = float(loss)
+    b = params.max_rel_change
+    # Without a bound a step could still cross zero depth: keep every pixel above 1 % of its input.
+    lo = prob.d_init * (1.0 - b if b is not None and b < 1.0 else 0.01)
+    hi = prob.d_init * (1.0 + b) if b is not None else None
+    mu = float(params.damping)
+    k = 0
+    cg_total = 0
+    converged = timed_out = False
+    while not reason and k < steps:
+        tr.check_cancel()
+        if tr.out_of_time():
+            timed_out = True
+            break
+        k += 1
+        system = LinearisedSystem(prob, d)
+        delta, its = damped_pcg(system, mu, int(params.cg_iters), float(params.cg_rtol), tr.deadline,
+                                tr.check_cancel)
+        cg_total += its
+        del system
+        if its == 0:  # the model's gradient vanishes: a fixed point (e.g. a plane matching its normals)
+            converged = True
+            tr.record(k, loss, terms, d)
+            break
+        cand = torch.clamp(d + delta, min=lo, max=hi)
+        loss_c, terms_c = prob.total(cand)
+        new = float(loss_c)
+        if math.isfinite(new) and new < cur:
+            rel = (cur - new) / max(abs(cur), 1e-30)
+            d, cur, loss, terms = cand, new, loss_c, terms_c
+            mu = max(mu / 3.0, 1e-6)
+            converged = rel < params.tol
+        else:
+            mu = mu * 4.0 if mu > 0 else 1e-3
+        reason = tr.record(k, loss, terms, d)
+        if converged:
+            break
+        if tr.out_of_time():
+            timed_out = k < steps
+            break
+    info = {"converged": converged, "diverged": reason is not None, "steps": k, "best_step": tr.best_step}
+    what = f"Gauss-Newton/PCG ran {k} steps ({cg_total} CG iterations"
+    what += f", moves within ±{b * 100:g} %)" if b is not None else ")"
+    if reason:
+        info["message"] = f"diverged: {reason}; kept the best iterate (step {tr.best_step})"
+    elif converged:
+        info["message"] = what + ", converged"
+    elif timed_out:
+        info["message"] = what + f", stopped by the {params.max_time_s:g} s time budget"
+    else:
+        info["message"] = what
+    best = tr.best_d if tr.best_d is not None else prob.d_init
     return best, tr.hist, info

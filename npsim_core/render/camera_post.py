@@ -177,6 +177,49 @@ def bloom(linear: np.ndarray, strength: float, threshold: float = 1.0, radius: f
     return (lin + np.float32(strength) * (glare - excess)).astype(np.float32)
 
 
+#: Linear luminance below which a scene pixel counts as unlit (the night sky's ambient light alone
+#: leaves a grey surface around 1e-3): the meter reads only what the lights reveal.
+LIT_FLOOR = 2e-3
+
+
+def auto_exposure(linear: np.ndarray, labels: np.ndarray, exclude: np.ndarray | None = None, *,
+                  target: float = 0.1, bounds: tuple[float, float] = (-3.0, 4.0), compensation: float = 0.0,
+                  sky_id: int = 23) -> tuple[float, dict]:
+    """A camera's automatic exposure for a linear night render: (stops, meter info).
+
+    The meter reads the *lit* scene pixels -- not sky, not ``exclude`` (light sources, the ego
+    vehicle), luminance above :data:`LIT_FLOOR` -- and takes their geometric mean (the mean of log
+    luminance, so a few lamp pools do not dominate). The exposure brings that value to
+    ``target`` (linear, after exposure; 1.0 = sensor white), clipped to ``bounds`` (stops, a
+    camera's shutter/gain range), plus ``compensation`` stops. A frame with fewer than 0.1 % lit
+    pixels gets ``compensation`` alone. Deterministic: same render, same exposure.
+
+    Returns ``(ev, {"meter": geometric mean before exposure, "metered_fraction": share of pixels
+    metered, "exposure_auto_ev": the clipped metered stops})``.
+    """
+    lin = np.asarray(linear, dtype=np.float32)
+    if lin.ndim != 3 or lin.shape[2] != 3:
+        raise NpsimInputError(f"auto_exposure: linear image must be HxWx3, got {lin.shape}")
+    lab = np.asarray(labels)
+    if lab.shape != lin.shape[:2] or (exclude is not None and np.shape(exclude) != lin.shape[:2]):
+        raise NpsimInputError(f"auto_exposure: labels {lab.shape} and exclude {np.shape(exclude)} must match the "
+                              f"render {lin.shape[:2]}")
+    lo, hi = (float(b) for b in bounds)
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi) or not float(target) > 0:
+        raise NpsimInputError(f"auto_exposure: bounds must be finite with min <= max and target > 0, got "
+                              f"{bounds}, {target}")
+    lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lit = (lab != sky_id) & np.isfinite(lum) & (lum > LIT_FLOOR)
+    if exclude is not None:
+        lit &= ~np.asarray(exclude, bool)
+    frac = float(lit.mean())
+    if frac < 1e-3:
+        return float(compensation), {"meter": float("nan"), "metered_fraction": frac, "exposure_auto_ev": 0.0}
+    meter = float(np.exp(np.mean(np.log(lum[lit].astype(np.float64)))))
+    auto = float(np.clip(np.log2(float(target) / meter), lo, hi))
+    return auto + float(compensation), {"meter": meter, "metered_fraction": frac, "exposure_auto_ev": auto}
+
+
 def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, labels: np.ndarray | None = None,
                  light_classes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Linear render -> (8-bit sRGB image, noisy white-balanced linear image before clipping).

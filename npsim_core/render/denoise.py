@@ -42,7 +42,7 @@ from ..camera import Intrinsics
 from ..errors import NpsimInputError
 
 __all__ = ["DENOISERS", "OIDN_QUALITIES", "DenoiseParams", "DenoiseGuides", "denoise_guides", "denoise",
-           "denoise_oidn", "denoise_night"]
+           "denoise_oidn", "denoise_night", "isolated_outliers", "remove_isolated"]
 
 #: Monte Carlo denoisers of a night render: Intel Open Image Denoise, the guided à-trous
 #: filter, or none (isolated fireflies are still removed).
@@ -223,6 +223,79 @@ def denoise_oidn(linear: np.ndarray, guides: DenoiseGuides | None = None,
     return np.maximum(np.nan_to_num(out, nan=0.0, posinf=0.0), 0.0).astype(np.float32)
 
 
+#: A pixel whose albedo-divided luminance is off its 3x3 median by more than this factor (either
+#: way) is an outlier when it is also alone (:func:`isolated_outliers`); visible speckle.
+OUTLIER_RATIO = 1.5
+#: Linear luminance below which a pixel is not "lit" (the outlier test and the exposure meter).
+LIT_FLOOR = 2e-3
+
+
+def _interior(g: DenoiseGuides) -> np.ndarray:
+    """Pixels whose 3x3 neighbourhood is one surface: one label, depth within 3 %, albedo within
+    30 %, no light-source pixel (an outlier test there would count real edges)."""
+    k = np.ones((3, 3), np.uint8)
+    lab = g.labels.astype(np.uint8)
+    ok = cv2.dilate(lab, k) == cv2.erode(lab, k)
+    d = np.nan_to_num(g.depth.astype(np.float32), nan=0.0, posinf=0.0)
+    ok &= (d > 0) & (cv2.dilate(d, k) - cv2.erode(d, k) < 0.03 * np.maximum(d, 1e-3))
+    a = np.maximum(np.nan_to_num(g.albedo.astype(np.float32), nan=0.0) @ _LUMA, 1e-3)
+    ok &= cv2.dilate(a, k) < 1.3 * cv2.erode(a, k)
+    ok &= ~cv2.dilate(g.protect.astype(np.uint8), k).astype(bool)
+    return ok
+
+
+def isolated_outliers(linear: np.ndarray, guides: DenoiseGuides, *, ratio: float = OUTLIER_RATIO,
+                      lit_floor: float = LIT_FLOOR) -> tuple[np.ndarray, np.ndarray]:
+    """(outliers, lit): (H, W) bool masks of isolated dark or bright pixels and of the pixels tested.
+
+    Tested ("lit") pixels: luminance above ``lit_floor`` inside one surface (one label, depth
+    within 3 %, albedo within 30 % over the 3x3 neighbourhood, no light source). A tested pixel is
+    an outlier when its albedo-divided luminance is more than ``ratio`` times off (above or below)
+    the median of its 3x3 neighbourhood and at most one neighbour is off the same way: a lone
+    speckle, not a shadow edge or a highlight several pixels wide.
+    """
+    lin = np.asarray(linear, np.float32)
+    g = guides.at(*lin.shape[:2])
+    lum = lin @ _LUMA
+    alb = np.maximum(np.nan_to_num(g.albedo.astype(np.float32), nan=0.0) @ _LUMA, 0.02)
+    e = np.log(np.maximum(lum / alb, 1e-8)).astype(np.float32)
+    dev = e - cv2.medianBlur(e, 3)
+    t = np.float32(np.log(ratio))
+    lit = _interior(g) & (lum > lit_floor)
+    out = np.zeros(lum.shape, bool)
+    for sign in (1.0, -1.0):
+        far = (sign * dev > t)
+        ring = np.ones((3, 3), np.float32)
+        ring[1, 1] = 0
+        n_same = cv2.filter2D(far.astype(np.float32), -1, ring, borderType=cv2.BORDER_CONSTANT)
+        out |= far & (n_same <= 1.0)
+    return out & lit, lit
+
+
+def remove_isolated(linear: np.ndarray, guides: DenoiseGuides, *, ratio: float = OUTLIER_RATIO,
+                    passes: int = 3) -> tuple[np.ndarray, int]:
+    """The denoised night with its isolated outliers (:func:`isolated_outliers`) brought to the
+    median albedo-divided luminance of their 3x3 neighbourhood times their own albedo (colour
+    kept); ``passes`` rounds, since a pair of
+    speckles becomes a lone one once its partner is fixed. Returns the image and the pixels changed."""
+    lin = np.ascontiguousarray(linear, np.float32)
+    changed = 0
+    for _ in range(int(passes)):
+        bad, _ = isolated_outliers(lin, guides, ratio=ratio)
+        n = int(bad.sum())
+        if n == 0:
+            break
+        lum = lin @ _LUMA
+        alb = np.maximum(np.nan_to_num(guides.at(*lin.shape[:2]).albedo.astype(np.float32), nan=0.0) @ _LUMA, 0.02)
+        # The median of the albedo-divided luminance, times the pixel's own albedo (what the test measures).
+        target = np.exp(cv2.medianBlur(np.log(np.maximum(lum / alb, 1e-8)).astype(np.float32), 3)) * alb
+        scale = np.where(bad, target / np.maximum(lum, 1e-8), 1.0).astype(np.float32)
+        # A pixel black in every channel has no colour to keep: it takes the median colour.
+        lin = np.where((bad & (lum <= 1e-8))[..., None], cv2.medianBlur(lin, 3), lin * scale[..., None])
+        changed += n
+    return lin.astype(np.float32), changed
+
+
 def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: DenoiseParams = DenoiseParams(),
                   protect: np.ndarray | None = None, denoiser: str = "guided") -> np.ndarray:
     """A linear night render cleaned of its Monte Carlo noise by ``denoiser`` (:data:`DENOISERS`):
@@ -243,7 +316,9 @@ def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: Deno
     if not np.isfinite(lin).all():
         raise NpsimInputError("linear image contains NaN/inf; the render failed")
     if denoiser == "oidn":
-        return denoise_oidn(lin, guides, params)
+        out = denoise_oidn(lin, guides, params)
+        # OIDN leaves a few lone dark/bright pixels on lit surfaces (docs/relight.md, "Speckle").
+        return remove_isolated(out, guides)[0] if guides is not None else out
     H, W = lin.shape[:2]
     if params.firefly_ratio > 0 and H >= 3 and W >= 3:
         prot = None
@@ -253,5 +328,5 @@ def denoise_night(linear: np.ndarray, guides: DenoiseGuides | None, params: Deno
                 prot = cv2.resize(prot.astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
         lin, _ = remove_fireflies(lin, params.firefly_ratio, params.firefly_floor, prot)
     if guides is not None and denoiser == "guided":
-        lin = denoise(lin, guides, params)
+        lin = remove_isolated(denoise(lin, guides, params), guides)[0]
     return lin

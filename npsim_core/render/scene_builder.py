@@ -32,7 +32,13 @@ Design
   smooth falloff between ``beam_deg`` and ``cutoff_deg`` (standing in for SOLO's
   cos/cos² falloff).
 * **Ego headlights**: two spots 0.5 m left/right of the camera, 0.65 m above the
-  ground, aimed at the road 15 m ahead; on by default, switchable in place.
+  ground, aimed level, whose intensity is shaped by a **low-beam pattern**
+  (:func:`low_beam_pattern`, projected as the spot's texture): full intensity just below a
+  cut-off line 0.57° under the horizon (rising at 15° on the kerb side), about 2 % above it.
+  A plain cone would put its full intensity on everything up to 17° above its axis: a
+  pedestrian's body facing the lamps 10 m ahead then receives 15x the irradiance of the road
+  he stands on and saturates (docs/relight.md, "People in the headlights"). On by default,
+  switchable in place.
 * **Night sky**: a constant environment of ``sky.radiance`` (dim, bluish);
   sky pixels (no mesh) show it.
 * Textures: one bitmap of the albedo map, looked up with the mesh UVs (Mitsuba
@@ -263,6 +269,40 @@ def _spot_transform(mi, origin: np.ndarray, direction: np.ndarray):
                                           up=[float(x) for x in up])
 
 
+#: Low-beam pattern (docs/relight.md, "People in the headlights"): cut-off line elevation on the
+#: oncoming side (deg), its rise on the kerb side (deg per deg, up to ``LOW_BEAM_RISE_MAX_DEG``),
+#: the relative intensity above the cut-off (glare light) and the width of the cut-off's edge (deg).
+LOW_BEAM_CUTOFF_DEG = -0.57
+LOW_BEAM_RISE = math.tan(math.radians(15.0))
+LOW_BEAM_RISE_MAX_DEG = 1.6
+LOW_BEAM_ABOVE = 0.02
+LOW_BEAM_EDGE_DEG = 0.3
+
+
+def low_beam_pattern(cutoff_deg: float, rows: int = 1024, cols: int = 128) -> np.ndarray:
+    """(rows, cols, 3) float32 relative intensity of a low beam, as a Mitsuba ``spot`` texture.
+
+    Texel (r, c) is the direction ``(a, b, 1)`` in the spot's frame with ``a, b`` spanning
+    ``±tan(cutoff_deg)`` (row 0 = down, column 0 = the kerb side, i.e. the image's right, as
+    the spot's local x points left). Below the cut-off line the intensity peaks 1.5° under it
+    and falls to 25 % far below (the near road is close, so it stays lit); above it only
+    ``LOW_BEAM_ABOVE`` of it goes out (glare light), with a ``LOW_BEAM_EDGE_DEG`` soft edge.
+    The horizontal spread is the spot's own ``beam_deg``/``cutoff_deg`` falloff.
+    """
+    t = math.tan(math.radians(float(cutoff_deg)))
+    a = ((np.arange(cols) + 0.5) / cols * 2.0 - 1.0) * t
+    b = ((np.arange(rows) + 0.5) / rows * 2.0 - 1.0) * t
+    A, B = np.meshgrid(a, b)
+    h_kerb = np.degrees(np.arctan(-A))                      # + toward the kerb side (image right)
+    elev = np.degrees(np.arctan2(B, np.sqrt(1.0 + A * A)))
+    line = LOW_BEAM_CUTOFF_DEG + np.minimum(np.maximum(h_kerb, 0.0) * LOW_BEAM_RISE, LOW_BEAM_RISE_MAX_DEG)
+    below = 0.25 + 0.75 * np.exp(-((elev - (line - 1.5)) / 5.0) ** 2)
+    s = np.clip((elev - line) / LOW_BEAM_EDGE_DEG * 0.5 + 0.5, 0.0, 1.0)
+    s = s * s * (3.0 - 2.0 * s)                            # smoothstep across the cut-off's edge
+    f = below * (1.0 - s) + LOW_BEAM_ABOVE * s
+    return np.repeat(f[..., None], 3, axis=2).astype(np.float32)
+
+
 @dataclass
 class BuiltScene:
     """A loaded Mitsuba scene plus the handles needed to toggle lights in place."""
@@ -490,16 +530,25 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     s_ego = 0.5 * sum(ego["strength"])
     w_m, h_m = ego.get("size_m", [0.3, 0.15])
     built.ego_intensity = table.radiance(s_ego, chroma) * w_m * h_m * float(ego.get("gain", 60.0))
+    cutoff = float(ego.get("cutoff_deg", 35.0))
+    beam = mi.Bitmap(low_beam_pattern(cutoff))
     for side, x in (("left", -0.5), ("right", 0.5)):
+        # Aimed level (the low-beam pattern holds the vertical distribution), local +y = world up.
         o = R @ np.array([x, h - 0.65, 0.3])
-        t = R @ np.array([x, h, 15.0])
+        fwd = R @ np.array([0.0, 0.0, 1.0])
+        up = R @ np.array([0.0, -1.0, 0.0])
         o[1] *= ys
-        t[1] *= ys
+        fwd[1] *= ys
+        up[1] *= ys
         name = f"ego_{side}"
         objects[name] = {"type": "spot", "intensity": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
-                         "cutoff_angle": float(ego.get("cutoff_deg", 35.0)),
-                         "beam_width": float(ego.get("beam_deg", 20.0)),
-                         "to_world": _spot_transform(mi, o, t - o), "sampling_weight": OFF_WEIGHT}
+                         "cutoff_angle": cutoff, "beam_width": float(ego.get("beam_deg", 20.0)),
+                         "texture": {"type": "bitmap", "bitmap": beam, "raw": True, "filter_type": "bilinear",
+                                     "wrap_mode": "clamp"},
+                         "to_world": mi.ScalarTransform4f().look_at(origin=[float(v) for v in o],
+                                                                    target=[float(v) for v in o + fwd],
+                                                                    up=[float(v) for v in up]),
+                         "sampling_weight": OFF_WEIGHT}
         built.ego_keys.append(name)
     built._ego_on = params.ego_headlights
 

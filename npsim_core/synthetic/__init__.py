@@ -28,7 +28,8 @@ from ..errors import NpsimInputError
 from ..scene import Scene, load_scene, save_scene
 from .prediction import PredictionErrors, simulate_prediction
 from .primitives import MATERIALS, ROUGHNESS, CameraPose, GroundTruth, Primitives, raycast
-from .street import SKY, VARIANTS, StreetLayout, build_street, check_variant
+from .street import (RECTIFICATION_BORDER, SKY, VARIANTS, StreetLayout, build_street, check_variant,
+                     frame_border_labels)
 from .texture import albedo_factor
 
 __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_prediction", "SCENE_VERSION",
@@ -37,7 +38,9 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
 
 #: Bump whenever the scene's content changes (it is part of the cache key; it covers the
 #: hard variants too, whose layouts are new in version 4 and leave the default street unchanged).
-SCENE_VERSION = 4
+#: Version 6: windows, panes and lamps vary in brightness, frames, curtains (texture.light_factor);
+#: every third street light is a post-top lantern (street_light_LT).
+SCENE_VERSION = 6
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.
@@ -135,7 +138,8 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     variant : str
         ``"default"`` (the street every test and cached result uses, unchanged), or a hard
         layout for the depth prior: ``"receding"``, ``"occluded_base"``, ``"corner"``,
-        ``"clutter"``, ``"hard"`` (all of them), see docs/synthetic.md.
+        ``"clutter"``, ``"hard"`` (all of them), or ``"busy"`` (people, riders, a truck or bus,
+        the ego hood and the frame-border labels), see docs/synthetic.md.
 
     Returns
     -------
@@ -175,6 +179,10 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
     depth, normals = simulate_prediction(gt.depth, gt.normals, params, seed)
     t3 = time.perf_counter()
     image = linear_to_srgb8(linear * EXPOSURE)
+    if VARIANTS[variant].busy:  # Cityscapes' image-space border labels; no data on the rectification border
+        border = frame_border_labels(width, height)
+        labels = np.where(border > 0, border, labels).astype(np.uint8)
+        image[border == RECTIFICATION_BORDER] = 0
     name = f"street_s{seed}" if variant == "default" else f"street_{variant}_s{seed}"
     provenance = {"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
                   "seed": int(seed), "spp": int(spp)}

@@ -29,8 +29,10 @@ from .primitives import PrimitiveList, Primitives
 # Cityscapes labelIds used here.
 ROAD, SIDEWALK, BUILDING, POLE, TRAFFIC_LIGHT, TRAFFIC_SIGN, VEGETATION, SKY, PERSON, CAR = \
     7, 8, 11, 17, 19, 20, 21, 23, 24, 26
+EGO_VEHICLE, RECTIFICATION_BORDER, OUT_OF_ROI, RIDER, TRUCK, BUS, BICYCLE = 1, 2, 3, 25, 27, 28, 33
 # Light-source classes (resources/light_classes.json).
 WINDOW_BUILDING, WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, STREET_LIGHT_HT, ADVERTISEMENT, INFERRED = 1, 2, 3, 4, 8, 10, 12
+STREET_LIGHT_LT = 9
 WINDOWS_GROUP, CAR_GROUP, TRAFFIC_LIGHT_GROUP = 13, 14, 20
 
 ROAD_X = (-6.0, 4.5)
@@ -59,6 +61,8 @@ class _Hard:
     occluded_base: bool = False  # near-continuous parked cars, people, hedges along the facade bases
     corner: bool = False         # a cross street on each side: corner buildings with two visible facades
     clutter: bool = False        # poles, bollards, signs and trees in front of the facades
+    busy: bool = False           # people and riders on bicycles on the sidewalks and the road, a truck or a
+    #                              bus, the ego vehicle's hood and the Cityscapes frame-border labels
 
 
 #: The street variants (docs/synthetic.md): name -> features.
@@ -69,6 +73,7 @@ VARIANTS = {
     "corner": _Hard(corner=True),
     "clutter": _Hard(clutter=True),
     "hard": _Hard(receding=True, occluded_base=True, corner=True, clutter=True),
+    "busy": _Hard(busy=True),
 }
 _VARIANT_CODE = {name: k for k, name in enumerate(VARIANTS)}
 
@@ -268,12 +273,13 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
         n_people = _people(P, xr, facades, far_z, cross)
     if hard.clutter:
         _clutter(P, xr, facades, far_z, cross)
+    busy = _busy(P, xr, far_z) if hard.busy else {}
     info = {"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
             "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)}
     if variant != "default":
         info = {"variant": variant, **info, "people": n_people,
                 "cross_streets": {("left" if k < 0 else "right"): [round(a, 2), round(b, 2)]
-                                  for k, (a, b) in cross.items()}}
+                                  for k, (a, b) in cross.items()}, **busy}
     return StreetLayout(prims=P.arrays(), groups=groups, far_z=far_z, sun=sun, info=info)
 
 
@@ -374,6 +380,112 @@ def _clutter(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: f
             z += float(rng.uniform(4.0, 9.0))
 
 
+SKIN = [(0.45, 0.30, 0.22), (0.30, 0.20, 0.14), (0.55, 0.42, 0.34)]
+#: The ego vehicle's bonnet: top face height (m, world), front edge z = EGO_EDGE_Z - EGO_EDGE_CURVE * x^2.
+EGO_TOP_Y, EGO_EDGE_Z, EGO_EDGE_CURVE = 1.0, 0.97, 0.65
+
+
+def _busy(P: PrimitiveList, rng: np.random.Generator, far_z: float) -> dict:
+    """The ``busy`` variant's objects: pedestrians on both sidewalks and two crossing the road
+    8-15 m ahead, riders on bicycles in the right lane, an oncoming truck or bus in the left lane,
+    and the ego vehicle's hood. Returns the counts for the layout summary."""
+    n_walk = 0
+    for side, (x0, x1) in ((-1, (-9.7, -8.3)), (1, (7.0, 8.8))):   # clear of hedges, poles, trees
+        z = float(rng.uniform(5.0, 9.0))
+        while z < min(far_z - 10.0, 60.0):
+            _person(P, rng, float(rng.uniform(x0, x1)), z, KERB)
+            n_walk += 1
+            z += float(rng.uniform(4.0, 10.0))
+    n_cross = 0
+    for z in sorted(float(v) for v in rng.uniform(8.0, 15.0, 2)):   # crossing in the ego headlights
+        _person(P, rng, float(rng.uniform(-2.5, 1.5)), z, 0.0)
+        n_cross += 1
+    n_riders = int(rng.integers(1, 3))
+    z = float(rng.uniform(9.0, 14.0))
+    for _ in range(n_riders):
+        _rider(P, rng, float(rng.uniform(1.2, 1.9)), z)
+        z += float(rng.uniform(6.0, 14.0))
+    kind = "bus" if rng.random() < 0.4 else "truck"
+    _big_vehicle(P, rng, float(rng.uniform(-3.5, -3.1)), float(rng.uniform(24.0, 34.0)), kind)
+    _ego_hood(P)
+    return {"pedestrians": n_walk + n_cross, "crossing": n_cross, "riders": n_riders, kind: 1, "ego_hood": True}
+
+
+def _person(P: PrimitiveList, rng: np.random.Generator, x: float, z: float, y0: float) -> None:
+    """A pedestrian (labelId 24) standing at (x, y0, z): legs, torso and head boxes, 1.6-1.9 m tall."""
+    tall = float(rng.uniform(1.6, 1.9))
+    top = _jitter(rng, CLOTHES[int(rng.integers(len(CLOTHES)))], 0.2)
+    legs = _jitter(rng, CLOTHES[int(rng.integers(len(CLOTHES)))], 0.2)
+    skin = SKIN[int(rng.integers(len(SKIN)))]
+    P.box((x - 0.17, y0, z - 0.12), (x + 0.17, y0 + 0.47 * tall, z + 0.12), PERSON, legs)
+    P.box((x - 0.23, y0 + 0.47 * tall, z - 0.14), (x + 0.23, y0 + 0.87 * tall, z + 0.14), PERSON, top)
+    P.box((x - 0.1, y0 + 0.87 * tall, z - 0.11), (x + 0.1, y0 + tall, z + 0.11), PERSON, skin)
+
+
+def _rider(P: PrimitiveList, rng: np.random.Generator, x: float, z: float) -> None:
+    """A bicycle (labelId 33) riding along +z with its rider (labelId 25); wheel base 1.05 m."""
+    frame = _jitter(rng, CAR_COLORS[int(rng.integers(len(CAR_COLORS)))], 0.1)
+    tyre = (0.03, 0.03, 0.03)
+    for zc in (z, z + 1.05):                                   # wheels: a tyre cross seen from behind
+        P.box((x - 0.02, 0.0, zc - 0.33), (x + 0.02, 0.66, zc + 0.33), BICYCLE, tyre, "metal")
+    P.box((x - 0.03, 0.42, z), (x + 0.03, 0.62, z + 1.05), BICYCLE, frame, "metal")
+    P.box((x - 0.3, 0.98, z + 0.95), (x + 0.3, 1.02, z + 1.0), BICYCLE, (0.2, 0.2, 0.2), "metal")  # handlebar
+    top = _jitter(rng, CLOTHES[int(rng.integers(len(CLOTHES)))], 0.2)
+    P.box((x - 0.17, 0.35, z + 0.3), (x + 0.17, 0.95, z + 0.55), RIDER, (0.08, 0.08, 0.1))          # legs
+    P.box((x - 0.22, 0.95, z + 0.3), (x + 0.22, 1.55, z + 0.62), RIDER, top)                         # torso
+    P.box((x - 0.1, 1.55, z + 0.4), (x + 0.1, 1.8, z + 0.62), RIDER, SKIN[int(rng.integers(len(SKIN)))])
+
+
+def _big_vehicle(P: PrimitiveList, rng: np.random.Generator, x0: float, z0: float, kind: str) -> None:
+    """An oncoming truck (labelId 27: cab + box body) or bus (28) in the left lane, front at z0."""
+    paint = _jitter(rng, CAR_COLORS[int(rng.integers(len(CAR_COLORS)))], 0.05)
+    label, w = (BUS, 2.5) if kind == "bus" else (TRUCK, 2.4)
+    x1 = x0 + w
+    if kind == "bus":
+        P.box((x0, 0.35, z0), (x1, 3.1, z0 + 11.5), label, paint, "paint")
+    else:
+        P.box((x0 + 0.05, 0.5, z0), (x1 - 0.05, 2.9, z0 + 2.1), label, paint, "paint")        # cab
+        P.box((x0, 0.9, z0 + 2.3), (x1, 3.7, z0 + 9.0), label, _jitter(rng, (0.7, 0.7, 0.68)), "paint")
+    for wz in (z0 + 1.2, z0 + 7.5):
+        for wx0, wx1 in ((x0 - 0.02, x0 + 0.3), (x1 - 0.3, x1 + 0.02)):
+            P.box((wx0, 0.0, wz - 0.5), (wx1, 1.0, wz + 0.5), label, (0.02, 0.02, 0.02))
+
+
+def _ego_hood(P: PrimitiveList) -> None:
+    """The ego vehicle's bonnet (labelId 1) in front of and below the camera, with a chrome emblem.
+
+    Strips 2.5 cm wide whose front edges follow ``z = EGO_EDGE_Z - EGO_EDGE_CURVE x^2``: the
+    top face (y = EGO_TOP_Y) fills about the bottom 8 % of the rows at the image centre and 3 %
+    at the sides, like the bonnet in every Cityscapes frame.
+    """
+    paint = (0.03, 0.032, 0.036)
+    xs = np.arange(-0.75, 0.75 + 1e-9, 0.025)
+    for a, b in zip(xs[:-1], xs[1:]):
+        xm = 0.5 * (a + b)
+        P.box((a, 0.45, 0.25), (b, EGO_TOP_Y, EGO_EDGE_Z - EGO_EDGE_CURVE * xm * xm), EGO_VEHICLE, paint, "paint")
+    ez = EGO_EDGE_Z - 0.09
+    P.box((-0.012, EGO_TOP_Y, ez - 0.012), (0.012, EGO_TOP_Y + 0.012, ez), EGO_VEHICLE, (0.75, 0.75, 0.72), "metal")
+
+
+def frame_border_labels(width: int, height: int) -> np.ndarray:
+    """(H, W) uint8: Cityscapes' image-space border labels, 0 elsewhere.
+
+    ``RECTIFICATION_BORDER`` (2) in the four corners the rectification leaves without data
+    (outside the ellipse ``(x/1.0)^2 + (y/1.0)^2 = 1.9`` in coordinates normalised to the
+    half-size) and ``OUT_OF_ROI`` (3) on a frame 0.6 % of the width wide on the left, right and
+    top borders. The busy variant's day image is black on the rectification border.
+    """
+    u = (np.arange(width) + 0.5) / width * 2.0 - 1.0
+    v = (np.arange(height) + 0.5) / height * 2.0 - 1.0
+    out = np.zeros((height, width), np.uint8)
+    b = max(1, int(round(0.006 * width)))
+    out[:, :b] = OUT_OF_ROI
+    out[:, width - b:] = OUT_OF_ROI
+    out[:b, :] = OUT_OF_ROI
+    out[(u[None, :] ** 2 + v[:, None] ** 2) > 1.9] = RECTIFICATION_BORDER
+    return out
+
+
 def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float, float]) -> float:
     for _ in range(50):
         z = float(rng.uniform(*rng_z))
@@ -463,13 +575,26 @@ def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *,
 
 
 def _street_light(P: PrimitiveList, ids: _Ids, px: float, pz: float, toward: int) -> None:
-    """Pole, arm reaching over the road (direction ``toward`` in x), lamp head.
+    """Pole, arm reaching over the road (direction ``toward`` in x), lamp head; or, for every third
+    pole position (a hash of ``pz``, so the random streams are untouched), a 4.2 m post with a small
+    lantern on top (street_light_LT).
 
     The light instance is the head's diffuser: its underside and its end facing the
-    camera (-z), two panes on the head sharing one instance id.
+    camera (-z), two panes on the head sharing one instance id. A lantern's light is its
+    camera-facing and road-facing glass, one id.
     """
-    top = 8.0
     grey = (0.32, 0.33, 0.34)
+    if int(round(pz * 100.0)) % 3 == 0:
+        top = 4.2
+        P.box((px - 0.07, KERB, pz - 0.07), (px + 0.07, top, pz + 0.07), POLE, grey, "metal")
+        P.box((px - 0.18, top, pz - 0.18), (px + 0.18, top + 0.55, pz + 0.18), POLE, grey, "metal")
+        lid = ids.new(STREET_LIGHT_LT)
+        glass = (0.66, 0.64, 0.56)
+        P.rect(2, pz - 0.18, (px - 0.13, top + 0.07), (px + 0.13, top + 0.45), POLE, glass, "lamp", lid, -1)
+        P.rect(0, px + toward * 0.18, (top + 0.07, pz - 0.13), (top + 0.45, pz + 0.13), POLE, glass, "lamp", lid,
+               toward)
+        return
+    top = 8.0
     P.box((px - 0.09, KERB, pz - 0.09), (px + 0.09, top, pz + 0.09), POLE, grey, "metal")
     ax = px + toward * 1.8
     P.box((min(px, ax), top - 0.14, pz - 0.05), (max(px, ax), top - 0.02, pz + 0.05), POLE, grey, "metal")

@@ -43,10 +43,12 @@ def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
 
 
 def albedo_factor(points_w: np.ndarray, labels: np.ndarray, light: np.ndarray, seed: int) -> np.ndarray:
-    """(H, W) float32 multiplicative albedo texture; 1 on sky, lights and untextured classes.
+    """(H, W) float32 multiplicative albedo texture; 1 on sky and untextured classes.
 
-    ``points_w``: (H, W, 3) world hit points (NaN on sky). Factors stay within
-    [0.55, 1.35] so textured albedo remains in [0, 1] for the base colours used.
+    ``points_w``: (H, W, 3) world hit points (NaN on sky). Surface factors stay within
+    [0.55, 1.35] so textured albedo remains in [0, 1] for the base colours used; light
+    pixels get :func:`light_factor` (dark glass may brighten up to ~7x for frames and
+    curtains; the caller clips albedo to [0, 1]).
     """
     H, W = labels.shape
     fac = np.ones((H, W), dtype=np.float32)
@@ -84,4 +86,71 @@ def albedo_factor(points_w: np.ndarray, labels: np.ndarray, light: np.ndarray, s
     apply(plain & (labels == BUILDING), facade)
     apply(plain & (labels == VEGETATION), foliage)
     apply(plain & (labels == CAR), paint)
-    return np.clip(fac, 0.55, 1.35)
+    fac = np.clip(fac, 0.55, 1.35)
+    lit = ~plain & np.isfinite(points_w).all(-1)
+    if lit.any():
+        fac[lit] = light_factor(points_w[lit].astype(np.float64), light[lit], seed)
+    return fac
+
+
+def _per_light(ids: np.ndarray, seed: int, salt: int) -> np.ndarray:
+    """A uniform [0, 1) number per light id (stable across image sizes: a hash of the id, not of the pixel)."""
+    return _hash3(ids, np.full_like(ids, salt), np.full_like(ids, 7), seed)
+
+
+def light_factor(p: np.ndarray, ids: np.ndarray, seed: int) -> np.ndarray:
+    """Albedo factor of light pixels (N,) at world points ``p`` (N, 3) owned by light ids ``ids`` (N,).
+
+    Makes the lights look like the real thing rather than uniform patches, so light proposals
+    cannot find them by colour alone (docs/proposals.md "The synthetic street's lights"): building
+    panes vary in brightness (dark interiors to sky-bright
+    reflections, 0.45-2.5x the glass colour) with a vertical reflection gradient; 40 % have a
+    light frame 6-10 cm wide (half of those with a central mullion) and 30 % a curtain (a
+    pale, folded band over the top or one side). Car panes vary 0.6-2x, lamps and street-lamp
+    diffusers 0.55-1.15x (some are no brighter than their housing). The frame and curtain lie
+    inside the pane, so the light masks (ground truth) are unchanged. Pane-relative positions come
+    from the visible pixels' world extent per light.
+    """
+    ids = ids.astype(np.int64)
+    cls = ids // 1000
+    out = np.ones(len(ids), np.float64)
+    uniq, inv = np.unique(ids, return_inverse=True)
+    r = [_per_light(uniq, seed, salt)[inv].astype(np.float64) for salt in range(6)]
+    # Pane coordinates: v = height, u = the horizontal axis along which the pane extends.
+    lo = np.full((len(uniq), 3), np.inf)
+    hi = np.full((len(uniq), 3), -np.inf)
+    np.minimum.at(lo, inv, p)
+    np.maximum.at(hi, inv, p)
+    ext = hi - lo
+    u_axis = np.where(ext[:, 0] >= ext[:, 2], 0, 2)[inv]
+    pu = np.where(u_axis == 0, p[:, 0], p[:, 2])
+    lo_u = np.where(u_axis == 0, lo[inv, 0], lo[inv, 2])
+    ext_u = np.maximum(np.where(u_axis == 0, ext[inv, 0], ext[inv, 2]), 1e-6)
+    ext_v = np.maximum(ext[inv, 1], 1e-6)
+    du = pu - lo_u                      # metres from the pane's left/near edge
+    dv = p[:, 1] - lo[inv, 1]           # metres above the pane's bottom
+    fu, fv = du / ext_u, dv / ext_v
+
+    win = cls == 1
+    if win.any():
+        bright = np.exp(np.log(0.45) + (np.log(2.5) - np.log(0.45)) * r[0])
+        grad = 1.0 + (r[1] - 0.5) * 1.2 * (fv - 0.5)
+        f = bright * grad
+        framed = r[2] < 0.4
+        fw = 0.06 + 0.04 * r[3]
+        edge = np.minimum(np.minimum(du, ext_u - du), np.minimum(dv, ext_v - dv)) < fw
+        mullion = framed & (r[3] < 0.5) & (np.abs(fu - 0.5) * ext_u < fw / 2)
+        frame = framed & (edge | mullion)
+        curtain = (r[4] < 0.3) & ~frame
+        top = r[5] < 0.6
+        side = np.where(r[5] < 0.8, fu < 0.3 + 0.2 * r[1], fu > 0.7 - 0.2 * r[1])
+        band = np.where(top, fv > 0.55 + 0.25 * r[3], side)
+        folds = 1.0 + 0.15 * np.sin(du * 2 * np.pi / 0.12)
+        f = np.where(curtain & band, (3.0 + 3.0 * r[2]) * folds, f)
+        f = np.where(frame, 3.0 + 3.0 * r[1], f)
+        out = np.where(win, f, out)
+    car_pane = cls == 2
+    out = np.where(car_pane, 0.6 + 1.4 * r[0], out)
+    lamp = (cls >= 3) & (cls <= 6) | (cls == 8) | (cls == 9)
+    out = np.where(lamp, 0.55 + 0.6 * r[0], out)
+    return out.astype(np.float32)

@@ -106,7 +106,7 @@ class EditorCanvas(QGraphicsView):
     #: Emitted after the zoom factor changed.
     zoomChanged = Signal(float)
 
-    LAYERS = ("labels", "superpixels", "lights")
+    LAYERS = ("labels", "superpixels", "lights", "proposals")
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
@@ -128,6 +128,7 @@ class EditorCanvas(QGraphicsView):
         self.layers["labels"].setOpacity(0.35)
         self.layers["superpixels"].setOpacity(0.35)
         self.layers["lights"].setOpacity(0.85)
+        self.layers["proposals"].setOpacity(1.0)  # its RGBA carries the translucency (editor.proposals)
         self._group_items: list[QGraphicsItem] = []
         self.cursor_item = QGraphicsEllipseItem()
         self.cursor_item.setPen(QPen(QColor(255, 255, 255), 0))

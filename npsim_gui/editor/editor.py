@@ -11,9 +11,9 @@ from dataclasses import replace
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QAbstractButton, QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout,
+from PySide6.QtWidgets import (QAbstractItemView, QAbstractButton, QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout,
                                QGridLayout, QGroupBox, QHBoxLayout, QLabel, QMainWindow, QPushButton, QScrollArea,
-                               QSlider, QSpinBox, QToolButton, QVBoxLayout, QWidget)
+                               QSlider, QSpinBox, QToolButton, QTreeWidget, QTreeWidgetItem, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import class_of, is_group_class, is_light_class
 from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
@@ -24,8 +24,10 @@ from npsim_core.superpixels import METHODS
 from .canvas import EditorCanvas
 from .overlays import boundary_rgba, class_color, labels_rgba, lights_region
 from .palette import ClassPalette, InstanceList
+from .proposals import ProposalBook, proposal_rgba
 from .session import EditorSession, join_group
-from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, ShortcutDialog
+from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutDialog
+from ..workers import JobChannel
 from .tools import Tool, ToolController, ToolOptions
 
 TOOL_KEYS = {Tool.SUPERPIXEL: "S", Tool.BRUSH: "B", Tool.ERASER: "E", Tool.FILL: "F", Tool.SELECT: "V",
@@ -39,6 +41,8 @@ class AnnotationEditor(QWidget):
 
     #: Forwarded from the session: True when there are unsaved edits.
     dirtyChanged = Signal(bool)
+    #: Esc pressed with nothing to clear (the main window then cancels its running job).
+    escapeUnused = Signal()
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
@@ -54,6 +58,17 @@ class AnnotationEditor(QWidget):
         self._refresh_timer.setSingleShot(True)
         self._refresh_timer.setInterval(60)
         self._refresh_timer.timeout.connect(self._refresh_lists)
+        #: The proposals of this image and what became of them (None before "Propose lights").
+        self.proposal_book: ProposalBook | None = None
+        #: ``proposal_source()`` -> a callable run in a worker that returns ``LightProposals``; the
+        #: main window supplies the frame's depth and camera, the default proposes from image + labels.
+        self.proposal_source = None
+        self.proposal_jobs = JobChannel("proposals", parent=self)
+        self._hover_xy = (-1, -1)
+        self._proposal_timer = QTimer(self)
+        self._proposal_timer.setSingleShot(True)
+        self._proposal_timer.setInterval(80)
+        self._proposal_timer.timeout.connect(self.refresh_proposals)
         self._build_ui()
         self._build_actions()
         # Buttons and check boxes never take the keyboard focus: Space (pan) and the
@@ -70,6 +85,12 @@ class AnnotationEditor(QWidget):
         s.fineReady.connect(self._on_superpixels)
         s.dirtyChanged.connect(self.dirtyChanged)
         s.message.connect(self.show_message)
+        s.loaded.connect(self.clear_proposals)
+        s.changed.connect(lambda ch: self._proposal_timer.start()
+                          if self.proposal_book is not None and ch.structure else None)
+        self.proposal_jobs.finished.connect(self._on_proposals)
+        self.proposal_jobs.failed.connect(lambda msg, _tb: self._proposal_failed(msg))
+        self.proposal_jobs.busy.connect(self._on_proposal_busy)
         self.set_tool(Tool.SUPERPIXEL)
 
     # ----------------------------------------------------------------- UI
@@ -224,6 +245,8 @@ class AnnotationEditor(QWidget):
         pal_l.addWidget(self.palette)
         pl.addWidget(pal)
 
+        pl.addWidget(self._build_proposals_box())
+
         inst = QGroupBox("Instances")
         il = QVBoxLayout(inst)
         self.instance_list = InstanceList()
@@ -297,6 +320,12 @@ class AnnotationEditor(QWidget):
         for name, key in (("labels", "L"), ("superpixels", "P"), ("lights", "M")):
             A[f"layer_{name}"] = self._action(f"Toggle {name}", key, self.layer_boxes[name].toggle)
         A["help"] = self._action("Shortcuts", "F1", self.show_shortcuts)
+        A["propose"] = self._action("Propose lights", PROPOSAL_KEYS["propose"], self.propose_lights)
+        # (lambdas: triggered(bool) must not reach the methods' optional arguments)
+        A["accept"] = self._action("Accept proposals", PROPOSAL_KEYS["accept"], lambda: self.accept_proposals())
+        A["reject"] = self._action("Reject proposals", PROPOSAL_KEYS["reject"], lambda: self.reject_proposals())
+        A["accept_above"] = self._action("Accept proposals above the confidence", PROPOSAL_KEYS["accept_above"],
+                                         lambda: self.accept_proposals_above())
 
     # ----------------------------------------------------------------- public API
     def load(self, image, labels=None, ann=None, folder=None, stem="annotation", *, dirty=False) -> None:
@@ -415,8 +444,11 @@ class AnnotationEditor(QWidget):
             self.show_message("select one group (or one of its lights) to make it active")
 
     def clear_selection(self) -> None:
-        """Esc: no selection, no current light, no active group."""
+        """Esc: no selection, no current light, no active group (:attr:`escapeUnused` when there were none)."""
         s = self.session
+        if s.active_group is None and not s.selection and s.current_id is None:
+            self.escapeUnused.emit()
+            return
         s.set_active_group(None)
         s.set_selection(set(), current=None)
         s.set_current(None)
@@ -614,7 +646,226 @@ class AnnotationEditor(QWidget):
         if len(lights) == 1:
             self.session.set_current(lights[0])
 
+    # ----------------------------------------------------------------- proposals
+    def _build_proposals_box(self) -> QGroupBox:
+        box = QGroupBox("Proposals")
+        lay = QVBoxLayout(box)
+        row = QHBoxLayout()
+        self.propose_btn = QPushButton(f"Propose lights ({PROPOSAL_KEYS['propose']})")
+        self.propose_btn.setToolTip("Propose traffic-light and street lamps, vehicle lamps and windows, building "
+                                    "windows and advertisements from the image and its labels (in the background)")
+        self.propose_btn.clicked.connect(self.propose_lights)
+        self.propose_cancel = QPushButton("Cancel")
+        self.propose_cancel.setEnabled(False)
+        self.propose_cancel.clicked.connect(self.proposal_jobs.cancel)
+        self.proposal_box = QCheckBox("show")
+        self.proposal_box.setChecked(True)
+        self.proposal_box.toggled.connect(lambda v: self.canvas.set_layer_visible("proposals", v))
+        row.addWidget(self.propose_btn, 1)
+        row.addWidget(self.propose_cancel)
+        row.addWidget(self.proposal_box)
+        lay.addLayout(row)
+        row = QHBoxLayout()
+        self.confidence_slider = QSlider(Qt.Orientation.Horizontal)
+        self.confidence_slider.setRange(0, 100)
+        self.confidence_slider.setValue(90)
+        self.confidence_slider.setToolTip("confidence threshold of 'Accept ≥'")
+        self.accept_above_btn = QPushButton()
+        self.accept_above_btn.setToolTip(f"Accept every pending proposal at or above this confidence "
+                                         f"({PROPOSAL_KEYS['accept_above']})")
+        self.accept_above_btn.clicked.connect(lambda: self.accept_proposals_above())
+        self.confidence_slider.valueChanged.connect(
+            lambda v: self.accept_above_btn.setText(f"Accept ≥ {v / 100:.2f}"))
+        self.accept_above_btn.setText(f"Accept ≥ {self.confidence_slider.value() / 100:.2f}")
+        row.addWidget(self.confidence_slider, 1)
+        row.addWidget(self.accept_above_btn)
+        lay.addLayout(row)
+        self.proposal_tree = QTreeWidget()
+        self.proposal_tree.setHeaderLabels(["proposal", "conf."])
+        self.proposal_tree.setSelectionMode(QAbstractItemView.SelectionMode.ExtendedSelection)
+        self.proposal_tree.setMinimumHeight(90)
+        self.proposal_tree.setColumnWidth(0, 190)
+        lay.addWidget(self.proposal_tree)
+        row = QHBoxLayout()
+        for text, slot, tip in (("Accept", self.accept_proposals, PROPOSAL_KEYS["accept"]),
+                                ("Reject", self.reject_proposals, PROPOSAL_KEYS["reject"]),
+                                ("Reject rest", self.reject_all_proposals, "")):
+            b = QPushButton(text)
+            b.clicked.connect(lambda _=False, f=slot: f())
+            if tip:
+                b.setToolTip(f"the selected rows, else the proposal under the mouse with its group ({tip})")
+            row.addWidget(b)
+        lay.addLayout(row)
+        self.proposal_status = QLabel("no proposals yet")
+        self.proposal_status.setWordWrap(True)
+        lay.addWidget(self.proposal_status)
+        return box
+
+    def propose_lights(self) -> None:
+        """Compute light proposals in a worker (Cancel stops waiting for them)."""
+        s = self.session
+        if self.proposal_source is not None:
+            try:
+                fn = self.proposal_source()
+            except NpsimInputError as exc:
+                self.show_message(str(exc))
+                return
+        elif s.labels is None:
+            self.show_message("proposals need the image's semantic labels")
+            return
+        else:
+            from npsim_core.proposals import propose_lights
+
+            image, labels = s.image, s.labels
+
+            def fn():
+                return propose_lights(image, labels)
+        generation = id(s.ann)
+        self.proposal_status.setText("proposing…")
+        self.proposal_jobs.submit(lambda cancel, progress: (fn(), generation))
+
+    def _on_proposal_busy(self, busy: bool) -> None:
+        self.propose_cancel.setEnabled(busy)
+        self.propose_btn.setEnabled(not busy)
+        if not busy and self.proposal_status.text() == "proposing…":
+            self.proposal_status.setText("cancelled" if self.proposal_book is None else self._proposal_summary())
+
+    def _proposal_failed(self, message: str) -> None:
+        self.proposal_status.setText(f"proposals failed: {message}")
+
+    def _on_proposals(self, payload) -> None:
+        proposals, _generation = payload
+        if proposals.annotation.shape != self.session.ann.shape:
+            return  # proposals of an image that is no longer open
+        self.set_proposals(proposals)
+
+    def set_proposals(self, proposals) -> None:
+        """Show ``proposals`` (``npsim_core.proposals.LightProposals`` of this image) as the proposal layer."""
+        self.proposal_book = ProposalBook(proposals)
+        self.refresh_proposals()
+
+    def clear_proposals(self) -> None:
+        self.proposal_jobs.cancel()
+        self.proposal_book = None
+        H, W = self.session.ann.shape
+        self.canvas.set_layer("proposals", np.zeros((H, W, 4), np.uint8))
+        if hasattr(self, "proposal_tree"):
+            self.proposal_tree.clear()
+            self.proposal_status.setText("no proposals yet")
+
+    def _existing_ids(self) -> set[int]:
+        return set(self.session.ann.instance_ids())
+
+    def pending_proposals(self) -> list[int]:
+        """Proposal light ids still to decide on."""
+        book = self.proposal_book
+        return book.pending(self._existing_ids()) if book is not None else []
+
+    def _proposal_summary(self) -> str:
+        book = self.proposal_book
+        n = len(book.light_ids)
+        pend = len(self.pending_proposals())
+        acc = sum(1 for p in book.light_ids if book.accepted.get(p) in self._existing_ids())
+        return f"{pend} of {n} proposals pending · {acc} accepted · {len(book.rejected)} rejected"
+
+    def refresh_proposals(self) -> None:
+        """Redraw the proposal layer and list (after proposals, an accept/reject, or an undo)."""
+        book = self.proposal_book
+        if book is None:
+            return
+        pending = self.pending_proposals()
+        self.canvas.set_layer("proposals", proposal_rgba(book.proposals.annotation.instance_map, pending))
+        tree = self.proposal_tree
+        tree.clear()
+        pend = set(pending)
+        ann = book.proposals.annotation
+        role = Qt.ItemDataRole.UserRole
+        for gid, g in sorted(ann.groups.items()):
+            members = [m for m in g.members if m in pend]
+            if not members:
+                continue
+            top = QTreeWidgetItem([f"{light_class(class_of(gid)).name} {gid} ({len(members)})",
+                                   f"{book.confidence(gid):.2f}"])
+            top.setData(0, role, ("group", gid))
+            for m in members:
+                it = QTreeWidgetItem([f"{light_class(class_of(m)).name} {m}", f"{book.confidence(m):.2f}"])
+                it.setData(0, role, ("light", m))
+                top.addChild(it)
+            tree.addTopLevelItem(top)
+        for m in pending:
+            if m not in book.group_of:
+                it = QTreeWidgetItem([f"{light_class(class_of(m)).name} {m}", f"{book.confidence(m):.2f}"])
+                it.setData(0, role, ("light", m))
+                tree.addTopLevelItem(it)
+        self.proposal_status.setText(self._proposal_summary())
+
+    def _proposal_targets(self) -> tuple[list[int], list[int]]:
+        """(lights, groups): the rows selected in the proposal list, else the proposal under the mouse
+        with its whole group."""
+        book = self.proposal_book
+        if book is None:
+            return [], []
+        lights, groups = [], []
+        for it in self.proposal_tree.selectedItems():
+            kind, pid = it.data(0, Qt.ItemDataRole.UserRole)
+            (groups if kind == "group" else lights).append(int(pid))
+        if lights or groups:
+            return lights, groups
+        x, y = self._hover_xy
+        H, W = self.session.ann.shape
+        if 0 <= x < W and 0 <= y < H:
+            pid = book.at(x, y, self._existing_ids())
+            if pid:
+                return book.expand(pid)
+        return [], []
+
+    def accept_proposals(self, lights=None, groups=None) -> list[int]:
+        """Accept proposal ``lights`` / ``groups`` (default: :meth:`_proposal_targets`) as one undo step;
+        returns the new light ids."""
+        if self.proposal_book is None:
+            return []
+        if lights is None and groups is None:
+            lights, groups = self._proposal_targets()
+        new = self._safe_result(lambda: self.proposal_book.accept(self.session, lights or [], groups or []))
+        self.show_message(f"accepted {len(new)} proposed lights" if new else
+                          "no pending proposal selected or under the mouse")
+        self.refresh_proposals()
+        return new
+
+    def accept_proposals_above(self, threshold: float | None = None) -> list[int]:
+        """Accept every pending proposal with confidence >= ``threshold`` (default: the slider)."""
+        if self.proposal_book is None:
+            return []
+        t = self.confidence_slider.value() / 100 if threshold is None else float(threshold)
+        new = self._safe_result(lambda: self.proposal_book.accept_above(self.session, t))
+        self.show_message(f"accepted {len(new)} proposed lights with confidence ≥ {t:.2f}")
+        self.refresh_proposals()
+        return new
+
+    def reject_proposals(self, lights=None, groups=None) -> None:
+        """Reject proposal ``lights`` / the lights of ``groups`` (default: :meth:`_proposal_targets`)."""
+        book = self.proposal_book
+        if book is None:
+            return
+        if lights is None and groups is None:
+            lights, groups = self._proposal_targets()
+        book.reject(list(lights or []) + [m for g in groups or [] for m in book.proposals.ids_in_group(g)])
+        self.refresh_proposals()
+
+    def reject_all_proposals(self) -> None:
+        if self.proposal_book is not None:
+            self.proposal_book.reject(self.pending_proposals())
+            self.refresh_proposals()
+
+    def _safe_result(self, fn):
+        try:
+            return fn()
+        except NpsimInputError as exc:
+            self.show_message(str(exc))
+            return []
+
     def _on_hover(self, x: int, y: int) -> None:
+        self._hover_xy = (x, y)
         if x < 0:
             return
         iid = self.session.instance_at(x, y)

@@ -10,6 +10,9 @@ LIGHT_CLASS_KEYS = {**{c: str(c) for c in range(1, 10)}, 10: "0", 11: "Ctrl+1", 
 #: Group class shortcuts: Alt+1..Alt+9 for classes 13-21.
 GROUP_CLASS_KEYS = {13 + k: f"Alt+{k + 1}" for k in range(9)}
 
+#: Proposal layer shortcuts (keys no other editor action uses).
+PROPOSAL_KEYS = {"propose": "Ctrl+P", "accept": "Shift+A", "reject": "Shift+R", "accept_above": "Ctrl+Shift+A"}
+
 #: (keys, what) in the order the sheet shows them.
 SHORTCUTS: list[tuple[str, str]] = [
     ("S", "Superpixel tool: click/drag adds superpixels to the current light; Shift removes; Alt = fine scale"),
@@ -37,6 +40,11 @@ SHORTCUTS: list[tuple[str, str]] = [
     ("Delete", "Delete the selected lights or groups"),
     ("Esc", "Clear the selection, the current light and the active group"),
     ("Ctrl+F", "Filter the class buttons by name (Return picks the only match, Esc clears)"),
+    ("Ctrl+P", "Propose lights automatically (shown as a dashed, translucent layer apart from the annotation)"),
+    ("Shift+A", "Accept the proposals selected in the Proposals list, else the proposal under the mouse with "
+                "its whole group: they become ordinary lights and groups (Ctrl+Z undoes)"),
+    ("Shift+R", "Reject the selected proposals, else the proposal under the mouse with its whole group"),
+    ("Ctrl+Shift+A", "Accept every pending proposal at or above the confidence slider"),
     ("Ctrl+Z", "Undo"),
     ("Ctrl+Shift+Z, Ctrl+Y", "Redo"),
     ("L / P / M", "Show/hide semantic labels / superpixel borders / light masks"),

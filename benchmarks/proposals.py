@@ -1,0 +1,181 @@
+"""Light proposals against the synthetic street's exact light ground truth (docs/proposals.md).
+
+    .venv/bin/python -m benchmarks.proposals [--sizes 512x256,2048x1024] [--variants default,hard]
+                                             [--seeds 0,1,2] [--picture docs/img/proposals.png]
+
+Table 1: per image size, street variant and category (windows, vehicle lamps, street
+lamps, traffic-light lamps; vehicle windows and advertisements as extra rows), the
+ground-truth lights, the proposals kept at the default confidence (0.5), one-to-one matches at
+mask IoU >= 0.3, recall and precision, pooled over the seeds. ``recall >= 9 px`` leaves out
+ground-truth lights under 9 pixels (a 3x3 patch), which no image-based method can outline at
+that size. Targets: recall and precision >= 0.8 per category.
+
+Table 2: time of ``propose_lights`` per image size (median over seeds and variants; the
+scene's depth and Cityscapes-style instance ids are given; target <= 2 s at 2048x1024).
+
+Table 3: editor actions to reach the ground truth, estimated with a simple action model:
+without proposals every light is one action (draw or pick a superpixel group) and every
+group one more; with proposals one "accept all above the slider" action, then one action per
+wrong proposal (reject), per missed light (draw), per matched light with IoU < 0.7 (touch up)
+and per ground-truth group not reproduced exactly (regroup).
+
+The picture shows the proposals (class colours, confidence >= 0.5) over a 2048x1024 hard-variant
+frame, with the ground truth's outlines in thin white.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+CATS = ("windows", "vehicle_lamps", "street_lamps", "traffic_light_lamps", "vehicle_windows", "advertisements")
+TARGET_CATS = CATS[:4]
+
+
+def frame(W: int, H: int, seed: int, variant: str):
+    """Synthetic scene and its Cityscapes instance ids (as the Cityscapes fixture writes them)."""
+    from npsim_core.synthetic import street_ground_truth, street_scene
+    from npsim_core.synthetic.cityscapes import instance_ids
+
+    scene = street_scene(W, H, seed, variant)
+    layout, _, _, gt = street_ground_truth(W, H, seed, variant=variant)
+    return scene, instance_ids(scene.labels, gt.prim, layout.prims).astype(np.int32)
+
+
+def editor_actions(gt, props, threshold: float = 0.5) -> tuple[int, int]:
+    """(actions without proposals, actions with them) under the module doc's action model."""
+    from npsim_core.annotation import class_of
+
+    ann = props.above(threshold)
+    g_ids, p_ids = gt.instance_ids(), ann.instance_ids()
+    without = len(g_ids) + len(gt.groups)
+    g_area, p_area = gt.areas(), ann.areas()
+    g, p = gt.instance_map.ravel(), ann.instance_map.ravel()
+    sel = (g > 0) & (p > 0)
+    pairs, inter = np.unique(np.stack([g[sel], p[sel]]).astype(np.int64), axis=1, return_counts=True)
+    cand = sorted(((n / (g_area[a] + p_area[b] - n), a, b) for (a, b), n in zip(pairs.T.tolist(), inter.tolist())),
+                  reverse=True)
+    used_g, used_p, match = set(), set(), {}
+    for iou, a, b in cand:
+        if iou >= 0.3 and a not in used_g and b not in used_p:
+            used_g.add(a)
+            used_p.add(b)
+            match[a] = (b, iou)
+    touch = sum(1 for a, (b, iou) in match.items() if iou < 0.7 or class_of(b) != class_of(a))
+    missed = len(g_ids) - len(match)
+    wrong = len(p_ids) - len(match)
+    p_group = ann.group_index()
+    regroup = 0
+    for grp in gt.groups.values():
+        mapped = {p_group.get(match[m][0]) if m in match else None for m in grp.members}
+        if len(mapped) != 1 or None in mapped:
+            regroup += 1
+    return without, 1 + wrong + missed + touch + regroup
+
+
+def picture(scene, props, path: Path) -> None:
+    import cv2
+
+    from npsim_core.labels import light_classes
+
+    colors = {c.id: c.color for c in light_classes()}
+    img = scene.image.copy()
+    ann = props.above(0.5)
+    m = ann.instance_map
+    cls = m // 1000
+    overlay = img.copy()
+    for cid in np.unique(cls):
+        if cid:
+            overlay[cls == cid] = colors[int(cid)]
+    img = np.where((m > 0)[..., None], (0.45 * img + 0.55 * overlay).astype(np.uint8), img)
+    k = np.ones((3, 3), np.uint8)
+    for mm, col, thick in ((scene.lights.instance_map, (255, 255, 255), 1), (m, None, 2)):
+        edge = np.zeros(mm.shape, bool)
+        edge[:, 1:] |= mm[:, 1:] != mm[:, :-1]
+        edge[1:] |= mm[1:] != mm[:-1]
+        edge &= (mm > 0) | np.roll(mm > 0, 1, 0) | np.roll(mm > 0, 1, 1)
+        if thick > 1:
+            edge = cv2.dilate(edge.astype(np.uint8), k) > 0
+        if col is None:
+            ids = cv2.dilate(mm.astype(np.float32), k).astype(np.int64) // 1000
+            for cid in np.unique(ids[edge]):
+                if cid:
+                    img[edge & (ids == cid)] = colors[int(cid)]
+        else:
+            img[edge] = col
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(path), cv2.cvtColor(out, cv2.COLOR_RGB2BGR))
+
+
+def main(argv: list[str] | None = None) -> int:
+    from npsim_core.proposals import propose_lights
+    from npsim_core.proposals.evaluate import score
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="512x256,2048x1024")
+    ap.add_argument("--variants", default="default,hard")
+    ap.add_argument("--seeds", default="0,1,2")
+    ap.add_argument("--picture", default="docs/img/proposals.png")
+    args = ap.parse_args(argv)
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    variants = args.variants.split(",")
+    seeds = [int(s) for s in args.seeds.split(",")]
+    print(f"synthetic street, seeds {seeds}; load {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
+    print()
+    print("| size | variant | category | GT | proposed | matched | recall | precision | recall >= 9 px |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    times: dict[tuple[int, int], list[float]] = {}
+    actions: dict[tuple, list[tuple[int, int]]] = {}
+    pic = None
+    for W, H in sizes:
+        for variant in variants:
+            tot = {c: np.zeros(5, int) for c in CATS}  # GT, proposed, matched, GT >= 9 px, matched of those
+            for seed in seeds:
+                scene, inst = frame(W, H, seed, variant)
+                t0 = time.perf_counter()
+                props = propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst)
+                times.setdefault((W, H), []).append(time.perf_counter() - t0)
+                kept = props.above(0.5)
+                big = score(scene.lights, kept, categories=CATS, min_gt_area=9)
+                for c, s in score(scene.lights, kept, categories=CATS).items():
+                    tot[c] += (s.n_gt, s.n_pred, s.n_match, big[c].n_gt, big[c].n_match)
+                actions.setdefault((W, H, variant), []).append(editor_actions(scene.lights, props))
+                if (W, H) == (2048, 1024) and variant == "hard" and pic is None:
+                    pic = (scene, props)
+            for c in CATS:
+                n_gt, n_pred, n_match, n_big, n_big_match = tot[c]
+                rec = n_match / n_gt if n_gt else float("nan")
+                prec = n_match / n_pred if n_pred else float("nan")
+                rbig = n_big_match / n_big if n_big else float("nan")
+                print(f"| {W}x{H} | {variant} | {c} | {n_gt} | {n_pred} | {n_match} | {rec:.2f} | {prec:.2f} | "
+                      f"{rbig:.2f} |")
+            sys.stdout.flush()
+    print()
+    print("| size | propose_lights median s | max s | frames |")
+    print("|---|---|---|---|")
+    for (W, H), ts in times.items():
+        print(f"| {W}x{H} | {np.median(ts):.2f} | {max(ts):.2f} | {len(ts)} |")
+    print()
+    print("| size | variant | editor actions without proposals | with proposals (estimated) |")
+    print("|---|---|---|---|")
+    for (W, H, v), acts in actions.items():
+        a = np.array(acts)
+        print(f"| {W}x{H} | {v} | {a[:, 0].mean():.0f} | {a[:, 1].mean():.0f} |")
+    print(f"\nload after: {os.getloadavg()[0]:.2f}")
+    if pic is None and sizes:
+        scene, inst = frame(*sizes[-1], seeds[0], variants[-1])
+        pic = (scene, propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst))
+    if pic is not None and args.picture:
+        picture(*pic, Path(args.picture))
+        print(f"picture: {args.picture}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,302 @@
+"""Light proposals: the result type, the shared context of the proposers and the assembly (docs/proposals.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..annotation import GroupInstance, LightAnnotation, class_of
+from ..camera import Intrinsics
+from ..errors import NpsimInputError
+from ..labels import cityscapes
+from .params import ProposalParams
+
+
+@dataclass
+class LightProposals:
+    """Every proposed light and group, with a confidence per light id and per group id.
+
+    ``annotation`` holds all proposals (ids ``classId*1000 + k``, groups of classes 13..21);
+    ``confidence`` maps each light id and each group id to [0, 1].
+    """
+
+    annotation: LightAnnotation
+    confidence: dict[int, float] = field(default_factory=dict)
+
+    def above(self, threshold: float) -> LightAnnotation:
+        """The lights with confidence >= ``threshold``; a group keeps its kept members, and is dropped
+        when none is left. Ids are unchanged (so they still index ``confidence``)."""
+        ann = self.annotation
+        keep = [i for i in ann.instance_ids() if self.confidence.get(i, 0.0) >= threshold]
+        m = ann.instance_map
+        ids = np.asarray(sorted(set(np.unique(m).tolist()) | {0}), dtype=np.int64)
+        kept = np.isin(ids, np.asarray(keep + [0], dtype=np.int64))
+        lut_pos = np.searchsorted(ids, m)
+        new_map = np.where(kept[lut_pos], m, 0).astype(np.int32)
+        keep_set = set(keep)
+        groups = {}
+        for gid, g in ann.groups.items():
+            members = tuple(x for x in g.members if x in keep_set)
+            if members:
+                groups[gid] = GroupInstance(gid, members)
+        out = LightAnnotation(new_map, groups, {i for i in ann.extra_ids if i in keep_set}, dict(ann.meta))
+        return out
+
+    def ids_in_group(self, group_id: int) -> tuple[int, ...]:
+        """Member light ids of ``group_id`` (empty for an unknown group)."""
+        g = self.annotation.groups.get(int(group_id))
+        return tuple(g.members) if g is not None else ()
+
+    def category_ids(self, category: str) -> list[int]:
+        """Light ids of one benchmark category (see :data:`CATEGORY_CLASSES`)."""
+        want = CATEGORY_CLASSES[category]
+        tl_members = {m for g in self.annotation.groups.values() if g.class_id == 20 for m in g.members}
+        out = []
+        for i in self.annotation.instance_ids():
+            if class_of(i) in want and (category != "traffic_light_lamps" or i in tl_members):
+                out.append(i)
+        return out
+
+
+#: Light classes of each benchmark category (traffic-light lamps are 'inferred' lights in a traffic_light_group).
+CATEGORY_CLASSES: dict[str, tuple[int, ...]] = {
+    "windows": (1,), "vehicle_lamps": (3, 4, 5, 6), "vehicle_windows": (2, 7), "street_lamps": (8, 9),
+    "traffic_light_lamps": (12,), "advertisements": (10,)}
+
+
+# --------------------------------------------------------------------------- proposer plumbing
+@dataclass
+class Light:
+    """One proposed light: class, a local boolean mask at (y0, x0), confidence."""
+
+    class_id: int
+    y0: int
+    x0: int
+    mask: np.ndarray
+    confidence: float
+
+
+@dataclass
+class Group:
+    """Proposed group: class (13..21), members, confidence."""
+
+    class_id: int
+    members: list[Light]
+    confidence: float
+
+
+@dataclass
+class Context:
+    """Inputs shared by the proposers, validated once."""
+
+    image: np.ndarray            # HxWx3 uint8 sRGB
+    labels: np.ndarray           # HxW uint8 labelIds
+    depth: np.ndarray | None     # HxW float32 metres, NaN invalid
+    intrinsics: Intrinsics
+    instances: np.ndarray | None  # HxW int32 instanceIds
+    params: ProposalParams
+    _lum: np.ndarray | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.labels.shape  # type: ignore[return-value]
+
+    @property
+    def lum(self) -> np.ndarray:
+        """Linear luminance (HxW float32, 0..1), computed once."""
+        if self._lum is None:
+            lut = ((np.arange(256) / 255.0) ** 2.2).astype(np.float32)
+            lin = lut[self.image]
+            self._lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+        return self._lum
+
+    def metres_per_px(self, y0: int, y1: int, x0: int, x1: int, mask: np.ndarray | None = None) -> float | None:
+        """Metres per pixel at the median depth of a box (mask: local bool of the box), None without depth."""
+        if self.depth is None:
+            return None
+        d = self.depth[y0:y1, x0:x1]
+        if mask is not None:
+            d = d[mask]
+        d = d[np.isfinite(d)]
+        if d.size == 0:
+            return None
+        return float(np.median(d)) / float(self.intrinsics.fy)
+
+    def height_above_ground(self, v: np.ndarray | float, z: np.ndarray | float) -> np.ndarray | float:
+        """Height (m) above the ground plane of the point seen at image row ``v`` with z-depth ``z`` (m)."""
+        p = self.params
+        y = (np.asarray(v, dtype=np.float64) - self.intrinsics.cy) * np.asarray(z, dtype=np.float64) \
+            / self.intrinsics.fy
+        down = y * np.cos(p.camera_pitch_rad) + np.asarray(z, dtype=np.float64) * np.sin(p.camera_pitch_rad)
+        return p.camera_height_m - down
+
+
+def components(mask: np.ndarray, min_area: int = 1, connectivity: int = 8):
+    """Connected components of a bool mask: yields (y0, x0, local bool mask, area) per component."""
+    import cv2
+
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=connectivity)
+    for k in range(1, n):
+        x, y, w, h, a = (int(v) for v in stats[k])
+        if a < min_area:
+            continue
+        yield y, x, lab[y:y + h, x:x + w] == k, a
+
+
+def _check_inputs(image, labels, depth, intrinsics, instances) -> Context:
+    if not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+        raise NpsimInputError(f"image must be an HxWx3 uint8 sRGB array, got "
+                              f"{getattr(image, 'shape', type(image).__name__)} {getattr(image, 'dtype', '')}")
+    H, W = image.shape[:2]
+    if not isinstance(labels, np.ndarray) or labels.shape != (H, W):
+        raise NpsimInputError(f"labels must be HxW labelIds matching the image ({H}x{W}), got "
+                              f"{getattr(labels, 'shape', type(labels).__name__)}")
+    if not np.issubdtype(labels.dtype, np.integer):
+        raise NpsimInputError(f"labels must be integer Cityscapes labelIds, got {labels.dtype}")
+    labels = labels.astype(np.uint8) if labels.dtype != np.uint8 else labels
+    cityscapes().validate(labels, "labels")
+    if depth is not None:
+        if not isinstance(depth, np.ndarray) or depth.shape != (H, W) or not np.issubdtype(depth.dtype, np.floating):
+            raise NpsimInputError(f"depth must be an HxW float array in metres matching the image ({H}x{W}), got "
+                                  f"{getattr(depth, 'shape', type(depth).__name__)} {getattr(depth, 'dtype', '')}")
+        depth = depth.astype(np.float32, copy=False)
+        if not np.isfinite(depth).any():
+            depth = None  # nothing usable: behave as without depth
+    if intrinsics is None:
+        intrinsics = Intrinsics.cityscapes(W, H)
+    elif not isinstance(intrinsics, Intrinsics):
+        raise NpsimInputError(f"intrinsics must be an npsim_core.camera.Intrinsics, got {type(intrinsics).__name__}")
+    elif (intrinsics.width, intrinsics.height) != (W, H):
+        raise NpsimInputError(f"intrinsics are for {intrinsics.width}x{intrinsics.height} but the image is {W}x{H}; "
+                              f"use Intrinsics.resized({W}, {H})")
+    if instances is not None:
+        if not isinstance(instances, np.ndarray) or instances.shape != (H, W) \
+                or not np.issubdtype(instances.dtype, np.integer):
+            raise NpsimInputError(f"instances must be an HxW integer Cityscapes instanceIds map matching the image "
+                                  f"({H}x{W}), got {getattr(instances, 'shape', type(instances).__name__)}")
+        instances = instances.astype(np.int32, copy=False)
+    return Context(image, labels, depth, intrinsics, instances, ProposalParams())
+
+
+def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightProposals:
+    """Paint lights in order (earlier proposals own contested pixels) and number ids per class."""
+    m = np.zeros(shape, np.int32)
+    counters: dict[int, int] = {}
+    conf: dict[int, float] = {}
+    groups: dict[int, GroupInstance] = {}
+
+    def new_id(cls: int) -> int | None:
+        k = counters.get(cls, 0) + 1
+        if k >= 1000:
+            return None
+        counters[cls] = k
+        return cls * 1000 + k
+
+    def paint(li: Light) -> int | None:
+        h, w = li.mask.shape
+        y0, x0 = max(li.y0, 0), max(li.x0, 0)
+        y1, x1 = min(li.y0 + h, shape[0]), min(li.x0 + w, shape[1])
+        if y1 <= y0 or x1 <= x0:
+            return None
+        sub = li.mask[y0 - li.y0:y1 - li.y0, x0 - li.x0:x1 - li.x0]
+        region = m[y0:y1, x0:x1]
+        free = sub & (region == 0)
+        if not free.any():
+            return None
+        lid = new_id(li.class_id)
+        if lid is None:
+            return None
+        region[free] = lid
+        conf[lid] = float(np.clip(li.confidence, 0.0, 1.0))
+        return lid
+
+    for it in items:
+        if isinstance(it, Light):
+            paint(it)
+            continue
+        members = [lid for li in it.members if (lid := paint(li)) is not None]
+        if not members:
+            continue
+        gid = new_id(it.class_id)
+        if gid is None:
+            continue
+        groups[gid] = GroupInstance(gid, tuple(members))
+        conf[gid] = float(np.clip(it.confidence, 0.0, 1.0))
+    return LightProposals(LightAnnotation(m, groups), conf)
+
+
+def propose_lights(image: np.ndarray, labels: np.ndarray, depth: np.ndarray | None = None,
+                   intrinsics: Intrinsics | None = None, instances: np.ndarray | None = None,
+                   params: ProposalParams = ProposalParams()) -> LightProposals:
+    """Propose a light annotation from a daytime frame (docs/proposals.md).
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        Daytime sRGB image.
+    labels : (H, W) integer
+        Cityscapes labelIds.
+    depth : (H, W) float, optional
+        z-depth in metres (NaN invalid); gives metric sizes and heights. Without it the
+        proposers fall back to pixel-relative rules and lower confidences.
+    intrinsics : Intrinsics, optional
+        Pinhole camera for this image size (default: Cityscapes' camera resized).
+    instances : (H, W) integer, optional
+        Cityscapes instanceIds (``labelId*1000 + k`` on cars, trucks, buses...); without them
+        each connected component of a vehicle class is one vehicle.
+    params : ProposalParams
+        Thresholds.
+
+    Returns
+    -------
+    LightProposals
+        All proposals with a confidence per light and group; deterministic in the inputs.
+    """
+    from . import ads, street_lamps, traffic_lights, vehicles, windows
+
+    ctx = _check_inputs(image, labels, depth, intrinsics, instances)
+    if not isinstance(params, ProposalParams):
+        raise NpsimInputError(f"params must be a ProposalParams, got {type(params).__name__}")
+    ctx.params = params
+    known = {"traffic_lights": traffic_lights.propose, "street_lamps": street_lamps.propose,
+             "vehicles": vehicles.propose, "ads": ads.propose, "windows": windows.propose}
+    bad = [c for c in params.categories if c not in known]
+    if bad:
+        raise NpsimInputError(f"params.categories: unknown {bad}; choose from {', '.join(known)}")
+    items: list[Light | Group] = []
+    for name, fn in known.items():  # fixed order: small, sure lights first own contested pixels
+        if name in params.categories:
+            items.extend(fn(ctx))
+    return _assemble(ctx.shape, items)
+
+
+def propose_for_scene(scene, params: ProposalParams = ProposalParams(), depth: np.ndarray | None = None
+                      ) -> LightProposals:
+    """:func:`propose_lights` on a :class:`npsim_core.scene.Scene`.
+
+    Depth: the scene's ``depth``, else its ``depth_stereo``, else ``depth`` given here, else none.
+    Instances: the scene's ``instances`` when it has that field and it is set.
+    """
+    d = scene.depth if scene.depth is not None else scene.depth_stereo
+    if d is None:
+        d = depth
+    if isinstance(params, ProposalParams):
+        params = replace(params, camera_height_m=float(scene.camera_height),
+                         camera_pitch_rad=float(scene.camera_pitch))
+    return propose_lights(scene.image, scene.labels, d, scene.intrinsics, getattr(scene, "instances", None),
+                          params)
+
+
+def summarize(proposals: LightProposals, threshold: float = 0.0) -> dict[str, dict]:
+    """Per category: number of lights with confidence >= ``threshold``, groups holding them,
+    and their confidence range (for logs and the CLI)."""
+    ann = proposals.above(threshold)
+    group_of = ann.group_index()
+    out: dict[str, dict] = {}
+    for cat, classes in CATEGORY_CLASSES.items():
+        ids = [i for i in ann.instance_ids() if class_of(i) in classes]
+        conf = [proposals.confidence.get(i, 0.0) for i in ids]
+        out[cat] = {"lights": len(ids), "groups": len({group_of[i] for i in ids if i in group_of}),
+                    "confidence": [round(min(conf), 3), round(max(conf), 3)] if conf else None}
+    return out

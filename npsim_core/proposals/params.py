@@ -1,0 +1,103 @@
+"""Thresholds of the light proposers (docs/proposals.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ProposalParams:
+    """Every threshold of :func:`npsim_core.proposals.propose_lights`.
+
+    Lengths are metres unless the name ends in ``_px`` (pixels); ratios are unitless;
+    confidences lie in [0, 1].
+    """
+
+    #: Proposals below this confidence are not kept by ``LightProposals.above`` callers that use the default.
+    min_confidence: float = 0.5
+    #: Categories to propose (any subset of traffic_lights, street_lamps, vehicles, windows, ads).
+    categories: tuple[str, ...] = ("traffic_lights", "street_lamps", "vehicles", "windows", "ads")
+    #: Camera height above the ground (m) and downward pitch (rad), for heights from depth
+    #: (``propose_for_scene`` takes them from the scene).
+    camera_height_m: float = 1.22
+    camera_pitch_rad: float = 0.038
+
+    # --- traffic lights
+    #: Smallest traffic-light component (pixels) that is split into lamp cells.
+    tl_min_area_px: int = 12
+    #: Lamp side as a fraction of the cell's shorter side (a 0.24 m lens in a 0.33 m cell is ~0.72).
+    tl_lamp_fraction: float = 0.72
+    #: Housing aspect (long / short side) above which the housing holds three cells in a line.
+    tl_min_aspect: float = 1.6
+
+    # --- street lamps
+    #: Smallest pole component (pixels) examined for a lamp head.
+    pole_min_area_px: int = 10
+    #: Lamp heads are looked for within this distance (m) below the component's top.
+    lamp_head_band_m: float = 0.55
+    #: A pole whose top is at least this high (m above its foot) carries a high (HT) lamp, else a low one.
+    lamp_high_min_m: float = 6.0
+    #: Poles lower than this (m) carry no street lamp (bollards, sign posts, traffic-light poles).
+    lamp_min_height_m: float = 3.2
+    #: An arm reaching at least this far (m) from the trunk marks a street lamp at its end.
+    lamp_min_arm_m: float = 0.6
+    #: A pole top at least this many times wider than the trunk is a lantern.
+    lamp_lantern_min_widening: float = 1.6
+
+    # --- vehicles
+    #: Smallest vehicle instance (pixels) that gets lamps and panes.
+    vehicle_min_area_px: int = 60
+    #: Without instance ids, a vehicle component is split where depth jumps by more than this
+    #: fraction of the nearer depth across ~W/256 pixels (cars in a row touch in the image, not in depth).
+    vehicle_split_jump: float = 0.15
+    #: Find the end face as the columns as near as the nearest (needs depth); tolerance in metres.
+    vehicle_face_from_depth: bool = True
+    vehicle_face_tol_m: float = 0.3
+    vehicle_face_tol_rel: float = 0.02
+    #: Width (m) of a car and of a truck or bus: the extent of the end face the camera sees.
+    vehicle_width_m: tuple[float, float] = (1.8, 2.5)
+    #: Lamp box on the end face without depth, as fractions of the body face: rows from the body top,
+    #: columns in from each side.
+    vehicle_lamp_rows: tuple[float, float] = (0.12, 0.42)
+    vehicle_lamp_cols: tuple[float, float] = (0.04, 0.22)
+    #: The same in metres, with depth.
+    vehicle_lamp_rows_m: tuple[float, float] = (0.06, 0.23)
+    vehicle_lamp_cols_m: tuple[float, float] = (0.07, 0.40)
+    #: Share of a lamp box that must be on the vehicle's silhouette (else hidden: not proposed).
+    vehicle_lamp_min_visible: float = 0.6
+    #: Plausible height (m above the ground) of a vehicle body's top edge.
+    vehicle_body_top_m: tuple[float, float] = (0.6, 1.4)
+    #: Typical body-top height (m), used where the silhouette cannot tell (narrow or occluded faces).
+    vehicle_body_top_typical_m: float = 0.9
+    #: End faces narrower than this (pixels) take the typical body top.
+    vehicle_small_face_px: int = 24
+
+    # --- building windows
+    #: A pixel is window-like when its luminance is below this fraction of the local wall luminance.
+    window_dark_ratio: float = 0.72
+    #: ... or when its chromaticity (Lab a, b; 8-bit units) is this far from the wall's (tinted glass).
+    window_chroma_delta: float = 6.0
+    #: Window height bounds (m) when depth is known (a receding facade foreshortens widths, not heights).
+    window_height_m: tuple[float, float] = (0.45, 4.0)
+    #: Smallest window blob (pixels).
+    window_min_area_px: int = 6
+    #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.
+    window_min_fill: float = 0.55
+    #: Leave the 1-px rim of what differs out of the wall estimate too (pixels mixing pane and wall).
+    window_wall_rim: bool = False
+    #: Share of wall pixels a box needs for its local wall estimate (else the coarser scale decides).
+    window_wall_min_share: float = 0.08
+    #: Leave building pixels beside sky or foliage (blended with them) out of the candidates (off: it
+    #: loses more panes behind trees than it removes false ones at 512x256).
+    window_skip_border: bool = False
+    #: Erode-and-split attempts on a blob that fails the fill or size test (joined panes).
+    window_split_steps: int = 2
+    #: Windows whose centres lie within this height (m) of each other form one floor.
+    window_floor_tol_m: float = 0.6
+    #: Wall window of the local wall luminance (fraction of the image width, odd kernel >= 5 px).
+    window_wall_kernel_frac: float = 0.02
+
+    # --- advertisements
+    #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.
+    ad_min_saturation: float = 0.4
+    ad_min_area_m2: float = 1.0

@@ -1,0 +1,92 @@
+"""Street lamps: a lamp head at the top of each tall pole component (docs/proposals.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import Context, Light, components
+
+POLE = 17
+STREET_LIGHT_HT, STREET_LIGHT_LT = 8, 9
+
+
+def _pole_depth(ctx: Context, y0: int, x0: int, mask: np.ndarray) -> float | None:
+    """Depth of a thin pole (m): a low percentile, because predicted depth bleeds the farther background in."""
+    if ctx.depth is None:
+        return None
+    d = ctx.depth[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]][mask]
+    d = d[np.isfinite(d) & (d > 0)]
+    return float(np.percentile(d, 20)) if d.size else None
+
+
+def propose(ctx: Context) -> list[Light]:
+    """One street_light_HT/LT per pole component carrying a head.
+
+    The trunk is the component's fullest column; the top band (``lamp_head_band_m`` below the
+    component's top) is searched for an arm. An arm reaching ``lamp_min_arm_m`` or more puts the
+    head at its far end (the lamp: the head's pixels below the arm), confidence 0.75; without an arm,
+    a top band ``lamp_lantern_min_widening`` times wider than the trunk (and >= 0.2 m) is a post-top
+    lantern (the band is the lamp, 0.65), a plain top gives the band at 0.3. Heads brighter
+    than the trunk (diffusers) add up to 0.2. With depth, poles whose top is lower than
+    ``lamp_min_height_m`` above the ground (bollards, sign and traffic-light posts) get none,
+    and the top's height picks HT (>= ``lamp_high_min_m``) or LT; without depth, the pixel height
+    relative to the image decides and confidences drop by 0.15.
+    """
+    p = ctx.params
+    out: list[Light] = []
+    fy = float(ctx.intrinsics.fy)
+    for y0, x0, mask, area in components(ctx.labels == POLE, p.pole_min_area_px):
+        h, w = mask.shape
+        if h < 4:
+            continue
+        cols = mask.sum(0)
+        trunk = int(np.argmax(cols))
+        ys, xs = np.nonzero(mask)
+        top = int(ys.min())
+        z = _pole_depth(ctx, y0, x0, mask)
+        if z is not None:
+            mpp = z / fy
+            height = float(ctx.height_above_ground(y0 + top, z))
+            if height < p.lamp_min_height_m:
+                continue
+            high = height >= p.lamp_high_min_m
+        else:
+            # Without depth: a pole must stand tall in pixels; metres per pixel guessed from the image height.
+            if h < 0.06 * ctx.shape[0]:
+                continue
+            mpp = 8.0 / max(h, 1)
+            high = True
+        band = max(2, int(round(p.lamp_head_band_m / mpp)))
+        in_band = mask & (np.arange(h)[:, None] < top + band)
+        by, bx = np.nonzero(in_band)
+        dx = bx - trunk
+        reach_r, reach_l = int(dx.max()), int(-dx.min())
+        reach = max(reach_r, reach_l)
+        trunk_w = max(1, int(round(np.median(mask.sum(1)[mask.any(1)]))))
+        if reach * mpp >= p.lamp_min_arm_m and reach > trunk_w + 1:
+            sign = 1 if reach_r >= reach_l else -1
+            head_w = max(2, int(round(0.8 / mpp)))
+            far = trunk + sign * reach
+            lo, hi = (far - head_w + 1, far) if sign > 0 else (far, far + head_w - 1)
+            arm_h = max(1, int(round(0.12 / mpp)))
+            head = in_band & (np.arange(w)[None, :] >= lo) & (np.arange(w)[None, :] <= hi)
+            below_arm = head & (np.arange(h)[:, None] >= top + arm_h)
+            lamp = below_arm if below_arm.sum() >= max(1, head.sum() // 3) else head
+            conf = 0.75
+        else:
+            # No arm: a lantern on a post top is wider than the post; a bare pole top is not.
+            rows = in_band.sum(1)
+            head_w = float(np.median(rows[rows > 0])) if (rows > 0).any() else 0.0
+            lamp = in_band
+            conf = 0.65 if head_w >= p.lamp_lantern_min_widening * trunk_w and head_w * mpp >= 0.2 else 0.3
+        if not lamp.any():
+            continue
+        trunk_px = mask & ~in_band
+        if trunk_px.sum() >= 3:
+            lum = ctx.lum[y0:y0 + h, x0:x0 + w]
+            ratio = float(np.median(lum[lamp])) / max(float(np.median(lum[trunk_px])), 1e-4)
+            conf += 0.2 * float(np.clip((ratio - 1.0) / 0.5, 0.0, 1.0))
+        if z is None:
+            conf -= 0.15
+        out.append(Light(STREET_LIGHT_HT if high else STREET_LIGHT_LT, y0, x0, lamp, float(np.clip(conf, 0, 1))))
+    return out

@@ -1,0 +1,64 @@
+"""Traffic lights: each traffic-light component is a housing holding three lamp cells (docs/proposals.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import Context, Group, Light, components
+
+TRAFFIC_LIGHT = 19
+INFERRED = 12
+TRAFFIC_LIGHT_GROUP = 20
+
+
+def _cells(mask: np.ndarray, vertical: bool, frac: float) -> list[np.ndarray]:
+    """Three square lamp masks centred in the thirds of the housing's long axis (local coordinates)."""
+    ys, xs = np.nonzero(mask)
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    long0, long1, short0, short1 = (y0, y1, x0, x1) if vertical else (x0, x1, y0, y1)
+    cell = (long1 - long0) / 3.0
+    side = max(1.0, frac * min(cell, short1 - short0))
+    sc = (short0 + short1) / 2.0
+    yy, xx = np.mgrid[0:mask.shape[0], 0:mask.shape[1]]
+    along, across = (yy + 0.5, xx + 0.5) if vertical else (xx + 0.5, yy + 0.5)
+    out = []
+    for k in range(3):
+        c = long0 + (k + 0.5) * cell
+        sq = (np.abs(along - c) <= side / 2 + 1e-6) & (np.abs(across - sc) <= side / 2 + 1e-6)
+        if not sq.any():  # sub-pixel lamp: the nearest pixel
+            sq = (np.abs(along - c) < 1.0) & (np.abs(across - sc) < 1.0)
+        out.append(sq & mask)
+    return out
+
+
+def propose(ctx: Context) -> list[Group]:
+    """One traffic_light_group of three 'inferred' lamps per traffic-light component.
+
+    Confidence: 0.8 for a housing elongated like a signal head (aspect >= ``tl_min_aspect``), 0.4 for a
+    squat one (seen edge-on or merged with something), lowered for components under 4 px across, raised
+    slightly when the lamp cells differ in colour from the housing around them (lenses and visors).
+    """
+    p = ctx.params
+    out: list[Group] = []
+    for y0, x0, mask, area in components(ctx.labels == TRAFFIC_LIGHT, p.tl_min_area_px):
+        h, w = mask.shape
+        vertical = h >= w
+        aspect = max(h, w) / max(1, min(h, w))
+        cells = _cells(mask, vertical, p.tl_lamp_fraction)
+        if any(not c.any() for c in cells):
+            continue
+        conf = 0.8 if aspect >= p.tl_min_aspect else 0.4
+        if min(h, w) < 4:
+            conf -= 0.15
+        img = ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32)
+        lamps = np.zeros_like(mask)
+        for c in cells:
+            lamps |= c
+        rim = mask & ~lamps
+        if rim.sum() >= 3:
+            contrast = float(np.abs(img[lamps].mean(0) - img[rim].mean(0)).max()) / 255.0
+            conf += 0.15 * min(1.0, contrast / 0.15)
+        conf = float(np.clip(conf, 0.0, 1.0))
+        lights = [Light(INFERRED, y0, x0, c, conf) for c in cells]
+        out.append(Group(TRAFFIC_LIGHT_GROUP, lights, conf))
+    return out

@@ -1,0 +1,347 @@
+"""Vehicles: a lamp pair on the end face the camera sees, and the window panes; one group per vehicle
+(docs/proposals.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import Context, Group, Light, components
+
+#: Cityscapes vehicle labelId -> group class (car_group, truck_group, bus_group).
+VEHICLE_GROUP = {26: 14, 27: 15, 28: 16}
+WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, WINDOW_TRANSPORT = 2, 3, 4, 7
+
+
+def _vehicles(ctx: Context):
+    """(labelId, y0, x0, local mask) per vehicle: instance ids where given, else connected components
+    split where depth jumps."""
+    p = ctx.params
+    for cls in VEHICLE_GROUP:
+        cmask = ctx.labels == cls
+        if not cmask.any():
+            continue
+        if ctx.instances is not None:
+            inst = np.where(cmask, ctx.instances, 0)
+            ids = np.unique(inst[cmask])
+            per_instance = ids[ids >= 1000]
+            for iid in per_instance.tolist():  # one object may show as several components (occluded)
+                m = inst == iid
+                ys, xs = np.nonzero(m)
+                if ys.size < p.vehicle_min_area_px:
+                    continue
+                y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+                yield cls, int(y0), int(x0), m[y0:y1, x0:x1]
+            rest = cmask & (inst < 1000)  # crowd regions / missing ids: components
+        else:
+            rest = cmask
+        for y0, x0, m, _ in components(rest, p.vehicle_min_area_px):
+            for part in _split_by_depth(ctx, y0, x0, m):
+                yield (cls, *part)
+
+
+def _split_by_depth(ctx: Context, y0: int, x0: int, m: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+    """Split one vehicle-label component where depth jumps (parked cars in a row touch in the image
+    but not in depth): pixels next to a jump of more than ``vehicle_split_jump`` (relative) are cut,
+    the pieces labelled and the cut pixels given back to the nearest piece."""
+    from scipy import ndimage
+
+    if ctx.depth is None:
+        return [(y0, x0, m)]
+    h, w = m.shape
+    d = np.where(m, ctx.depth[y0:y0 + h, x0:x0 + w], np.nan).astype(np.float32)
+    thr = ctx.params.vehicle_split_jump
+    cut = np.zeros_like(m)
+    k = max(2, int(round(2 * ctx.shape[1] / 512)))  # span: predicted depth softens edges over ~W/400 px
+    with np.errstate(invalid="ignore"):
+        for a, b, sl_a, sl_b in ((d[:, k:], d[:, :-k], (slice(None), slice(k, None)), (slice(None), slice(None, -k))),
+                                 (d[k:], d[:-k], (slice(k, None), slice(None)), (slice(None, -k), slice(None)))):
+            jump = np.abs(a - b) > thr * np.fmin(a, b)
+            far_a = jump & (a > b)
+            cut[sl_a] |= far_a
+            cut[sl_b] |= jump & ~far_a
+    keep = m & ~cut & np.isfinite(d)
+    lab, n = ndimage.label(keep)
+    if n <= 1:
+        return [(y0, x0, m)]
+    _, (iy, ix) = ndimage.distance_transform_edt(lab == 0, return_indices=True)
+    full = np.where(m, lab[iy, ix], 0)
+    out = []
+    for k in range(1, n + 1):
+        part = full == k
+        if part.sum() < ctx.params.vehicle_min_area_px:
+            continue
+        ys, xs = np.nonzero(part)
+        out.append((y0 + int(ys.min()), x0 + int(xs.min()), part[ys.min():ys.max() + 1, xs.min():xs.max() + 1]))
+    return out or [(y0, x0, m)]
+
+
+def _run(a: np.ndarray) -> tuple[int, int] | None:
+    """First and last index (inclusive) of the longest run of True in a 1-D bool array."""
+    if not a.any():
+        return None
+    d = np.diff(np.r_[0, a.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    k = int(np.argmax(ends - starts))
+    return int(starts[k]), int(ends[k] - 1)
+
+
+def _step_column(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int, lo: int, hi: int) -> int | None:
+    """Local column j in [lo, hi) with the strongest shading step between columns j and j+1 over
+    rows r0..r1 of the mask (where the end face meets the side face), None when no clear step."""
+    h, w = m.shape
+    lo, hi = max(0, lo), min(w - 1, hi)
+    if hi - lo < 1:
+        return None
+    mm = m[r0:r1 + 1]
+    cnt = mm.sum(0)
+    prof = np.where(cnt > 0, (ctx.lum[y0 + r0:y0 + r1 + 1, x0:x0 + w] * mm).sum(0) / np.maximum(cnt, 1), np.nan)
+    step = np.abs(np.diff(prof))[lo:hi]
+    if not np.isfinite(step).any() or np.nanmax(step) <= 0.03:
+        return None
+    return lo + int(np.nanargmax(step))
+
+
+def _near_columns(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int) -> np.ndarray | None:
+    """Columns whose body-row depth (30th percentile, running median over columns) is within
+    ``max(vehicle_face_tol_m, vehicle_face_tol_rel x depth)`` of the densest depth among the nearer
+    columns: the end face (a side face recedes)."""
+    h, w = m.shape
+    mm = m[r0:r1 + 1]
+    d = np.where(mm, ctx.depth[y0 + r0:y0 + r1 + 1, x0:x0 + w], np.nan)
+    enough = mm.sum(0) >= 2
+    if enough.sum() < 3:
+        return None
+    col = np.full(w, np.inf)
+    with np.errstate(all="ignore"):
+        col[enough] = np.nanpercentile(d[:, enough], 30, axis=0)
+    ok = np.isfinite(col)
+    if not ok.any():
+        return None
+    # Predicted depth is noisy column to column: a running median over ~1/15 of the width.
+    k = max(3, (w // 15) | 1)
+    from scipy.ndimage import median_filter
+
+    col = np.where(ok, median_filter(np.where(ok, col, np.nanmax(np.where(ok, col, np.nan))), size=k,
+                                     mode="nearest"), np.inf)
+    # The end face is the densest depth among the nearer columns (a plane across the vehicle: many
+    # columns at one depth); not the nearest, which a nearer occluder's bleeding depth can own.
+    c = np.sort(col[ok])
+    tol = np.maximum(ctx.params.vehicle_face_tol_m, ctx.params.vehicle_face_tol_rel * c)
+    count = np.searchsorted(c, c + tol, side="right") - np.arange(c.size)
+    half = max(1, int(np.ceil(0.6 * c.size)))
+    i = int(np.argmax(count[:half]))
+    near, t = float(c[i]), float(tol[i])
+    return ok & (col >= near - t) & (col <= near + t)
+
+
+def _run_from(a: np.ndarray, start: int, step: int) -> int:
+    """Last index of the run of True in ``a`` that starts at ``start`` going in direction ``step``."""
+    i = start
+    while 0 <= i + step < len(a) and a[i + step]:
+        i += step
+    return i
+
+
+def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float | None) -> tuple[int, int]:
+    """Rows (local, inclusive) of the body's end face over columns c0..c1: where the silhouette fills
+    at least 95 % of its fullest row (the cabin above is narrower and set back, the wheels below
+    are apart); failing that the lower 60 %; with depth, a top edge at an implausible height
+    (``vehicle_body_top_m``) or on a face narrower than ``vehicle_small_face_px`` is put at
+    ``vehicle_body_top_typical_m``."""
+    p = ctx.params
+    h, w = m.shape
+    ys = np.flatnonzero(m.any(1))
+    sil_h = int(ys[-1] - ys[0] + 1)
+    c0, c1 = max(c0, 0), min(c1, w - 1)
+    fill = m[:, c0:c1 + 1].sum(1)
+    body = _run(fill >= 0.95 * max(1, fill.max()))
+    if body is not None and body[1] - body[0] + 1 >= max(2, 0.15 * sil_h):
+        r0, r1 = body
+    else:
+        r0, r1 = int(ys[0] + 0.4 * sil_h), int(ys[-1])
+    if z is not None:
+        top_h = float(ctx.height_above_ground(y0 + r0, z))
+        lo_h, hi_h = p.vehicle_body_top_m
+        # The cabin's inset is a pixel or less on a narrow face: there the typical height decides.
+        if not lo_h <= top_h <= hi_h or c1 - c0 + 1 < p.vehicle_small_face_px:
+            row = ctx.intrinsics.cy + ((p.camera_height_m - p.vehicle_body_top_typical_m) / np.cos(p.camera_pitch_rad)
+                                       - z * np.tan(p.camera_pitch_rad)) * float(ctx.intrinsics.fy) / z
+            r0 = int(np.clip(round(row) - y0, 0, h - 1))
+            r1 = max(r1, r0 + 1)
+    return r0, r1
+
+
+def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
+              ) -> tuple[int, int, int, int, float | None] | None:
+    """Box (r0, r1, c0, c1 inclusive, local; c0/c1 may lie outside the mask's box when the face is cut
+    by the image border or an occluder) of the body's end face the camera sees, and its depth (m).
+
+    Columns: the end face is a vertical plane across the vehicle, so it starts at the silhouette's
+    nearer side (with depth: the side whose columns are nearer; without: the side away from the
+    image centre, as for vehicles parallel to the street) and spans the vehicle's width
+    (``vehicle_width_m`` at that depth; without depth 1.2 silhouette heights). Rows: the body
+    rows, where the silhouette fills at least 95 % of its fullest row over the face (the cabin
+    above is narrower and set back, the wheels below are apart); failing that, the lower 60 %.
+    The face's inner edge snaps to the shading step between end and side face; when its outer edge
+    is not the vehicle's (the image border, or a nearer object right beside it), the face is laid
+    out from the inner edge instead.
+    """
+    p = ctx.params
+    H, W = ctx.shape
+    h, w = m.shape
+    ys, xs = np.nonzero(m)
+    sil_h = int(ys.max() - ys.min() + 1)
+    z = None
+    left_side = x0 + w / 2.0 < W / 2.0
+    if ctx.depth is not None:
+        d = np.where(m, ctx.depth[y0:y0 + h, x0:x0 + w], np.inf)
+        col = d.min(0)
+        ok = np.isfinite(col)
+        if ok.sum() >= 2:
+            k = max(1, w // 5)
+            a_, b_ = col[:k][np.isfinite(col[:k])], col[-k:][np.isfinite(col[-k:])]
+            if a_.size and b_.size:
+                left_side = float(np.median(a_)) <= float(np.median(b_))
+            near = col[:k] if left_side else col[-k:]
+            near = near[np.isfinite(near)]
+            z = float(np.percentile(near if near.size else col[ok], 50))
+    if z is not None:
+        width_m = p.vehicle_width_m[0] if cls == 26 else p.vehicle_width_m[1]
+        face_w = max(2, int(round(width_m * float(ctx.intrinsics.fx) / z)))
+    else:
+        face_w = max(2, int(round(1.2 * sil_h)))
+    fw_in = min(w, face_w)
+    c0, c1 = (0, fw_in - 1) if left_side else (w - fw_in, w - 1)
+    r0, r1 = _body_rows(ctx, y0, m, c0, c1, z)
+    # Is the outer edge the vehicle's own? Not at the image border, nor beside a nearer object.
+    outer_g = x0 - 1 if left_side else x0 + w
+    cut = not 0 <= outer_g < W
+    if not cut and ctx.depth is not None and z is not None:
+        beside = ctx.depth[y0 + r0:y0 + r1 + 1, outer_g]
+        beside = beside[np.isfinite(beside)]
+        cut = bool(beside.size and np.median(beside) < z - 0.3)
+    outer = 0 if left_side else w - 1
+    inner = None
+    if p.vehicle_face_from_depth and z is not None:
+        near = _near_columns(ctx, y0, x0, m, r0, r1)
+        if near is not None:
+            idx = np.flatnonzero(near)  # the run of near columns that starts on the face's side
+            if idx.size:
+                run_end = _run_from(near, int(idx[0] if left_side else idx[-1]), 1 if left_side else -1)
+                if abs(run_end - outer) + 1 >= 0.3 * face_w:
+                    inner = run_end
+    if inner is None and face_w >= 6:
+        lo, hi = (outer + face_w // 3, outer + 2 * face_w) if left_side else (outer - 2 * face_w, outer - face_w // 3)
+        j = _step_column(ctx, y0, x0, m, r0, r1, lo, hi)
+        if j is not None:
+            inner = j if left_side else j + 1
+    if cut and inner is not None:
+        outer = inner - face_w + 1 if left_side else inner + face_w - 1
+    elif inner is None or not 0.6 * face_w <= abs(inner - outer) + 1 <= 1.3 * face_w:
+        inner = outer + face_w - 1 if left_side else outer - face_w + 1
+    c0, c1 = (outer, inner) if left_side else (inner, outer)
+    return r0, r1, c0, c1, z
+
+
+def propose(ctx: Context) -> list[Group]:
+    """Per car/truck/bus: two lamps on the visible end face and the dark window panes above its body.
+
+    Lamps sit in the upper part of the body's end face near both sides (``vehicle_lamp_rows`` /
+    ``vehicle_lamp_cols`` fractions); a lamp box whose colour differs from the paint is snapped to
+    those pixels. Facing comes from colour: lamps redder than they are bright are rear lamps
+    (red by day), else front lamps. Confidence 0.75 with depth (0.55 without), +0.15 when both
+    lamps stand out from the paint, -0.3 when the face is narrower than 1 m (a side view).
+    Panes: pixels of the cabin band darker than the paint, split into the end pane (windscreen
+    or rear window) and the side pane at the end face's edge; confidence 0.6, +0.2 when darker.
+    """
+    p = ctx.params
+    fy = float(ctx.intrinsics.fy)
+    out: list[Group] = []
+    for cls, y0, x0, m in _vehicles(ctx):
+        h, w = m.shape
+        face = _end_face(ctx, cls, y0, x0, m)
+        if face is None:
+            continue
+        r0, r1, c0, c1, z = face
+        fh, fw = r1 - r0 + 1, c1 - c0 + 1
+        if fh < 2 or fw < 3:
+            continue
+        img = ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32)
+        lum = ctx.lum[y0:y0 + h, x0:x0 + w]
+        face_mask = np.zeros_like(m)
+        cc0, cc1 = max(c0, 0), min(c1, w - 1)  # the face's part inside the box (slicing)
+        face_mask[r0:r1 + 1, cc0:cc1 + 1] = m[r0:r1 + 1, cc0:cc1 + 1]
+        paint = np.median(img[face_mask], axis=0) if face_mask.any() else img[m].mean(0)
+        conf = 0.75 if z is not None else 0.55
+        if z is not None and fw * z / fy < 1.0:
+            conf -= 0.3
+        lamps: list[np.ndarray] = []
+        distinct = 0
+        if z is not None:  # lamp box in metres below the body top and in from the face's sides
+            ppm = fy / z
+            lr0 = r0 + int(np.floor(p.vehicle_lamp_rows_m[0] * ppm))
+            lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows_m[1] * ppm)) - 1)
+            a = int(np.floor(p.vehicle_lamp_cols_m[0] * ppm))
+            b = max(a, int(np.ceil(p.vehicle_lamp_cols_m[1] * ppm)) - 1)
+        else:
+            lr0 = r0 + int(np.floor(p.vehicle_lamp_rows[0] * fh))
+            lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows[1] * fh)) - 1)
+            a = int(np.floor(p.vehicle_lamp_cols[0] * fw))
+            b = max(a, int(np.ceil(p.vehicle_lamp_cols[1] * fw)) - 1)
+        for side in (0, 1):
+            lc0, lc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
+            lr0, lr1 = max(lr0, 0), min(lr1, h - 1)
+            lc0, lc1 = max(lc0, 0), min(lc1, w - 1)
+            if lc1 < lc0:
+                continue  # that lamp is beyond the image border or behind the occluder
+            box = np.zeros_like(m)
+            box[lr0:lr1 + 1, lc0:lc1 + 1] = True
+            full = int(box.sum())
+            box &= m
+            if box.sum() < p.vehicle_lamp_min_visible * full:
+                continue  # mostly hidden (by the vehicle in front, or the box left the silhouette)
+            # Snap to pixels that differ from the paint within a window around the box.
+            win = np.zeros_like(m)
+            pad_r, pad_c = max(1, (lr1 - lr0 + 1) // 2), max(1, (lc1 - lc0 + 1) // 2)
+            win[max(r0, lr0 - pad_r):min(r1, lr1 + pad_r) + 1, max(cc0, lc0 - pad_c):min(cc1, lc1 + pad_c) + 1] = True
+            win &= m
+            diff = np.abs(img - paint).max(-1) > 40.0
+            cand = win & diff
+            if cand.sum() >= max(1, box.sum() // 3) and cand.sum() <= 3 * box.sum():
+                box = cand
+                distinct += 1
+            lamps.append(box)
+        if distinct == len(lamps) == 2:
+            conf += 0.15
+        conf = float(np.clip(conf, 0, 1))
+        members: list[Light] = []
+        if lamps:  # (none when the face is hidden: the panes may still show)
+            r, g, bl = np.concatenate([img[b] for b in lamps]).mean(0)
+            lamp_cls = PARKED_REAR if r > 1.5 * max(g, bl) and r > 50 else PARKED_FRONT
+            members = [Light(lamp_cls, y0, x0, b, conf) for b in lamps]
+        # Window panes: the cabin band above the body face, darker than the paint.
+        cab = m.copy()
+        cab[r0:, :] = False
+        if z is not None:
+            trim = max(0, int(round(0.07 * fy / z)))
+            cab_rows = np.flatnonzero(cab.any(1))
+            if cab_rows.size:
+                cab[:cab_rows.min() + trim, :] = False
+                cab[max(0, r0 - trim):r0, :] = False
+        paint_lum = float(np.median(lum[face_mask])) if face_mask.any() else float(np.median(lum[m]))
+        dark = lum < 0.6 * paint_lum
+        pane_conf = 0.6
+        panes = cab & dark
+        if panes.sum() < 0.3 * cab.sum():  # dark paint or bright reflections: the whole cabin band
+            panes = cab
+            pane_conf = 0.45
+        else:
+            pane_conf += 0.2
+        end = np.zeros_like(m)
+        end[:, cc0:cc1 + 1] = True
+        for part in (panes & end, panes & ~end):
+            if part.sum() >= 2:
+                members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf))
+        if members:
+            out.append(Group(VEHICLE_GROUP[cls], members, conf if lamps else pane_conf))
+    return out

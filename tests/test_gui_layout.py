@@ -1,0 +1,155 @@
+"""The main window on small screens, its remembered layout, the Cancel of long jobs and
+annotation edits that leave the depth/3D views alone. Runs under Xvfb (1600x900)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from npsim_core.chain import ChainParams
+from npsim_core.synthetic import street_scene
+
+W, H = 128, 64
+
+
+@pytest.fixture
+def settings(tmp_path):
+    """Every QSettings of the test in a temporary folder: the user's settings are never touched."""
+    from PySide6.QtCore import QSettings
+
+    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):
+        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(tmp_path / "settings"))
+    return tmp_path / "settings"
+
+
+def _window(qtbot, *, with_3d: bool = False):
+    from npsim_gui.main_window import MainWindow
+
+    win = MainWindow(with_3d=with_3d)
+    win.ask = lambda *a: "Discard"
+    qtbot.addWidget(win)
+    return win
+
+
+def _global_rect(w):
+    from PySide6.QtCore import QRect
+
+    return QRect(w.mapToGlobal(w.rect().topLeft()), w.size())
+
+
+@pytest.mark.parametrize("size", [(1366, 768), (1600, 900)])
+def test_every_panel_fits_the_screen(qtbot, settings, size):
+    from PySide6.QtCore import QRect
+    from PySide6.QtWidgets import QDockWidget
+
+    win = _window(qtbot, with_3d=True)
+    avail = QRect(0, 0, *size)
+    win.fit_to(avail)
+    win.move(0, 0)
+    win.show()
+    qtbot.waitExposed(win)
+    qtbot.wait(50)
+    hint = win.minimumSizeHint()
+    assert hint.width() <= size[0] and hint.height() <= size[1]
+    assert win.width() <= size[0] and win.height() <= size[1]
+    shown = {}
+    for d in win.findChildren(QDockWidget):
+        if d.isVisible() and not d.visibleRegion().isEmpty():  # a dock behind a tab is off-screen
+            r = _global_rect(d)
+            assert avail.contains(r), (d.objectName(), r)
+            shown[d.objectName()] = r
+    assert avail.contains(_global_rect(win.centralWidget()))
+    # parameters, the night preview and the log are always on screen; the 3D view shares a tab on
+    # the small screen and has its own place on the larger one
+    assert {"Parameters", "Night_preview", "Loss_and_log"} <= set(shown)
+    assert ("3D_mesh" in shown) == (size[0] >= win.NARROW_SCREEN)
+    assert win.night_preview_shown()
+    win.close()
+
+
+def test_layout_is_remembered_between_sessions(qtbot, settings):
+    first = _window(qtbot)
+    first.show()
+    qtbot.waitExposed(first)
+    first.log_dock.hide()
+    first.resize(1450, 700)
+    qtbot.wait(50)
+    first.close()
+    assert any(settings.rglob("*.conf")), "the layout was not written to the test's settings folder"
+    second = _window(qtbot)  # the next session
+    second.show()
+    qtbot.waitExposed(second)
+    assert second.log_dock.isHidden() and not second.params_dock.isHidden()
+    assert (second.width(), second.height()) == (1450, 700)
+    second.close()
+
+
+def test_cancel_stops_a_running_job_and_returns_to_idle(qtbot, settings):
+    from PySide6.QtCore import Qt
+
+    win = _window(qtbot)
+    win.show()
+    qtbot.waitExposed(win)
+    assert not win.act_cancel.isEnabled() and win.cancel_btn.isVisible()
+    stages = []
+    win.pipeline_jobs.progress.connect(lambda info: stages.append(info.get("stage")) if isinstance(info, dict)
+                                       else None)
+    # a refinement far longer than the test: only the cancel can end it
+    win.set_scene(street_scene(W, H), ChainParams().with_value("refine", "steps", 10_000_000))
+    qtbot.waitUntil(lambda: win.results is not None and "refine" in stages, timeout=60_000)
+    qtbot.wait(200)
+    assert win.pipeline_jobs.is_busy and win.act_cancel.isEnabled()
+    # Esc in the editor with nothing selected cancels (with a selection it clears it first)
+    qtbot.keyClick(win.editor.canvas, Qt.Key.Key_Escape)
+    qtbot.waitUntil(lambda: not win.jobs_busy, timeout=30_000)
+    assert not win.act_cancel.isEnabled()
+    assert "cancelled" in win.busy_label.text()
+    assert not win.results_final  # the quick result stays shown; the full one never came
+    # the button does the same for a new job
+    win.recompute()
+    qtbot.waitUntil(lambda: win.act_cancel.isEnabled(), timeout=10_000)
+    win.cancel_btn.click()
+    qtbot.waitUntil(lambda: not win.jobs_busy, timeout=30_000)
+    assert not win.act_cancel.isEnabled()
+    win.close()
+
+
+def test_annotation_edit_rebuilds_the_mesh_only_for_a_shown_night_preview(qtbot, settings):
+    from npsim_core.annotation_ops import new_instance, paint
+
+    win = _window(qtbot)
+    win.show()
+    qtbot.waitExposed(win)
+    params = ChainParams().with_value("refine", "steps", 20).with_value("night", "spp", 2) \
+        .with_value("night", "preview_scale", 1.0)
+    win.set_scene(street_scene(W, H), params)
+    qtbot.waitUntil(lambda: win.results is not None and win.results_final and win.render_panel.night is not None
+                    and not win.jobs_busy, timeout=120_000)
+    results, night = win.results, win.render_panel.night
+    runs = []
+    orig = win.chain.engine.run
+
+    def spy(until, params, **kw):
+        run = orig(until, params, **kw)
+        runs.append(list(run.recomputed))
+        return run
+    win.chain.engine.run = spy
+    win.render_dock.hide()  # no lighting view on screen
+    assert not win.night_preview_shown()
+    s = win.editor.session
+    cmd, iid = new_instance(s.ann, 8)
+    s.apply(cmd)
+    mask = np.zeros((H, W), bool)
+    mask[5:9, 60:64] = True
+    s.apply(paint(s.ann, mask, iid))
+    qtbot.wait(800)  # longer than every debounce
+    assert runs == [] and not win.jobs_busy  # nothing recomputed: no mesh, no views
+    assert win.results is results and win.render_panel.night is night
+    assert win.chain.annotation is s.ann  # the next computation uses the edit
+    win.render_dock.show()  # the night preview comes back: the mesh and night scene follow the edit
+    qtbot.waitUntil(lambda: win.render_panel.night is not night and not win.jobs_busy, timeout=120_000)
+    done = [st for r in runs for st in r]
+    assert "mesh" in done and "night_scene" in done
+    assert not {"geometry", "filter", "uncertain", "refine"} & set(done)
+    assert win.results is results  # the depth, normal and 3D views stay as they were
+    win.close()

@@ -1,0 +1,129 @@
+"""The editor's proposal layer: propose in a worker, accept a group (one undo step), reject, accept
+above a confidence, and the keys under the mouse. Runs under Xvfb."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from npsim_core.annotation import class_of
+from npsim_core.proposals import propose_for_scene
+from npsim_core.synthetic import street_scene
+
+W, H = 256, 128
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return street_scene(W, H)
+
+
+@pytest.fixture(scope="module")
+def proposals(scene):
+    return propose_for_scene(scene)
+
+
+@pytest.fixture
+def editor(qtbot, scene, proposals):
+    from npsim_gui.editor.editor import AnnotationEditor
+
+    ed = AnnotationEditor()
+    qtbot.addWidget(ed)
+    ed.resize(1200, 700)
+    ed.show()
+    ed.activateWindow()
+    qtbot.waitActive(ed)  # shortcuts need the keyboard focus
+    ed.load(scene.image, scene.labels, None)  # start from an empty annotation
+    ed.set_proposals(proposals)
+    yield ed
+    ed.shutdown()
+
+
+def _group_with(proposals, n_min):
+    return next(gid for gid, g in sorted(proposals.annotation.groups.items()) if len(g.members) >= n_min)
+
+
+def test_accepting_a_group_adds_its_lights_and_group_and_undo_removes_them(editor, proposals):
+    s = editor.session
+    gid = _group_with(proposals, 3)
+    members = proposals.ids_in_group(gid)
+    n_pending = len(editor.pending_proposals())
+    shown = editor.canvas.layers["proposals"].array
+    assert shown[..., 3].any()  # the layer shows the proposals
+    new = editor.accept_proposals([], [gid])
+    assert len(new) == len(members)
+    assert sorted(class_of(i) for i in new) == sorted(class_of(m) for m in members)
+    assert len(s.ann.groups) == 1
+    group = next(iter(s.ann.groups.values()))
+    assert group.class_id == class_of(gid) and sorted(group.members) == sorted(new)
+    for m, i in zip(sorted(members), sorted(new)):  # each accepted light has its proposal's pixels
+        assert np.array_equal(s.ann.instance_map == i, proposals.annotation.instance_map == m)
+    assert len(editor.pending_proposals()) == n_pending - len(members)
+    # accepted proposals leave the proposal layer
+    layer = editor.canvas.layers["proposals"].array
+    assert not layer[proposals.annotation.instance_map == members[0], 3].any()
+    s.undo()  # one undo step removes the lights and the group
+    editor.refresh_proposals()
+    assert s.ann.instance_ids() == [] and not s.ann.groups
+    assert len(editor.pending_proposals()) == n_pending  # ... and the proposals are pending again
+    s.redo()
+    assert len(s.ann.groups) == 1 and len(s.ann.instance_ids()) == len(members)
+
+
+def test_accept_above_accepts_only_the_sure_ones(editor, proposals):
+    s = editor.session
+    sure = [i for i in proposals.annotation.instance_ids() if proposals.confidence[i] >= 0.9]
+    assert 0 < len(sure) < len(proposals.annotation.instance_ids())
+    new = editor.accept_proposals_above(0.9)
+    assert len(new) == len(sure) == len(s.ann.instance_ids())
+    book = editor.proposal_book
+    assert sorted(p for p in proposals.annotation.instance_ids() if book.accepted.get(p) in new) == sorted(sure)
+    # the groups of the sure lights hold exactly their sure members
+    kept = proposals.above(0.9)
+    assert sorted(sorted(g.members) for g in s.ann.groups.values()) == \
+        sorted(sorted(book.accepted[m] for m in g.members) for g in kept.groups.values())
+
+
+def test_keys_accept_and_reject_the_group_under_the_mouse(editor, proposals, qtbot):
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    s, c = editor.session, editor.canvas
+    gid = _group_with(proposals, 2)
+    members = proposals.ids_in_group(gid)
+    ys, xs = np.nonzero(proposals.annotation.instance_map == members[0])
+    k = len(xs) // 2
+    QTest.mouseMove(c.viewport(), QPoint(c.view_point(xs[k] + 0.5, ys[k] + 0.5)))
+    qtbot.waitUntil(lambda: editor._hover_xy == (int(xs[k]), int(ys[k])), timeout=2000)
+    c.setFocus()
+    qtbot.keyClick(c, Qt.Key.Key_R, Qt.KeyboardModifier.ShiftModifier)  # reject the whole group
+    assert not set(members) & set(editor.pending_proposals())
+    assert s.ann.instance_ids() == []
+    assert not editor.options.split_regions  # Shift+R is not R (one light per region)
+    editor.proposal_book.rejected.clear()
+    editor.refresh_proposals()
+    qtbot.keyClick(c, Qt.Key.Key_A, Qt.KeyboardModifier.ShiftModifier)  # accept it
+    assert len(s.ann.instance_ids()) == len(members) and len(s.ann.groups) == 1
+    assert s.active_group is None  # Shift+A is not A (activate group)
+
+
+def test_propose_runs_in_a_worker_and_can_be_cancelled(qtbot, scene):
+    from npsim_gui.editor.editor import AnnotationEditor
+
+    ed = AnnotationEditor()
+    qtbot.addWidget(ed)
+    ed.show()
+    ed.load(scene.image, scene.labels, None)
+    ed.propose_lights()
+    assert ed.propose_cancel.isEnabled()
+    qtbot.waitUntil(lambda: ed.proposal_book is not None, timeout=60_000)
+    assert len(ed.pending_proposals()) == len(ed.proposal_book.light_ids) > 0
+    assert ed.proposal_tree.topLevelItemCount() > 0
+    qtbot.waitUntil(lambda: not ed.propose_cancel.isEnabled(), timeout=5_000)
+    ed.clear_proposals()
+    ed.propose_lights()
+    ed.propose_cancel.click()  # cancelled before it finished: nothing is shown
+    qtbot.waitUntil(lambda: not ed.proposal_jobs.is_busy, timeout=60_000)
+    qtbot.wait(100)
+    assert ed.proposal_book is None and ed.propose_btn.isEnabled()
+    ed.shutdown()

@@ -1,0 +1,287 @@
+"""Light proposals (docs/proposals.md): each proposer on hand-checkable frames, the result type, input
+errors, the dataset's instance ids, and `npsim propose`."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from npsim_core.annotation import class_of, load_annotation
+from npsim_core.camera import Intrinsics
+from npsim_core.errors import NpsimInputError
+from npsim_core.proposals import LightProposals, ProposalParams, propose_for_scene, propose_lights
+from npsim_core.proposals.evaluate import score_category
+
+SKY, ROAD, BUILDING, POLE, TRAFFIC_LIGHT, CAR = 23, 7, 11, 17, 19, 26
+FLAT = ProposalParams(camera_pitch_rad=0.0)
+
+
+def _canvas(H=120, W=200, label=SKY, color=(150, 170, 200)):
+    img = np.zeros((H, W, 3), np.uint8)
+    img[:] = color
+    return img, np.full((H, W), label, np.uint8)
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / max(1, (a | b).sum()))
+
+
+def _lights(props: LightProposals, classes, threshold=0.5):
+    ann = props.above(threshold)
+    return ann, [i for i in ann.instance_ids() if class_of(i) in classes]
+
+
+def test_traffic_light_component_yields_three_lamps_in_one_group():
+    img, lab = _canvas()
+    lab[30:60, 90:100] = TRAFFIC_LIGHT                       # 10 x 30 px housing, upright
+    img[30:60, 90:100] = (15, 15, 15)
+    for k, col in enumerate(((200, 20, 20), (200, 140, 0), (20, 180, 60))):
+        img[32 + 10 * k:38 + 10 * k, 92:98] = col
+    lab[60:110, 94:96] = POLE
+    props = propose_lights(img, lab)
+    ann, lamps = _lights(props, (12,))
+    assert len(lamps) == 3
+    groups = [g for g in ann.groups.values() if g.class_id == 20]
+    assert len(groups) == 1 and sorted(groups[0].members) == sorted(lamps)
+    rows = [np.nonzero(ann.mask(i))[0].mean() for i in groups[0].members]
+    assert sorted(rows) == pytest.approx([35, 45, 55], abs=1.5)   # one lamp per third, top to bottom
+    for i in lamps:
+        m = ann.mask(i)
+        assert (lab[m] == TRAFFIC_LIGHT).all() and 16 <= m.sum() <= 64
+    assert all(0.5 <= props.confidence[i] <= 1 for i in lamps + [groups[0].id])
+
+
+def test_pole_top_yields_one_lamp_at_its_head():
+    img, lab = _canvas(H=200, W=200)
+    lab[150:, :] = ROAD
+    depth = np.full((200, 200), 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
+    # 8 m pole at 20 m (10 px per metre): foot at the ground row, top 80 px above it; arm 2 m to the right.
+    foot = int(99.5 + 1.22 * 10)
+    top = foot - 80
+    lab[top:foot, 60:62] = POLE
+    img[top:foot, 60:62] = (80, 80, 85)
+    lab[top:top + 2, 60:80] = POLE                            # arm
+    img[top:top + 2, 60:80] = (80, 80, 85)
+    lab[top + 1:top + 4, 72:80] = POLE                        # head, bright diffuser underneath
+    img[top + 2:top + 4, 72:80] = (200, 200, 190)
+    # a 1 m bollard: no lamp
+    lab[foot - 10:foot, 150:152] = POLE
+    props = propose_lights(img, lab, depth, intr, params=FLAT)
+    ann, lamps = _lights(props, (8, 9))
+    assert len(lamps) == 1 and class_of(lamps[0]) == 8       # top 8 m above the ground: a high lamp
+    ys, xs = np.nonzero(ann.mask(lamps[0]))
+    assert xs.min() >= 70 and xs.max() <= 80 and ys.max() <= top + 5   # at the arm's far end, at the top
+    assert props.confidence[lamps[0]] >= 0.75
+
+
+def _car_frame(rear_color=(200, 20, 20), paint=(40, 60, 140)):
+    """A car seen from behind at 10 m (50 px per metre): 1.8 m wide body, cabin above, red lamps."""
+    img, lab = _canvas()
+    lab[95:, :] = ROAD
+    img[95:] = (70, 70, 75)
+    depth = np.full(lab.shape, 10.0, np.float32)
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    # Rows: height h above the ground at 10 m (no pitch) is at v = 59.5 + (1.22 - h) * 50.
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    x0, x1 = 55, 145                                          # 90 px = 1.8 m
+    lab[row(0.9):row(0.3), x0:x1] = CAR                        # body
+    img[row(0.9):row(0.3), x0:x1] = paint
+    lab[row(1.4):row(0.9), x0 + 5:x1 - 5] = CAR                # cabin (narrower)
+    img[row(1.4):row(0.9), x0 + 5:x1 - 5] = paint
+    img[row(1.33):row(0.97), x0 + 9:x1 - 9] = (20, 22, 25)     # rear window
+    lamp_rows = slice(row(0.84), row(0.69))
+    img[lamp_rows, x0 + 4:x0 + 19] = rear_color
+    img[lamp_rows, x1 - 19:x1 - 4] = rear_color
+    inst = np.where(lab == CAR, CAR * 1000, lab).astype(np.int32)
+    truth = [np.zeros(lab.shape, bool), np.zeros(lab.shape, bool)]
+    truth[0][lamp_rows, x0 + 4:x0 + 19] = True
+    truth[1][lamp_rows, x1 - 19:x1 - 4] = True
+    return img, lab, depth, intr, inst, truth
+
+
+def test_car_with_red_rear_lamps_yields_a_rear_pair_in_one_car_group():
+    img, lab, depth, intr, inst, truth = _car_frame()
+    props = propose_lights(img, lab, depth, intr, inst, params=FLAT)
+    ann, lamps = _lights(props, (3, 4, 5, 6))
+    assert len(lamps) == 2 and all(class_of(i) == 4 for i in lamps)     # red by day: rear lamps
+    masks = sorted((ann.mask(i) for i in lamps), key=lambda m: np.nonzero(m)[1].mean())
+    assert _iou(masks[0], truth[0]) >= 0.5 and _iou(masks[1], truth[1]) >= 0.5
+    gid = ann.group_of(lamps[0])
+    assert gid is not None and class_of(gid) == 14 and ann.group_of(lamps[1]) == gid
+    panes = [i for i in ann.groups[gid].members if class_of(i) == 2]
+    assert panes and all((img[ann.mask(i)].mean(0) < 60).all() for i in panes)   # the dark rear window
+
+
+def test_white_lamps_are_front_lamps():
+    img, lab, depth, intr, inst, _ = _car_frame(rear_color=(240, 240, 230))
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2 and all(class_of(i) == 3 for i in lamps)
+
+
+def test_facade_grid_of_dark_windows_yields_windows_grouped_per_floor():
+    img, lab = _canvas(H=160, W=240)
+    lab[20:150, 20:220] = BUILDING
+    img[20:150, 20:220] = (170, 150, 120)
+    lab[150:, :] = ROAD
+    depth = np.full(lab.shape, 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=119.5, cy=79.5, width=240, height=160)   # 10 px per metre
+    truth = []
+    for r in range(3):
+        for c in range(5):
+            y, x = 35 + 35 * r, 35 + 38 * c
+            img[y:y + 15, x:x + 12] = (30, 35, 45)                  # 1.2 x 1.5 m panes
+            m = np.zeros(lab.shape, bool)
+            m[y:y + 15, x:x + 12] = True
+            truth.append((r, m))
+    props = propose_lights(img, lab, depth, intr, params=FLAT)
+    ann, wins = _lights(props, (1,))
+    assert len(wins) == 15
+    for r, m in truth:
+        best = max(wins, key=lambda i: _iou(ann.mask(i), m))
+        assert _iou(ann.mask(best), m) >= 0.8
+    floors = [g for g in ann.groups.values() if g.class_id == 13]
+    assert len(floors) == 3 and all(len(g.members) == 5 for g in floors)
+    for g in floors:  # one floor per group: the members share their rows
+        rows = {int(np.nonzero(ann.mask(i))[0].min()) for i in g.members}
+        assert len(rows) == 1
+
+
+def test_proposals_are_deterministic_and_match_the_street_traffic_light(street_small):
+    a = propose_for_scene(street_small)
+    b = propose_for_scene(street_small)
+    assert np.array_equal(a.annotation.instance_map, b.annotation.instance_map)
+    assert a.confidence == b.confidence and a.annotation.groups == b.annotation.groups
+    a.annotation.validate()
+    s = score_category(street_small.lights, a.above(0.5), "traffic_light_lamps")
+    assert s.n_gt == 3 and s.n_match == 3 and s.n_pred == 3
+
+
+@pytest.fixture(scope="module")
+def street_small():
+    from npsim_core.synthetic import street_scene
+
+    return street_scene(512, 256, 0)
+
+
+def test_above_keeps_confident_lights_and_trims_groups():
+    img, lab = _canvas()
+    lab[30:60, 90:100] = TRAFFIC_LIGHT
+    lab[30:60, 150:170] = TRAFFIC_LIGHT                       # squat: low confidence
+    props = propose_lights(img, lab)
+    tl = sorted(g for g in props.annotation.groups if class_of(g) == 20)
+    assert len(tl) == 2
+    conf = [props.confidence[g] for g in tl]
+    hi, lo = (tl[0], tl[1]) if conf[0] > conf[1] else (tl[1], tl[0])
+    t = (props.confidence[hi] + props.confidence[lo]) / 2
+    kept = props.above(t)
+    assert hi in kept.groups and lo not in kept.groups
+    assert set(kept.instance_ids()) == set(props.ids_in_group(hi))
+    assert props.ids_in_group(999999) == ()
+    assert props.above(0.0).instance_ids() == props.annotation.instance_ids()
+
+
+@pytest.mark.parametrize("case", ["image_dtype", "labels_shape", "labels_unknown", "depth_int", "depth_shape",
+                                  "intrinsics_size", "instances_shape", "category"])
+def test_bad_input_raises_a_named_error(case):
+    img, lab = _canvas()
+    kw: dict = {}
+    if case == "image_dtype":
+        img = img.astype(np.float32)
+    elif case == "labels_shape":
+        lab = lab[:, :-1]
+    elif case == "labels_unknown":
+        lab = lab.copy()
+        lab[0, 0] = 250
+    elif case == "depth_int":
+        kw["depth"] = np.ones(lab.shape, np.int32)
+    elif case == "depth_shape":
+        kw["depth"] = np.ones((10, 10), np.float32)
+    elif case == "intrinsics_size":
+        kw["intrinsics"] = Intrinsics.cityscapes(100, 50)
+    elif case == "instances_shape":
+        kw["instances"] = np.zeros((3, 3), np.int32)
+    else:
+        kw["params"] = ProposalParams(categories=("lamp_posts",))
+    word = {"image_dtype": "image", "labels_shape": "labels", "labels_unknown": "labels", "depth_int": "depth",
+            "depth_shape": "depth", "intrinsics_size": "intrinsics", "instances_shape": "instances",
+            "category": "categories"}[case]
+    with pytest.raises(NpsimInputError, match=word):
+        propose_lights(img, lab, **kw)
+
+
+def test_all_nan_depth_behaves_like_no_depth():
+    img, lab = _canvas()
+    lab[30:60, 90:100] = TRAFFIC_LIGHT
+    a = propose_lights(img, lab)
+    b = propose_lights(img, lab, depth=np.full(lab.shape, np.nan, np.float32))
+    assert np.array_equal(a.annotation.instance_map, b.annotation.instance_map)
+
+
+def test_scene_instances_field_is_validated_and_loaded_from_a_dataset(tmp_path):
+    import cv2
+
+    from npsim_core.datasets import iter_folder
+    from npsim_core.io import write_image
+    from npsim_core.scene import Scene
+
+    img, lab = _canvas(H=32, W=64)
+    with pytest.raises(NpsimInputError, match="instances"):
+        Scene("x", img, lab, Intrinsics.cityscapes(64, 32), instances=np.zeros((3, 3), np.int32))
+    write_image(tmp_path / "f.png", img)
+    write_image(tmp_path / "f_labelIds.png", lab)
+    src = next(iter_folder(tmp_path))
+    assert src.load().instances is None
+    inst = np.full((32, 64), 23, np.uint16)
+    inst[10:20, 10:30] = 26001
+    cv2.imwrite(str(tmp_path / "f_instanceIds.png"), inst)
+    got = src.load().instances
+    assert got is not None and got.dtype == np.int32 and int(got[15, 15]) == 26001
+
+
+def test_cli_propose_writes_the_editor_files(tmp_path, capsys):
+    from npsim_cli.main import main
+
+    assert main(["sample", "--size", "256x128", "-o", str(tmp_path / "scene"), "--no-preview"]) == 0
+    capsys.readouterr()
+    assert main(["propose", str(tmp_path / "scene"), "-o", str(tmp_path / "out")]) == 0
+    text = capsys.readouterr().out
+    assert "traffic_light_lamps: 3 lights in 1 group," in text and "windows:" in text
+    name = json.loads((tmp_path / "scene" / "scene.json").read_text())["name"]
+    ann = load_annotation(tmp_path / "out", name)
+    doc = json.loads((tmp_path / "out" / f"{name}_lights.json").read_text())
+    conf = doc["meta"]["proposal_confidence"]
+    assert set(conf) == {str(i) for i in ann.instance_ids()} | {str(g) for g in ann.groups}
+    assert all(0.5 <= v <= 1 for v in conf.values())
+    assert (tmp_path / "out" / f"{name}_lights_coco.json").exists()
+    assert (tmp_path / "out" / f"{name}_lights_classIds.png").exists()
+
+
+def test_cli_propose_bad_input_exits_2(tmp_path, capsys):
+    from npsim_cli.main import main
+
+    assert main(["propose", str(tmp_path / "missing"), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "missing" in err and len(err.strip().splitlines()) == 1
+    assert main(["propose", str(tmp_path), "-o", str(tmp_path / "o"), "--min-confidence", "2"]) == 2
+
+
+def test_touching_vehicles_without_instance_ids_split_where_depth_jumps():
+    from npsim_core.proposals.core import _check_inputs
+    from npsim_core.proposals.vehicles import _split_by_depth
+
+    img, lab = _canvas(H=60, W=120)
+    lab[20:50, 10:110] = CAR                                  # one component in the image...
+    depth = np.full(lab.shape, 30.0, np.float32)
+    depth[20:50, 10:60] = 10.0                                # ...but two cars, 10 m and 16 m away
+    depth[20:50, 60:110] = 16.0
+    ctx = _check_inputs(img, lab, depth, None, None)
+    m = lab[20:50, 10:110] == CAR
+    parts = _split_by_depth(ctx, 20, 10, m)
+    assert len(parts) == 2
+    spans = sorted((x0, x0 + pm.shape[1]) for _, x0, pm in parts)   # the cut pixels go to the nearer piece
+    assert spans[0][0] == 10 and spans[1][1] == 110 and abs(spans[0][1] - 60) <= 1 and spans[0][1] == spans[1][0]
+    depth[20:50, 10:110] = 10.0 + np.linspace(0, 1.0, 100)[None, :]   # one car's side receding: no split
+    assert len(_split_by_depth(_check_inputs(img, lab, depth, None, None), 20, 10, m)) == 1
