@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         peak = _rss_kib("VmHWM")
         rows.append((f"{w}x{h}", t_canvas, t_pipe, t_night, rss0 / 2**20, peak / 2**20))
         # ---- sliders: quick views
-        for v in (3.0, 7.0, 5.0, 4.0, 6.0)[: args.repeats]:
+        for v in (3.0, 7.0, 4.0, 6.0, 8.0)[: args.repeats]:
             live: list[float] = []
 
             def on_progress(info, lv=live) -> None:

@@ -406,7 +406,7 @@ def plot(all_curves: dict, path: Path) -> None:
         ax.set_xlabel("time since the call began (s, log)")
         ax.set_ylabel(name)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
+    axes[0].legend(fontsize=7, loc="lower left")
     fig.suptitle("Depth refinement on the synthetic street: accuracy against time (benchmarks/refine.py)",
                  fontsize=10)
     fig.tight_layout()
@@ -437,7 +437,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from npsim_core.synthetic import cache_dir, street_scene
 
-    cache = None if str(args.cache).lower() == "none" else Path(args.cache or cache_dir() / "bench_refine")
+    if args.cache is None:
+        cache = cache_dir() / "bench_refine"
+    else:
+        cache = None if args.cache.lower() == "none" else Path(args.cache)
     sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",") if s]
     print(f"## Depth refinement kernel benchmark\n\nmachine: {os.cpu_count()} cores, load average "
           f"{load_str()} at start; torch threads 1 (RefineParams.threads)")

@@ -179,6 +179,9 @@ def save_scene(scene: Scene, folder: str | Path) -> Path:
         if arr is not None:
             write_npy(folder / fname, arr.astype(np.float32))
             files[attr] = fname
+    if scene.instances is not None:
+        write_image(folder / f"{scene.name}_instanceIds.png", scene.instances.astype(np.uint16))
+        files["instances"] = f"{scene.name}_instanceIds.png"
     if scene.albedo is not None:
         write_image(folder / "albedo.png", (np.clip(scene.albedo, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8))
         files["albedo"] = "albedo.png"
@@ -241,6 +244,11 @@ def load_scene(folder: str | Path, *, with_ground_truth: bool = True) -> Scene:
     if (folder / files.get("albedo", "albedo.png")).exists():
         alb = read_image(folder / files.get("albedo", "albedo.png")).astype(np.float32) / 255.0
         arrays["albedo"] = alb ** 2.2
+    if "instances" in files:
+        inst = read_image(folder / files["instances"], color=False)
+        if inst.ndim != 2 or not np.issubdtype(inst.dtype, np.integer):
+            raise NpsimInputError(f"{folder / files['instances']}: instance ids must be a single-channel integer PNG")
+        arrays["instances"] = inst
     lights = None
     if annotation_paths(folder, name)["json"].exists():
         lights = load_annotation(folder, name)

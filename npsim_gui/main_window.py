@@ -181,6 +181,10 @@ class MainWindow(QMainWindow):
             ch.busy.connect(self._update_cancel)
         self.editor.dirtyChanged.connect(self._update_title)
         self.editor.session.changed.connect(lambda *_: self._annotation_edited())
+        self._ann_timer = QTimer(self)  # one night request per pause in the edits, not one per brush dab
+        self._ann_timer.setSingleShot(True)
+        self._ann_timer.setInterval(150)
+        self._ann_timer.timeout.connect(self.request_render)
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setSingleShot(True)
         self.autosave_timer.setInterval(2000)
@@ -232,7 +236,9 @@ class MainWindow(QMainWindow):
         if scene.width > self.PROXY_WIDTH * 1.25:
             from npsim_core.chain import scaled_frame
 
-            self.proxy_chain = Chain(scaled_frame(scene, self.PROXY_WIDTH / scene.width))
+            # the quick views need no instance ids (scaled_frame does not resample them yet)
+            small = scene.with_(instances=None) if getattr(scene, "instances", None) is not None else scene
+            self.proxy_chain = Chain(scaled_frame(small, self.PROXY_WIDTH / scene.width))
         if params is not None:
             self.params = params
         self.results = None
@@ -253,6 +259,7 @@ class MainWindow(QMainWindow):
         self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=scene.name, dirty=dirty)
         if ann is not scene.lights:
             self.chain.set_annotation(ann)
+        self._ann_version = self._ann_applied = 0
         self.render_panel.set_day(scene.image)
         self._show_params()
         self.render_panel.seed.blockSignals(True)
@@ -306,8 +313,24 @@ class MainWindow(QMainWindow):
         (light ids per vertex) and the night scene are rebuilt by the night render, and only when
         the night preview is shown (else when it is shown next)."""
         if self.chain is not None:
-            self.chain.set_annotation(self.editor.session.ann)
-            self.request_render()
+            # never chain.set_annotation here: it waits for the chain's lock, which a running job holds
+            # (seconds on a large frame); the next job applies a snapshot (_annotation_for_job)
+            self._ann_version = getattr(self, "_ann_version", 0) + 1
+            self._ann_timer.start()
+
+    def _annotation_for_job(self):
+        """A function for a worker that hands the chain the editor's annotation as it is now (a copy: the
+        editor keeps editing its own), or does nothing when the chain already has it."""
+        version = getattr(self, "_ann_version", 0)
+        if version == getattr(self, "_ann_applied", 0):
+            return lambda chain: None
+        snapshot = self.editor.session.ann.copy()
+
+        def apply(chain) -> None:
+            if version > getattr(self, "_ann_applied", 0):
+                chain.set_annotation(snapshot)
+                self._ann_applied = version
+        return apply
 
     def _proposal_job(self):
         """The editor's "Propose lights" on this frame: with its camera and the best depth at hand
@@ -346,6 +369,7 @@ class MainWindow(QMainWindow):
         if self.chain is None:
             return
         chain, params, proxy = self.chain, self.params, self.proxy_chain
+        apply_ann = self._annotation_for_job()
         t0 = self._t_change or time.perf_counter()
         live = None
         if params.refine.optimizer == "fast" and params.refine.max_time_s is None:
@@ -357,6 +381,7 @@ class MainWindow(QMainWindow):
 
         def job(cancel: threading.Event, progress):
             # everything heavy happens here, off the GUI thread: stages, view images, 3D geometry
+            apply_ann(chain)
             if live is not None:
                 # large frames answer from a proxy resolution at once; the full resolution follows
                 # once the sliders have settled (a newer change cancels this job first)
@@ -451,9 +476,11 @@ class MainWindow(QMainWindow):
             return
         self._night_stale = False
         chain, params, res, override = self.chain, self.params, self.results, self.light_override
+        apply_ann = self._annotation_for_job()
         t0 = self._t_change or time.perf_counter()
 
         def job(cancel: threading.Event, progress):
+            apply_ann(chain)
             last = None
             for frame in chain.night_preview(res, params, light_override=override, cancel=cancel):
                 progress(frame)
@@ -619,6 +646,7 @@ class MainWindow(QMainWindow):
         if self.chain is None:
             return
         chain, params = self.chain, self.params
+        apply_ann = self._annotation_for_job()
         dlg = None
         if show_progress:
             dlg = QProgressDialog("Exporting…", "Cancel", 0, 100, self)
@@ -628,6 +656,7 @@ class MainWindow(QMainWindow):
         self._export_dialog = dlg
 
         def job(cancel, progress):
+            apply_ann(chain)
             return export_frame(chain, params, folder, nights=nights, cancel=cancel,
                                 progress=lambda f, text: progress((f, text)))
 

@@ -145,11 +145,25 @@ def test_annotation_edit_rebuilds_the_mesh_only_for_a_shown_night_preview(qtbot,
     qtbot.wait(800)  # longer than every debounce
     assert runs == [] and not win.jobs_busy  # nothing recomputed: no mesh, no views
     assert win.results is results and win.render_panel.night is night
-    assert win.chain.annotation is s.ann  # the next computation uses the edit
     win.render_dock.show()  # the night preview comes back: the mesh and night scene follow the edit
     qtbot.waitUntil(lambda: win.render_panel.night is not night and not win.jobs_busy, timeout=120_000)
+    assert iid in win.chain.annotation.instance_ids()  # the night used the edit
     done = [st for r in runs for st in r]
     assert "mesh" in done and "night_scene" in done
     assert not {"geometry", "filter", "uncertain", "refine"} & set(done)
     assert win.results is results  # the depth, normal and 3D views stay as they were
+    win.close()
+
+
+def test_a_large_real_layout_frame_opens_with_its_proxy(qtbot, settings, cityscapes_layout):
+    """A Cityscapes-layout frame wider than the proxy width (its instanceIds included) opens and
+    answers from the proxy chain."""
+    root, stems = cityscapes_layout(frames=1, size=(768, 384), corrupt=0)
+    win = _window(qtbot)
+    win.open_scene(root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png")
+    assert getattr(win, "last_error", None) is None
+    assert win.chain.scene.width == 768 and win.proxy_chain.scene.width == win.PROXY_WIDTH
+    assert win.editor.canvas.base.array.shape[:2] == (384, 768)
+    win.cancel_jobs()
+    qtbot.waitUntil(lambda: not win.jobs_busy, timeout=60_000)
     win.close()

@@ -112,3 +112,15 @@ def test_cli_lights_option(dataset, tmp_path, capsys):
     assert main(["batch", str(root), "-o", str(tmp_path / "b"), "--lights",
                  str(annotation_paths(tmp_path, "f")["json"])]) == 2
     assert "cannot light every frame of a batch" in capsys.readouterr().err
+
+
+def test_a_batch_of_unannotated_frames_lights_its_nights_with_proposals(dataset, tmp_path):
+    root, stems = dataset
+    out = tmp_path / "batch"
+    assert main(["batch", str(root), "-o", str(out), "--workers", "1", *FAST]) == 0
+    for stem in stems:
+        manifest = json.loads(next(out.rglob(f"{stem}_export.json")).read_text())
+        assert manifest["lights"]["source"] == "proposed" and manifest["lights"]["count"] > 0
+        assert all(0.5 <= c <= 1 for c in manifest["lights"]["confidence"].values())
+        night = manifest["nights"][0]
+        assert night["lights"] == manifest["lights"]["count"]  # every proposed light got a state

@@ -126,7 +126,7 @@ def iter_frames(root: str | Path, *, trainids: bool = False, hfov_deg: float | N
 
 
 def scaled_frame(scene: Scene, scale: float) -> Scene:
-    """The frame resampled to ``scale`` (image INTER_AREA; labels, depth, normals, lights nearest)."""
+    """The frame resampled to ``scale`` (image INTER_AREA; labels, instances, depth, normals, lights nearest)."""
     if scale == 1.0:
         return scene
     if not (0.05 <= scale <= 1.0):
@@ -149,4 +149,4 @@ def scaled_frame(scene: Scene, scale: float) -> Scene:
                        depth=near(scene.depth), normals=near(scene.normals), depth_gt=near(scene.depth_gt),
                        depth_stereo=near(scene.depth_stereo),
                        normals_gt=near(scene.normals_gt), lights=lights, albedo=near(scene.albedo),
-                       roughness=near(scene.roughness))
+                       roughness=near(scene.roughness), instances=near(scene.instances))

@@ -211,7 +211,7 @@ def lights_stage(inputs: dict, params, ctx) -> LightsResult:
     from ..proposals import propose_for_scene
 
     geo: GeometryResult = inputs["geometry"]
-    props = propose_for_scene(s, depth=geo.scene.depth)
+    props = propose_for_scene(geo.scene)  # the depth and camera the chain chose
     kept = props.above(lp.min_confidence)
     ids = kept.instance_ids()
     conf = {i: float(c) for i, c in props.confidence.items() if i in set(ids) or i in kept.groups}

@@ -13,7 +13,7 @@ class ProposalParams:
     confidences lie in [0, 1].
     """
 
-    #: Proposals below this confidence are not kept by ``LightProposals.above`` callers that use the default.
+    #: The confidence callers keep by default (``LightProposals.above(params.min_confidence)``).
     min_confidence: float = 0.5
     #: Categories to propose (any subset of traffic_lights, street_lamps, vehicles, windows, ads).
     categories: tuple[str, ...] = ("traffic_lights", "street_lamps", "vehicles", "windows", "ads")
@@ -35,7 +35,7 @@ class ProposalParams:
     pole_min_area_px: int = 10
     #: Lamp heads are looked for within this distance (m) below the component's top.
     lamp_head_band_m: float = 0.55
-    #: A pole whose top is at least this high (m above its foot) carries a high (HT) lamp, else a low one.
+    #: A pole whose top is at least this high (m above the ground) carries a high (HT) lamp, else a low one.
     lamp_high_min_m: float = 6.0
     #: Poles lower than this (m) carry no street lamp (bollards, sign posts, traffic-light poles).
     lamp_min_height_m: float = 3.2
@@ -50,7 +50,8 @@ class ProposalParams:
     #: Without instance ids, a vehicle component is split where depth jumps by more than this
     #: fraction of the nearer depth across ~W/256 pixels (cars in a row touch in the image, not in depth).
     vehicle_split_jump: float = 0.15
-    #: Find the end face as the columns as near as the nearest (needs depth); tolerance in metres.
+    #: Find the end face from depth: the columns within max(tol_m, tol_rel x depth) of the densest
+    #: depth among the nearer columns (metres, fraction).
     vehicle_face_from_depth: bool = True
     vehicle_face_tol_m: float = 0.3
     vehicle_face_tol_rel: float = 0.02
@@ -90,11 +91,18 @@ class ProposalParams:
     #: Leave building pixels beside sky or foliage (blended with them) out of the candidates (off: it
     #: loses more panes behind trees than it removes false ones at 512x256).
     window_skip_border: bool = False
+    #: A blob darker than the wall by a ratio above ``window_shadow_ratio`` and within this chroma
+    #: distance (Lab a, b) of it is the wall in a cast shadow, not a pane (0 turns the test off).
+    window_shadow_chroma: float = 3.0
+    window_shadow_ratio: float = 0.3
+    #: ... and within this chroma distance when it runs down to the facade's foot (a pane has a sill;
+    #: shade, lit by the blue sky only, drifts further from the wall's colour).
+    window_shadow_chroma_footed: float = 10.0
     #: Erode-and-split attempts on a blob that fails the fill or size test (joined panes).
     window_split_steps: int = 2
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
-    #: Wall window of the local wall luminance (fraction of the image width, odd kernel >= 5 px).
+    #: Box of the fine local wall estimate, as a fraction of the image width (the coarse box is 4x).
     window_wall_kernel_frac: float = 0.02
 
     # --- advertisements

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .core import Context, Group, Light, components
@@ -112,7 +114,8 @@ def _near_columns(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: in
     if enough.sum() < 3:
         return None
     col = np.full(w, np.inf)
-    with np.errstate(all="ignore"):
+    with warnings.catch_warnings():  # all-NaN columns (no valid depth) stay NaN, said below
+        warnings.simplefilter("ignore", RuntimeWarning)
         col[enough] = np.nanpercentile(d[:, enough], 30, axis=0)
     ok = np.isfinite(col)
     if not ok.any():

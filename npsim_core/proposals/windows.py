@@ -9,6 +9,7 @@ import numpy as np
 from .core import Context, Group, Light, components
 
 BUILDING, VEGETATION, SKY = 11, 21, 23
+GROUND = (6, 7, 8, 9, 22)  # ground, road, sidewalk, parking, terrain
 WINDOW_BUILDING, WINDOWS_GROUP = 1, 13
 
 
@@ -82,7 +83,9 @@ def propose(ctx: Context) -> list[Group]:
     filled to its convex hull (frames, curtains and mullions split a pane) and kept when its
     height is plausible (``window_height_m`` with depth) and it fills its box
     (``window_min_fill``); a blob failing the fill or size test is eroded, split into its parts
-    and each part grown back and tested again (``window_split_steps`` times at most). Floors:
+    and each part grown back and tested again (``window_split_steps`` times at most). A darker blob
+    with the wall's own colour, or running down to the ground with little tint, is a cast shadow
+    (``window_shadow_*``) and dropped. Floors:
     blobs of one building component whose centre heights (with
     depth; else image rows) lie within ``window_floor_tol_m`` (else half a window). Confidence
     0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows.
@@ -95,6 +98,7 @@ def propose(ctx: Context) -> list[Group]:
     feat = _features(ctx)
     ref = wall_reference(feat, B, p)
     ratio = feat[..., 0] - ref[..., 0]
+    chroma = np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2])
     t = -np.log(p.window_dark_ratio)
     inner = B
     if p.window_skip_border:  # pixels on the building's outline against sky or foliage blend with them
@@ -139,6 +143,18 @@ def propose(ctx: Context) -> list[Group]:
         if fill < p.window_min_fill:
             return "fill"
         contrast = float(np.median(np.abs(ratio[y:y + h, x:x + w][sub])))
+        dark = float(np.median(ratio[y:y + h, x:x + w][sub]))
+        if p.window_shadow_chroma > 0 and np.log(p.window_shadow_ratio) < dark < 0:
+            tint = float(np.median(chroma[y:y + h, x:x + w][sub]))
+            # A pane sits on a sill; a shadow runs down to the facade's foot on the ground.
+            below = np.zeros(w, bool)
+            rows = h - 1 - np.argmax(sub[::-1], axis=0)               # lowest blob pixel per column
+            has = sub.any(0)
+            yy = np.minimum(y + rows + 1, H - 1)
+            below[has] = np.isin(ctx.labels[yy[has], (x + np.arange(w))[has]], GROUND)
+            footed = below[has].mean() > 0.5 if has.any() else False
+            if tint < p.window_shadow_chroma or (footed and tint < p.window_shadow_chroma_footed):
+                return "shadow"  # the wall's own colour, only darker: a cast shadow, not glass
         ys, xs = np.nonzero(filled)
         cy_ = y + ys.mean()
         b_id = int(np.bincount(bld[y:y + h, x:x + w][filled]).argmax())

@@ -40,7 +40,8 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
 #: hard variants too, whose layouts are new in version 4 and leave the default street unchanged).
 #: Version 6: windows, panes and lamps vary in brightness, frames, curtains (texture.light_factor);
 #: every third street light is a post-top lantern (street_light_LT).
-SCENE_VERSION = 6
+#: Version 7: Cityscapes instance ids (``Scene.instances``, ``<name>_instanceIds.png``).
+SCENE_VERSION = 7
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.
@@ -183,6 +184,9 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
         border = frame_border_labels(width, height)
         labels = np.where(border > 0, border, labels).astype(np.uint8)
         image[border == RECTIFICATION_BORDER] = 0
+    from .cityscapes import instance_ids  # (cityscapes imports this package)
+
+    instances = instance_ids(labels, gt.prim, prims)
     name = f"street_s{seed}" if variant == "default" else f"street_{variant}_s{seed}"
     provenance = {"generator": "npsim_core.synthetic.make_street_scene", "version": SCENE_VERSION,
                   "seed": int(seed), "spp": int(spp)}
@@ -190,6 +194,7 @@ def make_street_scene(width: int = 256, height: int = 128, seed: int = 0, *, spp
         provenance["variant"] = variant
     return Scene(name=name, image=image, labels=labels, intrinsics=intr, depth=depth, normals=normals,
                  depth_gt=gt.depth, normals_gt=gt.normals, lights=lights, albedo=albedo, roughness=roughness,
+                 instances=instances,
                  camera_height=pose.height, camera_pitch=pose.pitch,
                  provenance={**provenance,
                              "renderer": "mitsuba scalar_rgb direct (sun) + sky ambient (numpy)",
