@@ -167,3 +167,29 @@ def test_a_large_real_layout_frame_opens_with_its_proxy(qtbot, settings, citysca
     win.cancel_jobs()
     qtbot.waitUntil(lambda: not win.jobs_busy, timeout=60_000)
     win.close()
+
+
+def test_an_edit_during_a_long_job_does_not_wait_for_it(qtbot, settings):
+    """The chain's lock is held by a running job: an annotation edit must not take it on the GUI thread."""
+    import time
+
+    from npsim_core.annotation_ops import new_instance
+
+    win = _window(qtbot)
+    win.show()
+    qtbot.waitExposed(win)
+    stages = []
+    win.pipeline_jobs.progress.connect(lambda info: stages.append(info.get("stage")) if isinstance(info, dict)
+                                       else None)
+    win.set_scene(street_scene(W, H), ChainParams().with_value("refine", "steps", 10_000_000))
+    qtbot.waitUntil(lambda: win.results is not None and "refine" in stages, timeout=60_000)
+    qtbot.wait(200)
+    assert win.pipeline_jobs.is_busy
+    s = win.editor.session
+    t0 = time.perf_counter()
+    s.apply(new_instance(s.ann, 8)[0])
+    qtbot.wait(400)  # the edit's debounced night request included
+    assert time.perf_counter() - t0 < 2.0
+    win.cancel_jobs()
+    qtbot.waitUntil(lambda: not win.jobs_busy, timeout=30_000)
+    win.close()
