@@ -59,6 +59,7 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
 
 
 def editor_proposals(app: QApplication, out: Path) -> None:
+    from npsim_core.annotation import discover_items
     from npsim_core.proposals import propose_for_scene
     from npsim_core.scene import save_scene
     from npsim_core.synthetic import street_scene
@@ -67,7 +68,7 @@ def editor_proposals(app: QApplication, out: Path) -> None:
 
     scene = street_scene(1024, 512)
     folder = save_scene(scene.with_(lights=None), Path(tempfile.mkdtemp(prefix="npsim-shot-")) / "street")
-    win = EditorWindow(folder)
+    win = EditorWindow(discover_items(folder), autosave_ms=10**9)
     win.resize(1500, 860)
     win.show()
     ed = win.editor

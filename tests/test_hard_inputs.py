@@ -197,13 +197,13 @@ def test_empty_results_are_errors(scene_dir, street, tmp_path, capsys):
 def test_every_stage_reports_its_progress(scene_dir, tmp_path, capsys):
     assert main(["mesh", str(scene_dir), "-o", str(tmp_path / "m"), "--format", "ply", "--set", "refine.steps=5"]) == 0
     out = capsys.readouterr()
-    for stage in ("geometry", "filter", "uncertain", "refine", "mesh"):
+    for stage in ("geometry", "lights", "filter", "uncertain", "refine", "mesh"):
         assert f"{stage} " in out.out  # per-stage seconds
         assert f"{stage}…" in out.err  # logged when it starts
     events = []
     Chain(street_scene(64, 32)).compute(QUICK, progress=events.append)
     started = [e["stage"] for e in events if set(e) == {"stage"}]
-    assert started == ["geometry", "filter", "uncertain", "refine", "mesh"]
+    assert started == ["geometry", "lights", "filter", "uncertain", "refine", "mesh"]
     assert any("step" in e for e in events)
 
 

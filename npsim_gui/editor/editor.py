@@ -660,7 +660,8 @@ class AnnotationEditor(QWidget):
         self.propose_cancel.clicked.connect(self.proposal_jobs.cancel)
         self.proposal_box = QCheckBox("show")
         self.proposal_box.setChecked(True)
-        self.proposal_box.toggled.connect(lambda v: self.canvas.set_layer_visible("proposals", v))
+        self.proposal_box.toggled.connect(lambda v: self.canvas.set_layer_visible(
+            "proposals", v and self.proposal_book is not None))
         row.addWidget(self.propose_btn, 1)
         row.addWidget(self.propose_cancel)
         row.addWidget(self.proposal_box)
@@ -747,8 +748,8 @@ class AnnotationEditor(QWidget):
     def clear_proposals(self) -> None:
         self.proposal_jobs.cancel()
         self.proposal_book = None
-        H, W = self.session.ann.shape
-        self.canvas.set_layer("proposals", np.zeros((H, W, 4), np.uint8))
+        self.canvas.set_layer("proposals", np.zeros((1, 1, 4), np.uint8))
+        self.canvas.set_layer_visible("proposals", False)  # an empty full-size layer still costs every repaint
         if hasattr(self, "proposal_tree"):
             self.proposal_tree.clear()
             self.proposal_status.setText("no proposals yet")
@@ -775,6 +776,7 @@ class AnnotationEditor(QWidget):
             return
         pending = self.pending_proposals()
         self.canvas.set_layer("proposals", proposal_rgba(book.proposals.annotation.instance_map, pending))
+        self.canvas.set_layer_visible("proposals", self.proposal_box.isChecked() and bool(pending))
         tree = self.proposal_tree
         tree.clear()
         pend = set(pending)
