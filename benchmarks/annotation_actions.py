@@ -15,7 +15,9 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
 * draw a light: 1 (one superpixel drag or brush stroke), plus 1 class key the first time a
   light class is drawn (the annotator draws all lights of a class in one go);
 * group n lights: n (a click and n-1 Shift+clicks) + 1 (Ctrl+G), plus 1 group-class key when
-  the group's class is not the default the editor preselects for its lights' class;
+  the group's class is not the default the editor preselects for its lights' class; complete a
+  group that holds k of its n lights already: 2 + (n - k) (click the group, Shift+click the
+  others, Ctrl+G joins them to it), + 3 when its class is wrong;
 * remove a wrong light: 2 (click, Delete); fix a light's class: 3 (click, class key, C);
   touch up a light whose mask IoU with its ground truth is below 0.7: 1 (one stroke);
   ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
@@ -95,17 +97,21 @@ def finish_by_hand(session, gt, counts: dict[str, int]) -> None:
         drawn_classes.add(class_of(g))
     counts["class keys"] += len(drawn_classes)
     wanted = {frozenset(match[m][0] for m in grp.members): grp.class_id for grp in gt.groups.values()}
-    for gid, grp in list(session.ann.groups.items()):
-        key = frozenset(grp.members)
-        if wanted.get(key) == grp.class_id:
-            del wanted[key]
+    have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
+    for members, cls in wanted.items():
+        best = max(have.values(), key=lambda h: len(h[0] & members), default=(frozenset(), 0))
+        if best == (members, cls):
+            continue  # an accepted proposal group is this ground-truth group already
+        if best[0] and best[0] <= members:  # a part of it: click the group, Shift+click the rest, Ctrl+G
+            counts["group"] += 2 + len(members - best[0]) + (3 if best[1] != cls else 0)
         else:
+            first = min(members)
+            counts["group"] += len(members) + 1 + (DEFAULT_GROUP_FOR_LIGHT.get(class_of(first)) != cls)
+        do(group_lights(session.ann, members, cls))
+    for gid, grp in list(session.ann.groups.items()):  # proposal groups left over
+        if wanted.get(frozenset(grp.members)) != grp.class_id:
             do(ungroup(session.ann, gid))
             counts["ungroup"] += 2
-    for members, cls in wanted.items():
-        do(group_lights(session.ann, members, cls))
-        first = min(members)
-        counts["group"] += len(members) + 1 + (DEFAULT_GROUP_FOR_LIGHT.get(class_of(first)) != cls)
 
 
 def check_equal(gt, ann) -> None:
@@ -136,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     from npsim_gui.editor.proposals import ProposalBook
     from npsim_gui.editor.session import EditorSession
 
-    app = QCoreApplication.instance() or QCoreApplication(sys.argv[:1])  # noqa: F841 (Qt objects need it)
+    _app = QCoreApplication.instance() or QCoreApplication(sys.argv[:1])  # noqa: F841 (Qt objects need it)
     w, h = parse_size(args.size)
     thresholds = [float(t) for t in args.thresholds.split(",") if t]
     kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")

@@ -69,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     from npsim_gui.main_window import MainWindow
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
+    from PySide6.QtCore import QSettings
+
+    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):  # fresh layout, user's settings untouched
+        QSettings.setPath(fmt, QSettings.Scope.UserScope, tempfile.mkdtemp(prefix="npsim-settings-"))
     base = Path(args.fixture_dir or tempfile.mkdtemp(prefix="npsim-gui-latency-"))
 
     def wait(cond, timeout=900.0) -> float:
@@ -166,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         win.confirm_close = lambda: True
         win.close()
         app.processEvents()
-        del win
+        win = None  # the next size starts from a new window
 
     load = os.getloadavg()[0]
     print(f"# GUI latency on Cityscapes-layout frames (load {load:.1f}, {os.cpu_count()} cores)\n")

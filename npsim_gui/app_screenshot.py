@@ -40,12 +40,14 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
     win = MainWindow()
     win.ask = lambda *a: "Discard"
     win.show()
+    win.move(0, 0)
     _wait(app, win.isVisible)
     win.open_dataset(dataset)
     _wait(app, lambda: win.results is not None and win.results_final and not win.pipeline_jobs.is_busy)
     _wait(app, lambda: win.render_panel.night is not None and not win.render_jobs.is_busy)
     win.render_panel.split.setValue(35)  # the day / night split shows both
     win.editor.auto_display()
+    win.editor.layer_boxes["superpixels"].setChecked(False)  # thousands of borders hide a fit-zoom frame
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 1.5)
     if win.viewer is not None:
@@ -59,25 +61,25 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
 
 
 def editor_proposals(app: QApplication, out: Path) -> None:
-    from npsim_core.annotation import discover_items
     from npsim_core.proposals import propose_for_scene
     from npsim_core.scene import save_scene
     from npsim_core.synthetic import street_scene
 
-    from .editor.window import EditorWindow
+    from .editor.screenshot import _open, _settle
 
     scene = street_scene(1024, 512)
     folder = save_scene(scene.with_(lights=None), Path(tempfile.mkdtemp(prefix="npsim-shot-")) / "street")
-    win = EditorWindow(discover_items(folder), autosave_ms=10**9)
+    win = _open(folder)
     win.resize(1500, 860)
-    win.show()
+    win.move(0, 0)
+    _settle(app, win)
     ed = win.editor
-    _wait(app, lambda: ed.session.superpixels_ready)
     ed.layer_boxes["superpixels"].setChecked(False)
     ed.set_proposals(propose_for_scene(scene))
     ed.accept_proposals_above(0.9)
     ed.canvas.set_zoom(2.2)
-    ed.canvas.centerOn(300, 300)
+    ed.canvas.centerOn(330, 190)
+    ed.side_panel.ensureWidgetVisible(ed.proposal_tree)  # the Proposals box and its list
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 0.5)
     win.grab().save(str(out))
@@ -94,6 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="2048x1024")
     args = ap.parse_args(argv)
     app = QApplication.instance() or QApplication(sys.argv[:1])
+    from PySide6.QtCore import QSettings
+
+    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):  # fresh layout, user's settings untouched
+        QSettings.setPath(fmt, QSettings.Scope.UserScope, tempfile.mkdtemp(prefix="npsim-settings-"))
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     w, h = (int(v) for v in args.size.split("x"))

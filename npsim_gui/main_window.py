@@ -231,7 +231,10 @@ class MainWindow(QMainWindow):
         """Show ``scene`` and start computing its pipeline."""
         self.pipeline_jobs.cancel()
         self.render_jobs.cancel()
-        self.chain = Chain(scene)
+        self.chain = None  # the previous frame's results go before the next frame's are computed
+        self.results = None
+        # a full-resolution result set of a large frame is hundreds of MB per stage: keep fewer
+        self.chain = Chain(scene, cache_size=2 if scene.width * scene.height > self.LARGE_FRAME_PX else 4)
         self.proxy_chain = None
         if scene.width > self.PROXY_WIDTH * 1.25:
             from npsim_core.chain import scaled_frame
@@ -355,6 +358,8 @@ class MainWindow(QMainWindow):
     #: Wall-clock budget of the quick refinement shown first after a change (s); the full
     #: refinement follows in the same worker and replaces it when done.
     LIVE_REFINE_BUDGET_S = 0.15
+    #: Frames with more pixels than this keep 2 cached results per stage instead of 4 (memory).
+    LARGE_FRAME_PX = 1_000_000
     #: Frames wider than this get a proxy chain at this width for the quick views.
     PROXY_WIDTH = 512
     #: The full-resolution chain starts this long after the last change on a proxied frame.
