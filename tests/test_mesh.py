@@ -401,7 +401,10 @@ def test_mesh_quality_on_synthetic_street():
     U = hand_uncertain(s.depth_gt, s.labels, l=2)
     pp = postprocess_mesh(s.depth_gt, intr, s.labels, U, s.lights.instance_map)
     q = mesh_quality(pp.mesh, intr, s.depth_gt, s.labels, s.normals_gt)
-    assert q.holes == 0
+    # One loop is legitimate: a tree crown's border around a post-top lantern in front of it
+    # (foreground completion fills an object only at its own pixels, docs/method.md §5.3).
+    holed = [p for p in pp.mesh.parts if count_holes(p, intr, open_mask(s.labels, s.depth_gt))]
+    assert q.holes == len(holed) == 1 and holed[0].name.startswith("vegetation")
     assert q.stretched < q_raw.stretched
     # The mesh seen from the camera shows the right class at (almost) every pixel.
     ras = rasterize(pp.mesh, intr)
