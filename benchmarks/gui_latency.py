@@ -21,7 +21,7 @@ the app is driven as a user would:
 * **longest stall**: the largest lateness of a 10 ms ``QTimer`` heartbeat on the GUI thread over
   the whole session of that size (target: no gap over 100 ms).
 
-Targets (issue 18): slider → quick view ≤ 0.3 s at both sizes, brush stroke → canvas ≤ 50 ms,
+Targets: slider → quick view ≤ 0.3 s at both sizes, brush stroke → canvas ≤ 50 ms,
 open a 2048×1024 frame → canvas shown ≤ 5 s, peak memory ≤ 2.5 GB.
 """
 
