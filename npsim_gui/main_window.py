@@ -239,9 +239,7 @@ class MainWindow(QMainWindow):
         if scene.width > self.PROXY_WIDTH * 1.25:
             from npsim_core.chain import scaled_frame
 
-            # the quick views need no instance ids (scaled_frame does not resample them yet)
-            small = scene.with_(instances=None) if getattr(scene, "instances", None) is not None else scene
-            self.proxy_chain = Chain(scaled_frame(small, self.PROXY_WIDTH / scene.width))
+            self.proxy_chain = Chain(scaled_frame(scene, self.PROXY_WIDTH / scene.width))
         if params is not None:
             self.params = params
         self.results = None
@@ -499,7 +497,7 @@ class MainWindow(QMainWindow):
             return
         self.render_panel.set_night(frame.image, f"{frame.spp} spp · {frame.elapsed:.2f} s · {frame.variant}")
         if frame.active is not None and self.light_override is None:
-            self._fill_lights(frame.active)
+            self._fill_lights(frame)
 
     def on_render_done(self, payload) -> None:
         frame, t0 = payload
@@ -511,8 +509,9 @@ class MainWindow(QMainWindow):
         self.log.log(f"night preview {frame.spp} spp in {frame.elapsed:.2f} s ({frame.variant}); "
                      f"{len(frame.active.on_ids) if frame.active else 0} lights on")
 
-    def _fill_lights(self, active) -> None:
-        ann = self.chain.annotation
+    def _fill_lights(self, frame) -> None:
+        """The night panel's light list: the lights this night used (annotated or proposed)."""
+        ann, active = frame.annotation, frame.active
         if ann is None:
             return
         grouped = {m for g in ann.groups.values() for m in g.members}

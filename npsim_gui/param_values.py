@@ -10,7 +10,7 @@ import numpy as np
 
 from npsim_core.chain import ChainParams
 
-SECTIONS = ("camera", "filter", "uncertainty", "refine", "mesh", "night", "denoise")
+SECTIONS = ("camera", "filter", "uncertainty", "refine", "mesh", "night", "denoise", "lights")
 
 
 def gui_values(params: ChainParams) -> dict[tuple[str, str], Any]:

@@ -35,7 +35,8 @@ class SliderSpec:
 SPECS: tuple[tuple[str, tuple[SliderSpec, ...]], ...] = (
     ("Cross-bilateral filter", (
         SliderSpec("filter", "mu", "μ (colour)", 0.0, 50.0, tooltip="weight of the colour term vs the semantic term"),
-        SliderSpec("filter", "sigma_s", "σs (px)", 1.0, 40.0, decimals=1, tooltip="spatial Gaussian, pixels"),
+        SliderSpec("filter", "sigma_s", "σs (px at 2048 wide)", 1.0, 40.0, decimals=1,
+                   tooltip="spatial Gaussian in pixels of a 2048-px-wide image (scaled with the width)"),
         SliderSpec("filter", "sigma_c", "σc (Lab)", 0.5, 50.0, decimals=1, tooltip="colour Gaussian, CIELAB units"),
     )),
     ("Variance filter (uncertain map)", (
@@ -62,7 +63,8 @@ SPECS: tuple[tuple[str, tuple[SliderSpec, ...]], ...] = (
         SliderSpec("night", "spp", "spp (preview)", 1, 256, integer=True, log=False),
         SliderSpec("night", "preview_scale", "preview scale", 0.1, 1.0, decimals=2),
         SliderSpec("night", "iso", "ISO", 50, 12800, log=True, integer=True),
-        SliderSpec("night", "exposure", "exposure (EV)", -4.0, 6.0, decimals=2),
+        SliderSpec("night", "exposure", "exposure compensation (EV)", -4.0, 6.0, decimals=2,
+                   tooltip="added to the metered exposure (auto-exposure); the whole exposure when the mode is manual"),
     )),
 )
 
@@ -109,12 +111,14 @@ class ParameterPanel(QWidget):
             if title.startswith("Variance"):
                 self._combo(form, "uncertainty", "mode", "mode", ["relative", "absolute"])
             if title.startswith("Normal"):
-                self._combo(form, "refine", "optimizer", "optimizer", ["fast", "adam_faithful"])
+                self._combo(form, "refine", "optimizer", "optimizer", ["fast", "lbfgs", "adam_faithful"])
                 self._combo(form, "refine", "loss", "loss", ["thesis", "scale_aware"])
             if title == "Mesh":
                 self._check(form, "mesh", "postprocess", "post-process the mesh",
                             "delete spurious faces, complete hidden background, wall depth steps")
             if title == "Night":
+                self._combo(form, "night", "exposure_mode", "exposure", ["auto", "manual"])
+                self._combo(form, "lights", "source", "lights", ["auto", "annotation", "proposed", "none"])
                 self._check(form, "night", "ego_headlights", "ego vehicle headlights")
                 self._check(form, "night", "group_all_together", "groups switch as one")
                 self._check(form, "night", "noise", "camera noise")

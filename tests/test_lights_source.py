@@ -37,6 +37,12 @@ def test_each_source_gives_its_annotation_and_says_so(tmp_path):
     auto = chain.lights(p)
     assert auto.source == "annotation" and auto.annotation is scene.lights
     assert chain.lights(p.with_value("lights", "source", "none")).annotation is None
+    from npsim_core.annotation import LightAnnotation
+
+    chain.set_annotation(LightAnnotation.empty(H, W))  # an editor on an unlabelled frame: still proposed
+    assert chain.lights(p).source == "proposed"
+    assert chain.lights(p.with_value("lights", "source", "annotation")).annotation.instance_ids() == []
+    chain.set_annotation(scene.lights)
     proposed = chain.lights(p.with_value("lights", "source", "proposed"))
     assert proposed.source == "proposed" and "proposed lights" in proposed.note
     if proposed.annotation is not None:

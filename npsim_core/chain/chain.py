@@ -109,6 +109,8 @@ class NightFrame:
     #: ``exposure_mode``, ``exposure_ev`` (the stops applied), the meter's reading and the ego
     #: compositing gain (:meth:`Chain.finish`).
     exposure: dict = field(default_factory=dict)
+    #: The light annotation the night used (:meth:`Chain.lights`; None = no light sources).
+    annotation: Any = None
 
 
 class Chain:
@@ -265,7 +267,7 @@ class Chain:
             info: dict = {}
             srgb, tm = self.finish(frame.image, params, guides, mats, info=info)
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm,
-                             n.denoiser_used, built.n_faces, info)
+                             n.denoiser_used, built.n_faces, info, self.lights(params).annotation)
 
     def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
                     cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
@@ -288,7 +290,7 @@ class Chain:
         srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings,
-                          n.denoiser_used, built.n_faces, info)
+                          n.denoiser_used, built.n_faces, info, self.lights(params).annotation)
 
 
 def _resize_nearest(a: np.ndarray, hw: tuple[int, int]) -> np.ndarray:

@@ -203,7 +203,8 @@ def lights_stage(inputs: dict, params, ctx) -> LightsResult:
             raise NpsimInputError(f"{lp.file}: the light annotation is {ann.shape[1]}x{ann.shape[0]} but the frame "
                                   f"{s.name!r} is {s.width}x{s.height}; give the annotation of this frame")
         return LightsResult(ann, "file", f"{len(ann.instance_ids())} lights from {lp.file}")
-    if ann is not None and lp.source in ("auto", "annotation"):
+    # an empty annotation (an editor opened on an unlabelled frame) counts as none for ``auto``
+    if ann is not None and (lp.source == "annotation" or (lp.source == "auto" and ann.instance_ids())):
         return LightsResult(ann, "annotation", f"{len(ann.instance_ids())} annotated lights")
     if lp.source == "annotation":
         return LightsResult(None, "annotation", "no light annotation: only the ego headlights and the night sky "
