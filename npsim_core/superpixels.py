@@ -192,21 +192,35 @@ def superpixel_means(image: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return np.stack([np.bincount(flat, lab[:, c], minlength=n) / cnt for c in range(3)], axis=1).astype(np.float32)
 
 
+#: CIELab (8-bit units) radius of the background colour in :func:`similar_superpixels`.
+BACKGROUND_RADIUS = 10.0
+
+
 def similar_superpixels(means: np.ndarray, candidates, seed: int, tolerance: float | None = None) -> np.ndarray:
     """The ``candidates`` that look like superpixel ``seed``.
 
     With a ``tolerance`` (8-bit CIELab units): those whose mean colour lies within
-    it of the seed's. Without (``None`` or <= 0, "auto"): the candidates are split
-    into two colour clusters (2-means, started from the seed and the candidate
-    farthest from it) and the seed's cluster is kept -- a drag along a row of
-    windows touches windows and wall, and the split separates them whatever their
-    absolute colours.
+    it of the seed's. Without (``None`` or <= 0, "auto"): a drag along a row of
+    windows touches windows and the wall between them. The wall is the densest
+    colour among the candidates (the most others within ``BACKGROUND_RADIUS``); when
+    the seed is not of it, everything not of it is kept -- windows differ from the
+    wall in different ways (darker, brighter, tinted), so they need not resemble
+    each other; a seed of the densest colour keeps that colour. Without a dense colour
+    (no two candidates within the radius), the candidates are split into two colour
+    clusters (2-means, started from the seed and the candidate farthest from it) and
+    the seed's cluster is kept.
     """
     cand = np.asarray(sorted(set(int(c) for c in candidates) | {int(seed)}), dtype=np.int64)
     X = means[cand].astype(np.float64)
     c0 = means[int(seed)].astype(np.float64)
     if tolerance is not None and tolerance > 0:
         return cand[np.linalg.norm(X - c0, axis=1) <= tolerance]
+    dist = np.linalg.norm(X[:, None] - X[None], axis=2)
+    dense = dist <= BACKGROUND_RADIUS
+    mode = int(np.argmax(dense.sum(1)))
+    background = np.linalg.norm(X - X[dense[mode]].mean(axis=0), axis=1) <= BACKGROUND_RADIUS
+    if background.sum() >= 2:
+        return cand[background] if background[cand == int(seed)].any() else cand[~background]
     c1 = X[np.argmax(np.linalg.norm(X - c0, axis=1))]
     near0 = np.ones(len(cand), bool)
     for _ in range(20):

@@ -321,6 +321,13 @@ def test_similar_superpixels_fixed_and_auto():
     # auto: two colour clusters among what was dragged over, the seed's kept
     np.testing.assert_array_equal(similar_superpixels(means, [0, 1, 2, 3, 4], 0), [0, 2, 4])
     np.testing.assert_array_equal(similar_superpixels(means, [0, 1, 2, 3, 4], 3), [1, 3])
+    # windows that differ from the wall in different ways (darker, brighter, tinted): the wall is the
+    # densest colour, everything else is kept when the drag starts on a window
+    wall = [[88, 131, 130], [86, 132, 131], [90, 131, 129], [85, 132, 130]]
+    windows = [[75, 128, 122], [108, 128, 119], [58, 127, 120]]
+    means = np.array(windows + wall, np.float32)
+    np.testing.assert_array_equal(similar_superpixels(means, range(7), 0), [0, 1, 2])
+    np.testing.assert_array_equal(similar_superpixels(means, range(7), 4), [3, 4, 5, 6])  # started on the wall
 
 
 def test_default_region_size_scales_with_width():

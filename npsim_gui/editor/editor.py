@@ -129,7 +129,7 @@ class AnnotationEditor(QWidget):
         self.tol_spin = QDoubleSpinBox()
         self.tol_spin.setRange(0, 200)
         self.tol_spin.setSpecialValueText("auto")
-        self.tol_spin.setToolTip("colour tolerance (CIELab); auto = split what the drag covered into two colours")
+        self.tol_spin.setToolTip("colour tolerance (CIELab); auto = drop the wall (the densest colour the drag covered), keep the rest")
         self.tol_spin.setValue(self.options.tolerance)
         self.tol_spin.valueChanged.connect(lambda v: setattr(self.options, "tolerance", float(v)))
         self.overwrite_box = QCheckBox("Paint over other lights")

@@ -50,8 +50,8 @@ class ToolOptions:
     split_regions : a superpixel drag makes one new light per connected region
     (e.g. one per window); similar_only : a superpixel drag keeps only the
     superpixels that look like the one where the drag started -- within
-    ``tolerance`` (CIELab, 8-bit units), or with 0 = auto the seed's half of a
-    two-colour split of everything dragged over (skips the wall between windows).
+    ``tolerance`` (CIELab, 8-bit units), or with 0 = auto everything but the wall
+    (the densest colour dragged over; :func:`npsim_core.superpixels.similar_superpixels`).
     Both apply when the mouse is released.
     """
 
