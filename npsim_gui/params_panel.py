@@ -35,7 +35,7 @@ class SliderSpec:
 SPECS: tuple[tuple[str, tuple[SliderSpec, ...]], ...] = (
     ("Cross-bilateral filter", (
         SliderSpec("filter", "mu", "μ (colour)", 0.0, 50.0, tooltip="weight of the colour term vs the semantic term"),
-        SliderSpec("filter", "sigma_s", "σs (px at 2048 wide)", 1.0, 40.0, decimals=1,
+        SliderSpec("filter", "sigma_s", "σs (px@2048)", 1.0, 40.0, decimals=1,
                    tooltip="spatial Gaussian in pixels of a 2048-px-wide image (scaled with the width)"),
         SliderSpec("filter", "sigma_c", "σc (Lab)", 0.5, 50.0, decimals=1, tooltip="colour Gaussian, CIELAB units"),
     )),
