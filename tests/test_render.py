@@ -404,3 +404,20 @@ def test_low_beam_pattern_cuts_off_below_the_horizon_and_rises_on_the_kerb_side(
     assert pat[row_of(-2.0), oncoming, 0] > 0.9 and pat[row_of(0.5), oncoming, 0] == pytest.approx(LOW_BEAM_ABOVE)
     assert pat[row_of(0.5), kerb, 0] > 0.9        # the kerb side's line has risen above 0.5 deg
     assert pat[row_of(-20.0), oncoming, 0] >= 0.25
+
+
+def test_oidn_bounded_memory_gives_the_same_image():
+    """The per-image OIDN filter with a scratch-memory bound (tiles) denoises exactly as the
+    unbounded convenience call."""
+    import pyoidn
+
+    from npsim_core.render.denoise import DenoiseParams, denoise_oidn
+
+    rng = np.random.default_rng(3)
+    x = (rng.random((96, 160, 3)) ** 4).astype(np.float32)
+    ref = np.maximum(pyoidn.denoise(x, hdr=True, quality="fast"), 0)
+    np.testing.assert_array_equal(denoise_oidn(x, params=DenoiseParams(oidn_max_memory_mb=16)), ref)
+    np.testing.assert_array_equal(denoise_oidn(x), ref)
+    assert not np.array_equal(denoise_oidn(x, params=DenoiseParams(oidn_quality="balanced")), ref)
+    with pytest.raises(NpsimInputError, match="oidn_max_memory_mb"):
+        DenoiseParams(oidn_max_memory_mb=1)
