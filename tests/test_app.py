@@ -17,6 +17,7 @@ os.environ.setdefault("XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="npsim-test-con
 
 from npsim_core.synthetic import street_scene  # noqa: E402
 from npsim_core.chain import ChainParams  # noqa: E402
+from npsim_core.synthetic.cityscapes import fixture_image
 
 W, H = 128, 64
 
@@ -249,7 +250,7 @@ def test_opens_a_real_layout_frame_by_image_and_by_dataset_root(qtbot, real_layo
     win.ask = lambda *a: "Discard"
     qtbot.addWidget(win)
     win.params = ChainParams().with_value("refine", "steps", 5).with_value("night", "spp", 2)
-    win.open_scene(root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png")
+    win.open_scene(fixture_image(root, stems[0]))
     qtbot.waitUntil(lambda: win.results is not None and win.results.mesh is not None, timeout=120_000)
     assert win.chain.scene.name == stems[0] and win.results.depth_source.startswith("stereo")
     win.open_dataset(root)

@@ -11,6 +11,7 @@ from npsim_cli.main import main
 from npsim_core.chain import ChainParams, iter_frames, verify_frame
 from npsim_core.chain import batch as batch_mod
 from npsim_core.io import read_image
+from npsim_core.synthetic.cityscapes import fixture_image
 
 W, H = 96, 48
 QUICK = ChainParams().with_value("refine", "steps", 8).with_value("night", "final_spp", 1)
@@ -105,7 +106,7 @@ def test_bad_dataset_folders_get_a_clear_message(tmp_path, capsys):
 
 def test_sweep_contact_sheet_table_and_report(dataset, tmp_path, capsys):
     root, stems = dataset
-    img = root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png"
+    img = fixture_image(root, stems[0])
     out = tmp_path / "sweep"
     assert main(["sweep", str(img), "--lambda2", "0.1,5", "--lambda3", "1,10", "-o", str(out), "--workers", "1",
                  "--set", "refine.steps=8"]) == 0

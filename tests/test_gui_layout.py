@@ -8,6 +8,7 @@ import pytest
 
 from npsim_core.chain import ChainParams
 from npsim_core.synthetic import street_scene
+from npsim_core.synthetic.cityscapes import fixture_image
 
 W, H = 128, 64
 
@@ -175,7 +176,7 @@ def test_a_large_real_layout_frame_opens_with_its_proxy(qtbot, settings, citysca
     answers from the proxy chain."""
     root, stems = cityscapes_layout(frames=1, size=(768, 384), corrupt=0)
     win = _window(qtbot)
-    win.open_scene(root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png")
+    win.open_scene(fixture_image(root, stems[0]))
     assert getattr(win, "last_error", None) is None
     assert win.chain.scene.width == 768 and win.proxy_chain.scene.width == win.PROXY_WIDTH
     assert win.editor.canvas.base.array.shape[:2] == (384, 768)

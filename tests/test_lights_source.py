@@ -15,6 +15,7 @@ from npsim_core.annotation import annotation_paths, annotation_stem, save_annota
 from npsim_core.chain import Chain, ChainParams, iter_frames, load_frame
 from npsim_core.errors import NpsimInputError
 from npsim_core.synthetic import street_scene
+from npsim_core.synthetic.cityscapes import fixture_image
 
 W, H = 128, 64
 FAST = ["--set", "refine.steps=5", "--spp", "1"]
@@ -24,9 +25,6 @@ FAST = ["--set", "refine.steps=5", "--spp", "1"]
 def dataset(cityscapes_layout):
     return cityscapes_layout(frames=2, size=(W, H), corrupt=0)
 
-
-def _image(root, stem):
-    return root / "leftImg8bit" / "val" / "synthcity" / f"{stem}_leftImg8bit.png"
 
 
 def test_each_source_gives_its_annotation_and_says_so(tmp_path):
@@ -89,7 +87,7 @@ def test_bad_light_files_are_named():
 
 def test_dataset_frames_use_the_annotation_saved_beside_their_image(dataset):
     root, stems = dataset
-    image = _image(root, stems[0])
+    image = fixture_image(root, stems[0])
     assert annotation_stem(image) == stems[0]
     assert load_frame(image).lights is None
     lights = street_scene(W, H).lights
@@ -106,7 +104,7 @@ def test_dataset_frames_use_the_annotation_saved_beside_their_image(dataset):
 
 def test_cli_lights_option(dataset, tmp_path, capsys):
     root, stems = dataset
-    image = str(_image(root, stems[0]))
+    image = str(fixture_image(root, stems[0]))
     out = tmp_path / "none"
     assert main(["run", image, "-o", str(out), "--lights", "none", *FAST]) == 0
     assert "lights: no light sources" in capsys.readouterr().err

@@ -637,3 +637,19 @@ def test_edge_on_faces_from_pixels_match_the_projection():
     for p in r.mesh.parts:
         np.testing.assert_array_equal(p.edge_on_faces(), edge_on_faces(p, intr))
     assert sum(int(p.edge_on_faces().sum()) for p in r.mesh.parts) == r.counts["wall_faces"]
+
+
+def test_limit_far_pulls_vertices_along_their_rays():
+    from npsim_core.mesh.types import limit_far
+
+    intr = Intrinsics.from_fov(8, 6, 60.0)
+    d = np.full((6, 8), 100.0, np.float32)
+    d[:, 4:] = 310.0  # beyond a 300 m limit, as a reduced cell may overshoot
+    mesh = grid_mesh(d, intr, np.full((6, 8), 11, np.uint8))
+    out = limit_far(mesh, 300.0)
+    v0, v1 = mesh.parts[0].vertices, out.parts[0].vertices
+    assert v1[:, 2].max() <= 300.0 + 1e-3 and v1[:, 2].min() == v0[:, 2].min()
+    keep = v0[:, 2] <= 300
+    np.testing.assert_array_equal(v1[keep], v0[keep])
+    np.testing.assert_allclose(v1[:, :2] / v1[:, 2:], v0[:, :2] / v0[:, 2:], rtol=1e-5)  # same pixels
+    assert limit_far(mesh, None) is mesh and limit_far(mesh, 400.0) is mesh

@@ -13,7 +13,7 @@ from npsim_core.chain import Chain, ChainParams, iter_frames, verify_frame
 from npsim_core.errors import NpsimInputError
 from npsim_core.scoring import reference_of, score_depth
 from npsim_core.synthetic import street_scene
-from npsim_core.synthetic.cityscapes import fixture_seed
+from npsim_core.synthetic.cityscapes import fixture_image, fixture_seed
 
 W, H = 128, 64
 FAST = ["--set", "refine.steps=10", "--spp", "1"]
@@ -23,9 +23,6 @@ FAST = ["--set", "refine.steps=10", "--spp", "1"]
 def dataset(cityscapes_layout):
     return cityscapes_layout(frames=3, size=(W, H), corrupt=1)
 
-
-def _image(root, stem):
-    return root / "leftImg8bit" / "val" / "synthcity" / f"{stem}_leftImg8bit.png"
 
 
 def test_auto_takes_the_stereo_and_fills_its_holes(dataset):
@@ -73,7 +70,7 @@ def test_scoring_uses_whatever_reference_a_frame_has(dataset):
 def test_run_on_a_real_layout_frame(dataset, tmp_path, capsys):
     root, stems = dataset
     out = tmp_path / "out"
-    assert main(["run", str(_image(root, stems[0])), "-o", str(out), "--nights", "1"] + FAST) == 0
+    assert main(["run", str(fixture_image(root, stems[0])), "-o", str(out), "--nights", "1"] + FAST) == 0
     err = capsys.readouterr().err
     assert "Traceback" not in err and "depth from stereo" in err and "vs stereo" in err
     man = json.loads((out / f"{stems[0]}_export.json").read_text())

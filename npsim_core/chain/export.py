@@ -71,7 +71,7 @@ def frame_errors(chain: Chain, res: ChainResults, stereo_max_m: float | None = N
             "refined": score_depth(res.depth, res.intrinsics, labels, ref)}
 
 
-def written_mesh(res: ChainResults, tolerance: float):
+def written_mesh(res: ChainResults, tolerance: float, far_limit: float | None = None):
     """The mesh an export writes by default: the quadtree reduction of the post-processed sheets
     whose merged cells stay within ``tolerance`` (relative) of the full mesh's depth; the chain's
     mesh itself when it was already reduced to a face budget or has no sheets (no
@@ -80,8 +80,10 @@ def written_mesh(res: ChainResults, tolerance: float):
 
     if res.layers is None or res.mesh_result.reduced:
         return res.mesh, "the chain's mesh"
+    from ..mesh.types import limit_far
+
     red = reduce_mesh(res.layers, res.intrinsics, ReduceParams(tol=float(tolerance)))
-    return red.mesh, f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
+    return limit_far(red.mesh, far_limit), f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
 
 
 def check_mesh_formats(formats) -> None:
@@ -246,7 +248,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
 
         meshes = []
         if ex.mesh in ("reduced", "both"):
-            small, how = written_mesh(res, ex.mesh_tolerance)
+            small, how = written_mesh(res, ex.mesh_tolerance, params.mesh.far_limit)
             meshes.append((f"{n}_mesh", small))
             mesh_info["written"] = {"faces": int(small.n_faces), "what": how}
         if ex.mesh in ("full", "both"):

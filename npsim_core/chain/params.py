@@ -75,7 +75,8 @@ class MeshParams:
     """Meshing.
 
     stride : vertex spacing in pixels (> 1 meshes a subsampled grid, for previews).
-    far_limit : metres; no vertex deeper.
+    far_limit : metres; no vertex deeper (a reduced mesh's vertices beyond it are pulled onto it
+        along their camera rays, :func:`npsim_core.mesh.types.limit_far`).
     postprocess : the post-processing kernel (deletion, completion, step walls) on/off;
         off gives the plain Worldsheet grid.
     face_budget : 0 keeps every face; else the quadtree-reduced mesh of about that many faces

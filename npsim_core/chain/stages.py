@@ -256,9 +256,10 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
                          dict(res.counts))
         if mp.face_budget and res.mesh.n_faces > mp.face_budget:
             from ..mesh.reduce import ReduceParams, reduce_mesh
+            from ..mesh.types import limit_far
 
             red = reduce_mesh(res.layers, intr, ReduceParams(budget=int(mp.face_budget)))
-            out.mesh, out.reduced = red.mesh, red.steps
+            out.mesh, out.reduced = limit_far(red.mesh, mp.far_limit), red.steps
         return out
     mesh = grid_mesh(depth, intr, s.labels, light_ids, stride=int(mp.stride), far_limit=mp.far_limit,
                      exclude=no_mesh_labels(None))
@@ -306,7 +307,7 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
     return MaterialsResult(mats, light_cls)
 
 
-def render_mesh(m: MeshResult, tolerance: float) -> tuple[SceneMesh, str]:
+def render_mesh(m: MeshResult, tolerance: float, far_limit: float | None = None) -> tuple[SceneMesh, str]:
     """The mesh the nights are rendered from: the quadtree reduction of the post-processed sheets
     within ``tolerance`` (relative depth, ``mesh.render_tolerance``) of the full mesh; the mesh
     itself when ``tolerance`` is 0, it was reduced to a face budget already or has no sheets.
@@ -315,8 +316,10 @@ def render_mesh(m: MeshResult, tolerance: float) -> tuple[SceneMesh, str]:
         return m.mesh, "the chain's mesh" + (f" (face budget, {m.reduced})" if m.reduced else "")
     from ..mesh.reduce import ReduceParams, reduce_mesh
 
+    from ..mesh.types import limit_far
+
     red = reduce_mesh(m.layers, m.intrinsics, ReduceParams(tol=float(tolerance)))
-    return red.mesh, f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
+    return limit_far(red.mesh, far_limit), f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
 
 
 def night_scene_stage(inputs: dict, params, ctx):
@@ -325,7 +328,7 @@ def night_scene_stage(inputs: dict, params, ctx):
     (:func:`render_mesh`)."""
     from ..render.scene_builder import BuildParams, build_scene
 
-    light_table_path, variant, tolerance = params
+    light_table_path, variant, tolerance, far_limit = params
     m: MeshResult = inputs["mesh"]
     s = inputs["geometry"].scene
     if m.mesh.width != s.width or m.mesh.height != s.height:
@@ -339,7 +342,7 @@ def night_scene_stage(inputs: dict, params, ctx):
     table = light_table(NightParams(light_table=light_table_path))
     bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch)
     t0 = time.perf_counter()
-    mesh, what = render_mesh(m, tolerance)
+    mesh, what = render_mesh(m, tolerance, far_limit)
     t_reduce = time.perf_counter() - t0
     ctx.cancel()
     built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs["lights"].annotation, None,
@@ -385,7 +388,8 @@ STAGES: tuple[Stage, ...] = (
           lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=3),
     Stage("materials", materials_stage, ("frame", "lights"), version=2),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
-          lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance)), version=2),
+          lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance), float(p.mesh.far_limit)),
+          version=3),
     Stage("guides", guides_stage, ("frame", "mesh", "materials", "night_scene"), lambda p: p.night.denoiser_used,
           needs=guides_needs, version=2),
 )

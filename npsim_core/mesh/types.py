@@ -8,7 +8,7 @@ face looks at the camera, matching the normal convention of docs/method.md §1.3
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -112,3 +112,19 @@ class SceneMesh:
             if p.name == name:
                 return p
         raise KeyError(name)
+
+
+def limit_far(mesh: SceneMesh, far_limit: float | None) -> SceneMesh:
+    """``mesh`` with every vertex deeper than ``far_limit`` (metres, z) pulled along its camera ray
+    onto the limit (its pixel does not move). A reduced mesh's merged cells may overshoot the
+    limit by their tolerance where the depth reaches it; the far limit promises no deeper vertex."""
+    if far_limit is None or not any(p.n_vertices and float(p.vertices[:, 2].max()) > far_limit for p in mesh.parts):
+        return mesh
+    parts = []
+    for p in mesh.parts:
+        z = p.vertices[:, 2]
+        if p.n_vertices and float(z.max()) > far_limit:
+            scale = np.minimum(1.0, far_limit / np.maximum(z, 1e-12)).astype(np.float32)
+            p = replace(p, vertices=(p.vertices * scale[:, None]).astype(np.float32))
+        parts.append(p)
+    return replace(mesh, parts=parts)

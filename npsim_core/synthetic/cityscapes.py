@@ -59,6 +59,11 @@ def fixture_stem(city: str, index: int) -> str:
     return f"{city}_{int(index):06d}_000019"
 
 
+def fixture_image(root: str | os.PathLike, stem: str, split: str = "val", city: str = "synthcity") -> Path:
+    """The day image of frame ``stem`` in a fixture written by :func:`write_cityscapes_fixture`."""
+    return Path(root) / "leftImg8bit" / split / city / f"{stem}_leftImg8bit.png"
+
+
 # --------------------------------------------------------------------------- camera
 def native_intrinsics(intr: Intrinsics) -> Intrinsics:
     """The 2048x1024 intrinsics whose ``resized(W, H)`` gives ``intr`` back exactly (bit for bit).
@@ -428,7 +433,7 @@ def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: 
                                             hole_fraction=hole_fraction, glass=glass)
         inst_ids = instance_ids(labels, gt.prim, layout.prims)
 
-        img_path = root / "leftImg8bit" / split / city / f"{stem}_leftImg8bit.png"
+        img_path = fixture_image(root, stem, split, city)
         gt_dir = root / "gtFine" / split / city
         if i >= frames - corrupt:
             ok, buf = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
