@@ -133,7 +133,7 @@ class _Geometry:
 
     vertices: np.ndarray  # (V, 3) float32, world (y already scaled)
     uv: np.ndarray        # (V, 2) float32, Mitsuba convention (v = 0 top)
-    faces: np.ndarray     # (F, 3) int64
+    faces: np.ndarray     # (F, 3) int32 (half the memory of int64 at millions of faces)
     face_label: np.ndarray
     face_light: np.ndarray
 
@@ -199,7 +199,7 @@ def _gather(mesh: SceneMesh, y_scale: float, labels: np.ndarray | None = None,
         uv = np.asarray(puv, dtype=np.float32).copy()
         uv[:, 1] = 1.0 - uv[:, 1]
         uvs.append(uv)
-        fs.append(np.asarray(p.faces, dtype=np.int64) + off)
+        fs.append(np.asarray(p.faces, dtype=np.int32) + np.int32(off))
         fl.append(MeshPart.face_label(dataclasses.replace(p, label=plab)))
         fli.append(_face_light_majority(plid, p.faces))
         off += p.n_vertices
@@ -220,17 +220,29 @@ def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "obj
         # O(V + F) compaction (no sort): keep used vertices, renumber by running count.
         mask = np.zeros(len(geo.vertices), dtype=bool)
         mask[faces.ravel()] = True
-        remap = np.cumsum(mask, dtype=np.int64) - 1
+        remap = np.cumsum(mask, dtype=np.int32) - 1
         used, local = np.flatnonzero(mask), remap[faces]
+        del remap, mask
     m = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), has_vertex_normals=False,
                 has_vertex_texcoords=True, props=props)
     p = mi.traverse(m)
     FT, UT = type(p["vertex_positions"]), type(p["faces"])
     p["vertex_positions"] = FT(np.ascontiguousarray(geo.vertices[used]).ravel())
-    p["faces"] = UT(np.asarray(local, dtype=np.uint32).ravel())
+    p["faces"] = UT(local.astype(np.uint32, copy=False).ravel())
     p["vertex_texcoords"] = FT(np.ascontiguousarray(geo.uv[used]).ravel())
     p.update()
     return m
+
+
+def _mesh_area(geo: _Geometry, chunk: int = 1 << 20) -> float:
+    """Total face area (m²), in chunks of faces: all at once the float64 temporaries of a
+    4.7 M-face mesh took ~0.7 GB (docs/relight.md)."""
+    total = 0.0
+    for k in range(0, len(geo.faces), chunk):
+        f = geo.faces[k:k + chunk]
+        a, b, c = (geo.vertices[f[:, i]].astype(np.float64) for i in range(3))
+        total += float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    return total
 
 
 def _face_areas_centroid(geo: _Geometry, sel: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -556,9 +568,8 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
                   "sensor": camera_dict(intrinsics)}
     if params.sky:
         # Sky power ~ pi * L_sky * (area it lights): weigh it against the lamps with the mesh's area.
-        f = geo.faces
-        v = geo.vertices.astype(np.float64)
-        mesh_area = float(0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum())
+        mesh_area = _mesh_area(geo)
+        v = geo.vertices
         scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)},
                              "sampling_weight": max(math.pi * _lum(table.sky_radiance) * mesh_area
                                                     / (float(np.median(np.linalg.norm(v, axis=1))) ** 2 + NEAR_D0_M2),
