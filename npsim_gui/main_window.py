@@ -404,8 +404,8 @@ class MainWindow(QMainWindow):
             if with_3d and res.mesh is not None:
                 fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error()))
                           if v is not None}
-                display = build_display(chain.display_mesh(res), chain.scene.image, removed=res.removed, fields=fields,
-                                        fy=res.intrinsics.fy)
+                display = build_display(chain.display_mesh(res, params=params), chain.scene.image,
+                                        removed=res.removed, fields=fields, fy=res.intrinsics.fy)
             return res, t0, display, view_image(chain.scene, res, mode), mode
         self.pipeline_jobs.submit(job)
 

@@ -219,3 +219,24 @@ def test_empty_mesh_is_a_clear_error_before_any_file(tmp_path):
     with pytest.raises(NpsimInputError, match="no valid depth"):
         export_frame(Chain(sky), ChainParams().with_value("refine", "steps", 2), tmp_path / "out")
     assert not any((tmp_path / "out").iterdir())
+
+
+def test_display_mesh_falls_back_to_a_coarser_kernel_when_the_reduction_cannot_reach_the_budget():
+    from npsim_core.mesh.quality import project
+    from npsim_core.mesh.reduce import ReduceParams, reduce_mesh
+    from npsim_core.synthetic import street_scene
+
+    scene = street_scene(256, 128)
+    chain = Chain(scene)
+    p = ChainParams().with_value("refine", "steps", 5)
+    r = chain.compute(p)
+    floor = reduce_mesh(r.layers, r.intrinsics, ReduceParams(budget=8000)).mesh.n_faces
+    assert floor > 1.5 * 8000  # step and silhouette quads stay at pixel resolution
+    shown = chain.display_mesh(r, max_faces=8000, params=p)
+    assert shown.n_faces < floor and shown.info["display_scale"] == 0.5
+    assert (shown.width, shown.height) == (256, 128)
+    # vertices sit on their full-resolution pixels (within the coarse grid's pixel)
+    v = np.concatenate([q.vertices for q in shown.parts])
+    pix = np.concatenate([q.pixel for q in shown.parts])
+    assert np.abs(project(v, r.intrinsics) - pix).max() < 2.0
+    assert chain.display_mesh(r, max_faces=30000, params=p).info.get("display_scale") is None
