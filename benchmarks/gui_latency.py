@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise TimeoutError("timed out")
         return time.perf_counter() - t0
 
-    rows, slider_rows, brush_rows = [], [], []
+    rows, slider_rows, brush_rows, stall_rows = [], [], [], []
     for size in [s for s in args.sizes.split(",") if s]:
         w, h = parse_size(size)
         root = base / f"cityscapes_{w}x{h}"
@@ -92,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         image = root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png"
 
         gaps: list[float] = []
+        phase = ["start"]
+        where: list[str] = []  # the benchmark phase each heartbeat ended in (to name the stalls)
         clock = QElapsedTimer()
         clock.start()
         last = [clock.elapsed()]
@@ -99,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         def beat() -> None:
             now = clock.elapsed()
             gaps.append(now - last[0] - 10)  # lateness beyond the 10 ms interval
+            where.append(phase[0] + ("" if win is None else f" ({win.busy_label.text()[:40]})"
+                                     if hasattr(win, "busy_label") else ""))
             last[0] = now
         win = MainWindow()
         win.ask = lambda *a: "Discard"
@@ -110,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         hb.timeout.connect(beat)
         hb.start()
         # ---- open the frame
+        phase[0] = "open (synchronous load)"
         rss0 = _rss_kib("VmRSS")
         _reset_peak_rss()
         t0 = time.perf_counter()
@@ -117,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         wait(lambda: win.editor.canvas.base.array.shape[:2] == (h, w))
         app.processEvents()  # the canvas paints
         t_canvas = time.perf_counter() - t0
+        phase[0] = "after open: chain, 3D view, night"
         wait(lambda: win.results is not None and win.results_final and not win.pipeline_jobs.is_busy)
         t_pipe = time.perf_counter() - t0
         wait(lambda: win.render_panel.night is not None and not win.render_jobs.is_busy)
@@ -124,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         peak = _rss_kib("VmHWM")
         rows.append((f"{w}x{h}", t_canvas, t_pipe, t_night, rss0 / 2**20, peak / 2**20))
         # ---- sliders: quick views
+        phase[0] = "sliders"
         for v in (3.0, 7.0, 4.0, 6.0, 8.0)[: args.repeats]:
             live: list[float] = []
 
@@ -143,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
         wait(lambda: win.results_final and not win.pipeline_jobs.is_busy)
         t_settle = time.perf_counter() - t0
         # ---- a brush stroke on the canvas
+        phase[0] = "brush stroke (driven synchronously)"
         ed = win.editor
         ed.set_tool(Tool.BRUSH)
         ed.session.set_current_class(8)
@@ -165,6 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         wait(lambda: not win.jobs_busy)
         hb.stop()
         g = np.array(gaps[1:]) if len(gaps) > 1 else np.zeros(1)
+        for i in np.argsort(g)[::-1][:3]:
+            if g[i] > 100:
+                stall_rows.append((f"{w}x{h}", float(g[i]), where[i + 1]))
         rows[-1] = rows[-1] + (t_settle, float(g.max()), float(np.percentile(g, 99)), int((g > 100).sum()), len(g))
         win.editor.session.discard_recovery()
         win.confirm_close = lambda: True
@@ -191,6 +202,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|")
     for r in brush_rows:
         print(f"| {r[0]} | {r[1] * 1000:.1f} | {r[2] * 1000:.1f} | {r[3]} |")
+    if stall_rows:
+        print("\n| frame | stall (ms) | during (benchmark phase, the app's busy label) |")
+        print("|---|---|---|")
+        for r in stall_rows:
+            print(f"| {r[0]} | {r[1]:.0f} | {r[2]} |")
     return 0
 
 
