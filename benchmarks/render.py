@@ -399,7 +399,7 @@ def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: 
                   tolerance: float = 0.01) -> tuple[list[dict], dict]:
     """The frontier at one size on the synthetic street (see :func:`frontier`); returns rows and facts."""
     from npsim_core.chain import Chain, ChainParams
-    from npsim_core.chain.stages import light_table, render_mesh
+    from npsim_core.chain.stages import light_table, lit_mesh
     from npsim_core.render.denoise import denoise_guides, denoise_night
     from npsim_core.render.render import render_guides, render_linear
     from npsim_core.render.scene_builder import BuildParams, build_scene
@@ -414,13 +414,13 @@ def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: 
     table = light_table(params.night)
     active = chain.activate(params)
     bp = BuildParams(camera_height=s.camera_height, camera_pitch=s.camera_pitch)
-    (reduced, what), t_red, _ = _timed(lambda: render_mesh(res.mesh_result, tolerance))
+    (reduced, what), t_red, _ = _timed(lambda: lit_mesh(res.mesh_result, chain.annotation, tolerance))
     facts = {"size": f"{W}x{H}", "mesh_s": t_chain, "reduce_s": t_red, "faces": {}, "build_s": {}, "guides_s": {},
              "load_start": os.getloadavg()[0]}
     log(f"{W}x{H}: chain {t_chain:.1f} s, full mesh {res.mesh.n_faces} faces, reduced {reduced.n_faces} "
         f"({what}, {t_red:.1f} s)")
     built, aov = {}, {}
-    for name, mesh in (("full", res.mesh), ("reduced", reduced)):
+    for name, mesh in (("full", lit_mesh(res.mesh_result, chain.annotation)[0]), ("reduced", reduced)):
         b, t, _ = _timed(lambda: build_scene(mesh, res.intrinsics, mats.materials, table, chain.annotation, active,
                                              bp))
         for d in depths:  # compile the kernels before timing

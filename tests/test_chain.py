@@ -7,6 +7,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
+from npsim_core.annotation import LightAnnotation
+
 from npsim_core.camera import Intrinsics
 from npsim_core.chain import Chain, ChainParams, export_frame
 from npsim_core.chain.engine import Engine, Stage, content_key
@@ -128,8 +130,11 @@ def test_chain_caching_follows_the_parameters():
     assert chain.compute(p.with_value("filter", "sigma_s", 4.0), until="refine").recomputed == [
         "filter", "uncertain", "refine"]
     m = chain.compute(p)
-    # no hand annotation: the lights are proposed (lights.source auto), then meshed
-    assert m.recomputed == ["lights", "mesh"] and m.mesh.n_faces > 0 and m.lights.source == "proposed"
+    # no hand annotation: the lights are proposed (lights.source auto); the mesh's geometry does
+    # not read them, so an annotation edit never rebuilds it
+    assert m.recomputed == ["mesh", "lights"] and m.mesh.n_faces > 0 and m.lights.source == "proposed"
+    chain.set_annotation(LightAnnotation.empty(24, 40))
+    assert chain.compute(p).recomputed == ["lights"]
     assert chain.compute(p.with_value("night", "seed", 3)).recomputed == []  # nights do not touch the mesh
     # a mesh of the input depth reads neither the refinement nor its parameters
     grid = p.with_value("mesh", "depth", "input").with_value("mesh", "postprocess", False)
@@ -230,9 +235,12 @@ def test_display_mesh_falls_back_to_a_coarser_kernel_when_the_reduction_cannot_r
     chain = Chain(scene)
     p = ChainParams().with_value("refine", "steps", 5)
     r = chain.compute(p)
-    floor = reduce_mesh(r.layers, r.intrinsics, ReduceParams(budget=8000)).mesh.n_faces
-    assert floor > 1.5 * 8000  # step and silhouette quads stay at pixel resolution
+    # the display keeps the light borders (the viewer shows the emitters)
+    floor = reduce_mesh(r.layers.with_lights(scene.lights.instance_map), r.intrinsics,
+                        ReduceParams(budget=8000)).mesh.n_faces
+    assert floor > 1.5 * 8000  # step, silhouette and light-border quads stay at pixel resolution
     shown = chain.display_mesh(r, max_faces=8000, params=p)
+    assert any((q.face_light_id() > 0).any() for q in shown.parts)
     assert shown.n_faces < floor and shown.info["display_scale"] == 0.5
     assert (shown.width, shown.height) == (256, 128)
     # vertices sit on their full-resolution pixels (within the coarse grid's pixel)

@@ -203,7 +203,7 @@ def test_every_stage_reports_its_progress(scene_dir, tmp_path, capsys):
     events = []
     Chain(street_scene(64, 32)).compute(QUICK, progress=events.append)
     started = [e["stage"] for e in events if set(e) == {"stage"}]
-    assert started == ["geometry", "filter", "uncertain", "refine", "lights", "mesh"]
+    assert started == ["geometry", "filter", "uncertain", "refine", "mesh", "lights"]
     assert any("step" in e for e in events)
 
 

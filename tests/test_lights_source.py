@@ -13,6 +13,7 @@ import pytest
 from npsim_cli.main import main
 from npsim_core.annotation import annotation_paths, annotation_stem, save_annotation, save_coco
 from npsim_core.chain import Chain, ChainParams, iter_frames, load_frame
+from npsim_core.chain.stages import lit_mesh
 from npsim_core.errors import NpsimInputError
 from npsim_core.synthetic import street_scene
 from npsim_core.synthetic.cityscapes import fixture_image
@@ -60,9 +61,12 @@ def test_lights_feed_the_mesh_and_the_nights():
     p = ChainParams().with_value("refine", "steps", 5)
     lit = chain.compute(p)
     dark = chain.compute(p.with_value("lights", "source", "none"))
-    assert dark.recomputed == ["lights", "mesh"]  # the depth stages are reused
-    assert any(part.light_id.any() for part in lit.mesh.parts if part.n_faces)
-    assert not any(part.light_id.any() for part in dark.mesh.parts if part.n_faces)
+    assert dark.recomputed == ["lights"] and dark.mesh is lit.mesh  # the lights do not change the geometry
+    assert any(part.light_id.any() for part in lit_mesh(lit.mesh_result, lit.lights.annotation)[0].parts)
+    assert not any(part.light_id.any() for part in lit_mesh(dark.mesh_result, dark.lights.annotation)[0].parts)
+    built = chain.night_inputs(p)[0]
+    assert 0 < built.info["lights"] <= len(scene.lights.instance_ids())  # a light under a pixel may get no face
+    assert chain.night_inputs(p.with_value("lights", "source", "none"))[0].info["lights"] == 0
     assert chain.activate(p.with_value("lights", "source", "none")).lights == {}
     assert chain.activate(p).lights  # the annotated lights get states
 

@@ -2,9 +2,9 @@
 per-night steps. The app, every command, the batch and the sweep go through it.
 
 A change of one parameter reruns its stage and what reads it: λ reruns refine → mesh,
-σs reruns filter and everything after it, an annotation edit reruns the lights, the mesh
-(light ids per vertex), materials and the night scene, and a new seed only re-activates lights in
-the already built night scene.
+σs reruns filter and everything after it, an annotation edit reruns the lights, the materials
+and the night scene -- never the mesh, whose geometry does not depend on the lights -- and a
+new seed only re-activates lights in the already built night scene.
 """
 
 from __future__ import annotations
@@ -160,6 +160,8 @@ class Chain:
             needs = set(mesh_needs(params))
             targets = {"geometry", "mesh"} | (needs & set(DEPTH_STAGES)) | ({"filter"} if "uncertain" in needs else set())
         targets = tuple(st for st in DEPTH_STAGES if st in targets)
+        if until == "mesh":  # the lights the mesh is shown, written and rendered with (not its geometry)
+            targets += ("lights",)
         with self._lock:
             run = self.engine.run(targets, params, cancel=cancel, progress=_progress_adapter(progress))
         out = run.results
@@ -180,28 +182,34 @@ class Chain:
         gives its post-processing parameters) -- a software-rendered view redraws every face per
         frame, ~0.1 s for 250 k faces."""
         mesh = results.mesh
-        if mesh is None or mesh.n_faces <= max_faces:
+        if mesh is None:
             return mesh
-        key = (results.mesh_key, int(max_faces))
-        if self._display.get("key") != key:
-            if results.layers is not None:
-                from ..mesh.reduce import ReduceParams, reduce_mesh
+        ann = self.lights(params).annotation if params is not None else self.annotation
+        ids = ann.instance_map if ann is not None else None
+        key = (results.mesh_key, int(max_faces), id(ann))
+        if self._display.get("key") == key:
+            return self._display["mesh"]
+        if mesh.n_faces <= max_faces:
+            from .stages import lit_mesh
 
-                shown = reduce_mesh(results.layers, results.intrinsics, ReduceParams(budget=int(max_faces))).mesh
-                if shown.n_faces > 1.5 * max_faces:
-                    shown = self._coarse_display(results, max_faces, shown.n_faces, params)
-            else:
-                from ..mesh.grid import grid_mesh
+            shown = lit_mesh(results.mesh_result, ann)[0]
+        elif results.layers is not None:
+            from ..mesh.reduce import ReduceParams, reduce_mesh
 
-                stride = int(np.ceil(np.sqrt(mesh.n_faces / max_faces)))
-                ann = results.lights.annotation if results.lights is not None else self.annotation
-                shown = grid_mesh(results.mesh_result.depth, results.intrinsics, self.scene.labels,
-                                  ann.instance_map if ann is not None else None, stride=stride)
-            self._display = {"key": key, "mesh": shown}
-        return self._display["mesh"]
+            shown = reduce_mesh(results.layers.with_lights(ids), results.intrinsics,
+                                ReduceParams(budget=int(max_faces))).mesh
+            if shown.n_faces > 1.5 * max_faces:
+                shown = self._coarse_display(results, max_faces, shown.n_faces, params, ids)
+        else:
+            from ..mesh.grid import grid_mesh
+
+            stride = int(np.ceil(np.sqrt(mesh.n_faces / max_faces)))
+            shown = grid_mesh(results.mesh_result.depth, results.intrinsics, self.scene.labels, ids, stride=stride)
+        self._display = {"key": key, "mesh": shown, "annotation": ann}  # ann kept: its id stays unique
+        return shown
 
     def _coarse_display(self, results: ChainResults, max_faces: int, floor: int,
-                        params: ChainParams | None) -> SceneMesh:
+                        params: ChainParams | None, light_ids: np.ndarray | None) -> SceneMesh:
         """The post-processing kernel on the meshed depth (labels, U, light ids) resampled by an
         integer factor, reduced to ``max_faces``; vertex pixels in full-resolution coordinates."""
         import cv2
@@ -217,18 +225,18 @@ class Chain:
         def near(a):
             return cv2.resize(a, (w, h), interpolation=cv2.INTER_NEAREST)
 
-        ann = results.lights.annotation if results.lights is not None else None
         uncertain = results.uncertain if results.uncertain is not None else np.zeros((H, W), bool)
         pp = params.postprocess if params is not None else PostprocessParams()
         far = params.mesh.far_limit if params is not None else None
         intr = results.intrinsics.resized(w, h)
         res = postprocess_mesh(near(results.mesh_result.depth), intr, near(self.scene.labels),
                                near(uncertain.astype(np.uint8)) > 0,
-                               near(ann.instance_map) if ann is not None else None, params=replace(pp, far_limit=far))
+                               near(light_ids) if light_ids is not None else None, params=replace(pp, far_limit=far))
         small = reduce_mesh(res.layers, intr, ReduceParams(budget=int(max_faces))).mesh
         sx, sy = W / w, H / h  # pixel centres: (u + 0.5) * s - 0.5
-        parts = [replace(p, pixel=np.stack([(p.pixel[:, 0] + 0.5) * sx - 0.5, (p.pixel[:, 1] + 0.5) * sy - 0.5],
-                                           axis=1).astype(np.float32)) for p in small.parts]
+        parts = [replace(p, source=None,  # its pixels are the coarse grid's
+                         pixel=np.stack([(p.pixel[:, 0] + 0.5) * sx - 0.5, (p.pixel[:, 1] + 0.5) * sy - 0.5],
+                                        axis=1).astype(np.float32)) for p in small.parts]
         return limit_far(replace(small, parts=parts, width=W, height=H,
                                  info={**small.info, "display_scale": 1.0 / k}), far)
 

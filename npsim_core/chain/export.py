@@ -71,21 +71,6 @@ def frame_errors(chain: Chain, res: ChainResults, stereo_max_m: float | None = N
             "refined": score_depth(res.depth, res.intrinsics, labels, ref)}
 
 
-def written_mesh(res: ChainResults, tolerance: float, far_limit: float | None = None):
-    """The mesh an export writes by default: the quadtree reduction of the post-processed sheets
-    whose merged cells stay within ``tolerance`` (relative) of the full mesh's depth; the chain's
-    mesh itself when it was already reduced to a face budget or has no sheets (no
-    post-processing). Returns (mesh, what it is)."""
-    from ..mesh.reduce import ReduceParams, reduce_mesh
-
-    if res.layers is None or res.mesh_result.reduced:
-        return res.mesh, "the chain's mesh"
-    from ..mesh.types import limit_far
-
-    red = reduce_mesh(res.layers, res.intrinsics, ReduceParams(tol=float(tolerance)))
-    return limit_far(red.mesh, far_limit), f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
-
-
 def check_mesh_formats(formats) -> None:
     """Raise :class:`NpsimInputError` unless ``formats`` is a non-empty subset of ply, obj, glb."""
     from ..mesh.export import FORMATS
@@ -245,14 +230,16 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                  "reduced_by_budget": res.mesh_result.reduced}
     if "mesh" in kinds and ex.mesh != "none":
         from ..mesh.export import export_mesh
+        from .stages import lit_mesh
 
         meshes = []
+        ann = chain.lights(params).annotation
         if ex.mesh in ("reduced", "both"):
-            small, how = written_mesh(res, ex.mesh_tolerance, params.mesh.far_limit)
+            small, how = lit_mesh(res.mesh_result, ann, ex.mesh_tolerance, params.mesh.far_limit)
             meshes.append((f"{n}_mesh", small))
             mesh_info["written"] = {"faces": int(small.n_faces), "what": how}
         if ex.mesh in ("full", "both"):
-            meshes.append((f"{n}_mesh" if ex.mesh == "full" else f"{n}_mesh_full", res.mesh))
+            meshes.append((f"{n}_mesh" if ex.mesh == "full" else f"{n}_mesh_full", lit_mesh(res.mesh_result, ann)[0]))
             if ex.mesh == "full":
                 mesh_info["written"] = {"faces": int(res.mesh.n_faces), "what": "the chain's mesh"}
         for stem, m in meshes:

@@ -31,7 +31,7 @@ from .params import ChainParams
 
 __all__ = ["GeometryResult", "LightsResult", "lights_stage", "lights_needs", "MeshResult", "MaterialsResult", "STAGES", "geometry_stage", "filter_stage",
            "uncertain_stage", "refine_stage", "mesh_stage", "materials_stage", "night_scene_stage",
-           "guides_stage", "guides_needs", "render_mesh", "removed_faces", "light_table", "mesh_needs",
+           "guides_stage", "guides_needs", "lit_mesh", "removed_faces", "light_table", "mesh_needs",
            "input_geometry"]
 
 
@@ -223,16 +223,20 @@ def lights_stage(inputs: dict, params, ctx) -> LightsResult:
 
 # --------------------------------------------------------------------------- mesh
 def mesh_needs(params: ChainParams) -> tuple[str, ...]:
-    """The inputs the mesh stage reads for ``params`` (the depth it meshes, U only when post-processing)."""
-    base = ("geometry", "lights")
+    """The inputs the mesh stage reads for ``params``: the depth it meshes, U only when
+    post-processing, the lights only when reducing to a face budget (the reduction keeps light
+    borders; otherwise the geometry does not depend on the lights, :func:`lit_mesh`)."""
+    base = ("geometry",) + (("lights",) if params.mesh.face_budget else ())
     if params.mesh.stride == 1 and params.mesh.postprocess:
         base += ("uncertain",)
     return base + {"refined": ("refine",), "filtered": ("filter",), "input": ()}[params.mesh.depth]
 
 
 def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
-    """Worldsheet grid of the chosen depth + post-processing kernel, light ids per vertex
-    (docs/method.md §4–§5). ``stride`` > 1 gives a strided grid without post-processing."""
+    """Worldsheet grid of the chosen depth + post-processing kernel (docs/method.md §4–§5).
+    ``stride`` > 1 gives a strided grid without post-processing. The mesh carries no light ids
+    (all 0) unless it was reduced to a face budget: an annotation edit does not rebuild it,
+    :func:`lit_mesh` gives it the lights."""
     from ..mesh.grid import grid_mesh
     from ..render.ego import extend_over_margin, no_mesh_labels
 
@@ -241,14 +245,12 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
     depth = {"refined": lambda: inputs["refine"].depth, "filtered": lambda: inputs["filter"],
              "input": lambda: s.depth}[mp.depth]().astype(np.float32)
     depth = extend_over_margin(depth, s.labels)  # the bonnet's depth bleeds into the road above it
-    ann = inputs["lights"].annotation
-    light_ids = ann.instance_map if ann is not None else None
     intr = s.intrinsics
     if mp.postprocess and mp.stride == 1:
         from ..mesh.postprocess import postprocess_mesh
 
         # The ego vehicle and the frame borders are not part of the street (docs/relight.md, "The ego vehicle").
-        res = postprocess_mesh(depth, intr, s.labels, inputs["uncertain"], light_ids=light_ids,
+        res = postprocess_mesh(depth, intr, s.labels, inputs["uncertain"],
                                params=replace(pp, far_limit=mp.far_limit, exclude=no_mesh_labels(pp.exclude)),
                                normals=s.normals)
         ctx.cancel()
@@ -258,10 +260,12 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
             from ..mesh.reduce import ReduceParams, reduce_mesh
             from ..mesh.types import limit_far
 
-            red = reduce_mesh(res.layers, intr, ReduceParams(budget=int(mp.face_budget)))
+            ann = inputs["lights"].annotation
+            red = reduce_mesh(res.layers.with_lights(ann.instance_map if ann is not None else None), intr,
+                              ReduceParams(budget=int(mp.face_budget)))
             out.mesh, out.reduced = limit_far(red.mesh, mp.far_limit), red.steps
         return out
-    mesh = grid_mesh(depth, intr, s.labels, light_ids, stride=int(mp.stride), far_limit=mp.far_limit,
+    mesh = grid_mesh(depth, intr, s.labels, stride=int(mp.stride), far_limit=mp.far_limit,
                      exclude=no_mesh_labels(None))
     return MeshResult(mesh, depth, intr, counts={"faces": mesh.n_faces})
 
@@ -307,25 +311,32 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
     return MaterialsResult(mats, light_cls)
 
 
-def render_mesh(m: MeshResult, tolerance: float, far_limit: float | None = None) -> tuple[SceneMesh, str]:
-    """The mesh the nights are rendered from: the quadtree reduction of the post-processed sheets
-    within ``tolerance`` (relative depth, ``mesh.render_tolerance``) of the full mesh; the mesh
-    itself when ``tolerance`` is 0, it was reduced to a face budget already or has no sheets.
+def lit_mesh(m: MeshResult, annotation, tolerance: float = 0.0,
+             far_limit: float | None = None) -> tuple[SceneMesh, str]:
+    """The mesh with the lights of ``annotation`` (None: no lights): the quadtree reduction of the
+    post-processed sheets within ``tolerance`` (relative depth) of the full mesh, its merged cells
+    kept inside light borders; the mesh itself (light ids looked up per vertex,
+    :func:`~npsim_core.mesh.types.with_light_ids`) when ``tolerance`` is 0, it was reduced to a
+    face budget already (its ids came with the reduction) or has no sheets. Used for the nights
+    (``mesh.render_tolerance``), the written meshes (``export.mesh_tolerance``) and the display.
     Returns (mesh, what it is)."""
-    if not tolerance or m.layers is None or m.reduced:
-        return m.mesh, "the chain's mesh" + (f" (face budget, {m.reduced})" if m.reduced else "")
+    from ..mesh.types import limit_far, with_light_ids
+
+    ids = annotation.instance_map if annotation is not None else None
+    if m.reduced:
+        return m.mesh, f"the chain's mesh (face budget, {m.reduced})"
+    if not tolerance or m.layers is None:
+        return with_light_ids(m.mesh, ids), "the chain's mesh"
     from ..mesh.reduce import ReduceParams, reduce_mesh
 
-    from ..mesh.types import limit_far
-
-    red = reduce_mesh(m.layers, m.intrinsics, ReduceParams(tol=float(tolerance)))
+    red = reduce_mesh(m.layers.with_lights(ids), m.intrinsics, ReduceParams(tol=float(tolerance)))
     return limit_far(red.mesh, far_limit), f"quadtree reduction within {100 * tolerance:g} % of the full mesh's depth"
 
 
 def night_scene_stage(inputs: dict, params, ctx):
     """The Mitsuba scene of the mesh (built once per mesh; nights switch lights in place): the
     chain's mesh, or its error-bounded reduction when ``mesh.render_tolerance`` > 0
-    (:func:`render_mesh`)."""
+    (:func:`lit_mesh`)."""
     from ..render.scene_builder import BuildParams, build_scene
 
     light_table_path, variant, tolerance, far_limit = params
@@ -342,7 +353,7 @@ def night_scene_stage(inputs: dict, params, ctx):
     table = light_table(NightParams(light_table=light_table_path))
     bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch)
     t0 = time.perf_counter()
-    mesh, what = render_mesh(m, tolerance, far_limit)
+    mesh, what = lit_mesh(m, inputs["lights"].annotation, tolerance, far_limit)
     t_reduce = time.perf_counter() - t0
     ctx.cancel()
     built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs["lights"].annotation, None,
@@ -385,7 +396,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),
     Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
     Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),
-          lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=3),
+          lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=4),
     Stage("materials", materials_stage, ("frame", "lights"), version=2),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance), float(p.mesh.far_limit)),

@@ -74,15 +74,20 @@ def check_mesh_inputs(depth, intrinsics: Intrinsics, labels, light_ids=None):
     if labels.shape != depth.shape or not np.issubdtype(labels.dtype, np.integer):
         raise NpsimInputError(f"labels must be an HxW integer labelId map of shape {depth.shape}, "
                               f"got {labels.dtype} {labels.shape}")
+    return depth.astype(np.float32, copy=False), labels.astype(np.uint8, copy=False), light_id_map(light_ids,
+                                                                                                   depth.shape)
+
+
+def light_id_map(light_ids, shape: tuple[int, int]) -> np.ndarray:
+    """The light instance map ``light_ids`` as (H, W) int32 (None: all 0); raises
+    :class:`NpsimInputError` on another shape or a non-integer dtype."""
     if light_ids is None:
-        light_ids = np.zeros(depth.shape, dtype=np.int32)
-    else:
-        light_ids = np.asarray(light_ids)
-        if light_ids.shape != depth.shape or not np.issubdtype(light_ids.dtype, np.integer):
-            raise NpsimInputError(f"light_ids (light instance map) must be HxW integers of shape {depth.shape}, "
-                                  f"got {light_ids.dtype} {light_ids.shape}")
-    return depth.astype(np.float32, copy=False), labels.astype(np.uint8, copy=False), light_ids.astype(np.int32,
-                                                                                                       copy=False)
+        return np.zeros(shape, dtype=np.int32)
+    light_ids = np.asarray(light_ids)
+    if light_ids.shape != tuple(shape) or not np.issubdtype(light_ids.dtype, np.integer):
+        raise NpsimInputError(f"light_ids (light instance map) must be HxW integers of shape {tuple(shape)}, "
+                              f"got {light_ids.dtype} {light_ids.shape}")
+    return light_ids.astype(np.int32, copy=False)
 
 
 def usable_mask(depth: np.ndarray, labels: np.ndarray, exclude: Iterable[int] | None,

@@ -71,7 +71,7 @@ from __future__ import annotations
 import math
 import time
 from functools import partial
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -79,7 +79,7 @@ import numpy as np
 from ..camera import Intrinsics, valid_depth_mask
 from ..errors import NpsimInputError
 from ..labels import cityscapes
-from .grid import check_mesh_inputs, pixel_uv, quad_faces, usable_mask
+from .grid import check_mesh_inputs, light_id_map, pixel_uv, quad_faces, usable_mask
 from .steps import StepFaces, slant_at, step_faces
 from .types import MeshPart, SceneMesh
 
@@ -506,7 +506,8 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     tm["steps"] = time.perf_counter() - t
     layers = SheetLayers(background_depth=bg32, background_source=bg_src,
                          background_light=bg_light, foreground_depth=fg32, objects=obj,
-                         object_classes=obj_class, labels=labels, light_ids=light_ids, steps=steps)
+                         object_classes=obj_class, labels=labels, light_ids=light_ids, steps=steps,
+                         background_hidden=hidden)
 
     # Triangulate.
     t = time.perf_counter()
@@ -585,10 +586,24 @@ class SheetLayers:
     labels: np.ndarray
     light_ids: np.ndarray
     steps: tuple = ()
+    #: (H, W) bool: completed background vertices behind an object (their light id is 0);
+    #: None: where a foreground vertex is in front of a background one.
+    background_hidden: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         return self.background_depth.shape
+
+    def with_lights(self, light_ids: np.ndarray | None) -> "SheetLayers":
+        """These sheets with the light instance map ``light_ids`` ((H, W) int, 0 = none; None: no
+        lights): foreground and visible background vertices take their pixel's id, background
+        completed behind an object 0 (the light is on the object in front). The geometry does not
+        depend on the lights; only the merge keys of a reduction (:mod:`.reduce`) and the ids do."""
+        H, W = self.shape
+        lid = light_id_map(light_ids, (H, W))
+        hidden = (self.background_hidden if self.background_hidden is not None
+                  else np.isfinite(self.foreground_depth) & np.isfinite(self.background_depth))
+        return replace(self, light_ids=lid, background_light=np.where(hidden, 0, lid).astype(np.int32))
 
     def step(self, layer: int) -> StepFaces:
         """Depth steps of layer 0 (background) or 1 (foreground)."""
@@ -634,8 +649,9 @@ class SheetLayers:
     def _vertices(self, layer: int, nodes: np.ndarray, intr: Intrinsics):
         """Positions and attributes of extended vertex ids ``nodes`` of a layer.
 
-        Returns (vertices, pixel position, uv, label, light id). An extra vertex takes its
-        corner's label and light id, and the corner's texture coordinate moved by its offset.
+        Returns (vertices, pixel position, uv, label, light id, corner pixel). An extra vertex
+        takes its corner's label and light id, and the corner's texture coordinate moved by its
+        offset.
         """
         H, W = self.shape
         HW = H * W
@@ -660,7 +676,8 @@ class SheetLayers:
         verts = (intr.rays_at(pos, np.float64) * z[:, None]).astype(np.float32)
         sv, su = np.divmod(label_src, W)
         uv = pixel_uv(su + (pos[:, 0] - cu_), sv + (pos[:, 1] - cv_), W, H)
-        return verts, pos.astype(np.float32), uv, self.labels.ravel()[label_src].astype(np.uint8), light.astype(np.int32)
+        return (verts, pos.astype(np.float32), uv, self.labels.ravel()[label_src].astype(np.uint8), light.astype(np.int32),
+                corner.astype(np.int64))
 
     def full_parts(self, intr: Intrinsics) -> list[MeshPart]:
         """Full-resolution parts. Fast path for the big background sheet: compact vertex
@@ -683,15 +700,17 @@ class SheetLayers:
         verts, pix, uv = pts[ok], np.stack([uu, vv], 1).astype(np.float32), pixel_uv(su, sv, W, H)
         label = self.labels.ravel()[src].astype(np.uint8)
         light = self.background_light[ok].astype(np.int32)
+        corner = np.flatnonzero(ok.ravel())
         if ne:
             HW = H * W
             sf = st.faces
             faces = np.concatenate([faces, np.where(sf < HW, index.ravel()[np.minimum(sf, HW - 1)], n + sf - HW)])
-            ev, ep, euv, el, eli = self._vertices(0, HW + np.arange(ne), intr)
+            ev, ep, euv, el, eli, ec = self._vertices(0, HW + np.arange(ne), intr)
             verts, pix, uv = np.concatenate([verts, ev]), np.concatenate([pix, ep]), np.concatenate([uv, euv])
             label, light = np.concatenate([label, el]), np.concatenate([light, eli])
+            corner = np.concatenate([corner, ec])
         bg = MeshPart(name="background", vertices=verts, faces=faces.astype(np.int64, copy=False), uv=uv,
-                      pixel=pix, label=label, light_id=light, foreground=False)
+                      pixel=pix, label=label, light_id=light, foreground=False, source=corner)
         fd = self.foreground_depth
         okf = np.isfinite(fd)
         flat = np.arange(H * W, dtype=np.int64).reshape(H, W)
@@ -718,9 +737,9 @@ class SheetLayers:
                 used[faces.ravel()] = True
                 nodes = np.flatnonzero(used)
             lookup[nodes] = np.arange(len(nodes))
-            verts, pix, uv, label, light = self._vertices(layer, nodes, intr)
+            verts, pix, uv, label, light, corner = self._vertices(layer, nodes, intr)
             return MeshPart(name=name, vertices=verts, faces=lookup[faces].reshape(-1, 3), uv=uv,
-                            pixel=pix, label=label, light_id=light, foreground=fg)
+                            pixel=pix, label=label, light_id=light, foreground=fg, source=corner)
 
         parts = [build("background", bg_faces, 0, False)]
         n_obj = len(self.object_classes)

@@ -35,6 +35,10 @@ class MeshPart:
         Light instance id (classId*1000+index) under each vertex, 0 = none.
     foreground : bool
         True for foreground-object sheets.
+    source : (V,) int64 or None
+        Flat pixel index (``v * W + u``) each vertex belongs to: its own pixel, or for the extra
+        vertices that close depth steps the grid corner they continue (their ``pixel`` lies
+        between pixels). None: the rounded ``pixel``.
     """
 
     name: str
@@ -45,6 +49,7 @@ class MeshPart:
     label: np.ndarray
     light_id: np.ndarray
     foreground: bool = False
+    source: np.ndarray | None = None
 
     @property
     def n_vertices(self) -> int:
@@ -127,4 +132,42 @@ def limit_far(mesh: SceneMesh, far_limit: float | None) -> SceneMesh:
             scale = np.minimum(1.0, far_limit / np.maximum(z, 1e-12)).astype(np.float32)
             p = replace(p, vertices=(p.vertices * scale[:, None]).astype(np.float32))
         parts.append(p)
+    return replace(mesh, parts=parts)
+
+
+def with_light_ids(mesh: SceneMesh, light_ids: np.ndarray | None) -> SceneMesh:
+    """``mesh`` with each vertex's light id read from the light instance map ``light_ids``
+    ((H, W) int, 0 = none; None: every id 0) at its pixel (``MeshPart.source``, else the
+    rounded ``pixel``).
+
+    A foreground vertex and a background vertex that no foreground vertex covers take their
+    pixel's id; a background vertex behind an object (a foreground vertex on its pixel) takes 0
+    -- the light is on the object in front. This is what the post-processing kernel assigns,
+    so the geometry is built once and the lights follow the annotation. Exact for the
+    full-resolution meshes of the chain, where every foreground pixel has a vertex; a reduced
+    mesh's merged cells must respect light borders, so reduce the lit sheets instead
+    (:meth:`~npsim_core.mesh.postprocess.SheetLayers.with_lights`).
+    """
+    from .grid import light_id_map
+
+    H, W = mesh.height, mesh.width
+    lid = light_id_map(light_ids, (H, W)).ravel()
+    if light_ids is None:
+        return replace(mesh, parts=[replace(p, light_id=np.zeros(p.n_vertices, np.int32)) for p in mesh.parts])
+
+    def flat(p: MeshPart) -> np.ndarray:
+        if p.source is not None:
+            return p.source
+        px = np.rint(p.pixel).astype(np.int64)
+        return np.clip(px[:, 1], 0, H - 1) * W + np.clip(px[:, 0], 0, W - 1)
+
+    covered = np.zeros(H * W, dtype=bool)
+    for p in mesh.parts:
+        if p.foreground and p.n_vertices:
+            covered[flat(p)] = True
+    parts = []
+    for p in mesh.parts:
+        f = flat(p)
+        ids = lid[f] if p.foreground else np.where(covered[f], 0, lid[f])
+        parts.append(replace(p, light_id=ids.astype(np.int32)))
     return replace(mesh, parts=parts)
