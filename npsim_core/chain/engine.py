@@ -11,6 +11,11 @@ Inputs are resolved lazily: a stage whose ``needs(params)`` names a subset of it
 inputs (e.g. the mesh built from the input depth skips the refinement) never
 triggers the others. Every cached result keeps the seconds it took to compute,
 so :attr:`EngineRun.timings` is the real cost of each result, cached or not.
+
+An *incremental* stage (``Stage.incremental``) keeps one result and, when its key
+changes, is handed that result to update (:attr:`StageContext.previous`): the night
+scene rebuilds only the shapes an annotation edit touched. The previous result leaves
+the cache before the stage runs, since the stage may reuse (and change) parts of it.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import numpy as np
 
 from ..errors import NpsimCancelled, NpsimInputError
 
-__all__ = ["Stage", "StageContext", "Engine", "EngineRun", "content_key"]
+__all__ = ["Stage", "StageContext", "PreviousResult", "Engine", "EngineRun", "content_key"]
 
 ProgressFn = Callable[[str, float, Any], None]
 
@@ -41,6 +46,7 @@ class Stage:
     params_of : picks the stage's (hashable, frozen) parameters out of the whole set.
     needs : ``needs(params) -> names``, the inputs actually read (default: all).
     version : bump when the stage's output changes for the same inputs and parameters.
+    incremental : keep one result and hand it to the next run (:attr:`StageContext.previous`).
     """
 
     name: str
@@ -49,6 +55,17 @@ class Stage:
     params_of: Callable[[Any], Any] = lambda params: ()
     needs: Callable[[Any], tuple[str, ...]] | None = None
     version: int = 1
+    incremental: bool = False
+
+
+@dataclass(frozen=True)
+class PreviousResult:
+    """An incremental stage's last result, with the cache keys of the inputs and of the
+    parameters it was computed from (compare them with :attr:`StageContext.input_keys`)."""
+
+    value: Any
+    input_keys: Mapping[str, str]
+    params_key: str
 
 
 @dataclass
@@ -58,6 +75,11 @@ class StageContext:
     name: str
     cancel_flag: Any = None
     progress_cb: ProgressFn | None = None
+    #: Cache keys of the inputs this run reads, and of the stage's parameters.
+    input_keys: Mapping[str, str] = field(default_factory=dict)
+    params_key: str = ""
+    #: For an incremental stage: its previous result (None the first time).
+    previous: PreviousResult | None = None
 
     def cancelled(self) -> bool:
         c = self.cancel_flag
@@ -216,20 +238,27 @@ class Engine:
             cache = self._cache[name]
             if key in cache:
                 cache.move_to_end(key)
-                value, seconds = cache[key]
+                value, seconds = cache[key][:2]
                 run.results[name], run.timings[name] = value, seconds
                 return value
         needed = st.needs(params) if st.needs is not None else st.inputs
         inputs = {i: self._resolve(i, params, run, cancel, progress) for i in st.inputs if i in needed}
-        ctx = StageContext(name, cancel, progress)
+        pkey = content_key(st.params_of(params))
+        ctx = StageContext(name, cancel, progress, input_keys={i: run.keys[i] for i in inputs}, params_key=pkey)
+        if st.incremental:
+            with self._lock:
+                if cache:
+                    _, (value, _, prev_inputs, prev_pkey) = cache.popitem(last=True)
+                    ctx.previous = PreviousResult(value, prev_inputs, prev_pkey)
+                    del value
         ctx.cancel()
         ctx.progress(0.0, {"stage": name})
         t0 = time.perf_counter()
         value = st.run(inputs, st.params_of(params), ctx)
         seconds = time.perf_counter() - t0
         with self._lock:
-            cache[key] = (value, seconds)
-            while len(cache) > self._cache_size:
+            cache[key] = (value, seconds, dict(ctx.input_keys), pkey)
+            while len(cache) > (1 if st.incremental else self._cache_size):
                 cache.popitem(last=False)
         run.results[name], run.timings[name] = value, seconds
         run.recomputed.append(name)

@@ -356,8 +356,15 @@ def night_scene_stage(inputs: dict, params, ctx):
     mesh, what = lit_mesh(m, inputs["lights"].annotation, tolerance, far_limit)
     t_reduce = time.perf_counter() - t0
     ctx.cancel()
+    # After an annotation edit (same geometry, mesh and parameters) only the shapes it touched are rebuilt.
+    prev = ctx.previous
+    same = prev is not None and prev.params_key == ctx.params_key and all(
+        prev.input_keys.get(k) == ctx.input_keys.get(k) for k in ("geometry", "mesh"))
+    reuse = prev.value if same and not tolerance else None
+    ctx.previous = prev = None  # a scene that cannot be reused is freed before the new one is built
     built = build_scene(mesh, m.intrinsics, inputs["materials"].materials, table, inputs["lights"].annotation, None,
-                        bp, variant=variant or None)
+                        bp, variant=variant or None, previous=reuse)
+    del reuse
     built.info.update(render_mesh=what, full_mesh_faces=int(m.mesh.n_faces), reduce_s=round(t_reduce, 3))
     return built
 
@@ -400,7 +407,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("materials", materials_stage, ("frame", "lights"), version=2),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance), float(p.mesh.far_limit)),
-          version=3),
+          version=4, incremental=True),
     Stage("guides", guides_stage, ("frame", "mesh", "materials", "night_scene"), lambda p: p.night.denoiser_used,
           needs=guides_needs, version=2),
 )

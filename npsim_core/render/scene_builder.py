@@ -16,8 +16,11 @@ Design
   geometry changes imperceptibly. Fov and offsets do not depend on resolution,
   so previews use the same camera with a smaller film.
 * **Meshes in memory**: all parts are concatenated; faces are split into one
-  ``mi.Mesh`` per material kind (non-light faces) plus one per annotated light
-  instance (faces whose three vertices carry that light id). Each light mesh
+  ``mi.Mesh`` per material kind, horizontal band of ``BAND_PX`` image rows and
+  background/foreground (non-light faces) plus one per annotated light
+  instance (faces two of whose vertices carry that light id). After an annotation
+  edit only the bands and lights whose faces changed are rebuilt
+  (``build_scene(..., previous=...)``); every other shape is reused. Each light mesh
   has an ``area`` emitter; lights that are off have radiance 0 *and* emitter
   ``sampling_weight`` 0, so :meth:`BuiltScene.apply_lights` toggles lights via
   ``mi.traverse`` + ``params.update()`` and never rebuilds geometry.
@@ -68,6 +71,8 @@ from .variant import set_variant
 #: emitter distribution (Mitsuba refuses an all-zero one). Changing it through
 #: ``params.update()`` rebuilds Mitsuba's emitter distribution (measured).
 OFF_WEIGHT = 1e-6
+#: Image rows per band of the non-light shapes: an annotation edit rebuilds the bands it touches.
+BAND_PX = 64
 #: d0² (m²) of the emitter-sampling distance heuristic ``power / (d² + d0²)`` (BuiltScene.apply_lights).
 NEAR_D0_M2 = 25.0
 
@@ -136,6 +141,7 @@ class _Geometry:
     faces: np.ndarray     # (F, 3) int32 (half the memory of int64 at millions of faces)
     face_label: np.ndarray
     face_light: np.ndarray
+    face_band: np.ndarray  # (F,) int32: 2 * (image row of the first vertex // BAND_PX) + foreground
 
 
 def _face_light_majority(light_id: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -185,7 +191,7 @@ def _visible_background_repair(mesh: SceneMesh, labels: np.ndarray, light_ids: n
 
 def _gather(mesh: SceneMesh, y_scale: float, labels: np.ndarray | None = None,
             light_ids: np.ndarray | None = None) -> _Geometry:
-    vs, uvs, fs, fl, fli = [], [], [], [], []
+    vs, uvs, fs, fl, fli, fb = [], [], [], [], [], []
     off = 0
     repaired = (_visible_background_repair(mesh, labels, light_ids) if labels is not None
                 else [(p.uv, p.label, p.light_id) for p in mesh.parts])
@@ -202,26 +208,31 @@ def _gather(mesh: SceneMesh, y_scale: float, labels: np.ndarray | None = None,
         fs.append(np.asarray(p.faces, dtype=np.int32) + np.int32(off))
         fl.append(MeshPart.face_label(dataclasses.replace(p, label=plab)))
         fli.append(_face_light_majority(plid, p.faces))
+        rows = np.rint(np.asarray(p.pixel)[np.asarray(p.faces)[:, 0], 1]).astype(np.int32)
+        fb.append(2 * (np.clip(rows, 0, None) // BAND_PX) + int(bool(p.foreground)))
         off += p.n_vertices
     if not fs:
         raise NpsimInputError("the scene mesh has no faces (all sky or invalid depth?); check the depth map")
     verts = np.concatenate(vs)
     verts[:, 1] *= y_scale
-    return _Geometry(verts, np.concatenate(uvs), np.concatenate(fs), np.concatenate(fl), np.concatenate(fli))
+    return _Geometry(verts, np.concatenate(uvs), np.concatenate(fs), np.concatenate(fl), np.concatenate(fli),
+                     np.concatenate(fb))
 
 
 def _submesh(mi, name: str, geo: _Geometry, face_sel: np.ndarray, props) -> "object":
     """A ``mi.Mesh`` of the selected faces (mask or index array) with compacted vertices."""
     faces = geo.faces[face_sel]
-    if faces.size * 8 < len(geo.vertices):
+    lo, hi = (int(faces.min()), int(faces.max())) if len(faces) else (0, 0)
+    if faces.size * 8 < hi - lo + 1:
         # small subset (one light): sorting its few indices beats touching every vertex
         used, local = np.unique(faces.ravel(), return_inverse=True)
     else:
-        # O(V + F) compaction (no sort): keep used vertices, renumber by running count.
-        mask = np.zeros(len(geo.vertices), dtype=bool)
-        mask[faces.ravel()] = True
+        # O(range + F) compaction (no sort) over the vertex range the faces use (a band of the
+        # row-major background grid is one range): keep used vertices, renumber by running count.
+        mask = np.zeros(hi - lo + 1, dtype=bool)
+        mask[faces.ravel() - lo] = True
         remap = np.cumsum(mask, dtype=np.int32) - 1
-        used, local = np.flatnonzero(mask), remap[faces]
+        used, local = np.flatnonzero(mask) + lo, remap[faces - lo]
         del remap, mask
     m = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), has_vertex_normals=False,
                 has_vertex_texcoords=True, props=props)
@@ -340,8 +351,20 @@ class BuiltScene:
     build_seconds: float = 0.0
     n_faces: int = 0
     info: dict = field(default_factory=dict)
+    #: Pixel box (x0, y0, x1, y1) whose surfaces changed since the ``previous`` scene it was
+    #: built from (empty: none); None when built from scratch.
+    changed_box: tuple[int, int, int, int] | None = None
     _params: object = None
     _sensors: dict = field(default_factory=dict)
+    # what an incremental rebuild reuses (build_scene(previous=...))
+    _shapes: dict = field(default_factory=dict)
+    _spots: dict = field(default_factory=dict)
+    _bsdfs: dict = field(default_factory=dict)
+    _alphas: dict = field(default_factory=dict)
+    _texture: object = None
+    _face_light: np.ndarray | None = None
+    _albedo: np.ndarray | None = None
+    _sky_weight: float | None = None
     _active: ActiveLights | None = None
     _ego_on: bool = True
 
@@ -426,20 +449,39 @@ class BuiltScene:
                                            if on else OFF_WEIGHT)
 
 
+def kind_alphas(materials: Materials, light_classes: np.ndarray) -> dict[str, float]:
+    """Rough-plastic alpha of each BSDF kind: the mean roughness of the pixels of that kind,
+    squared, in [0.01, 1] (Mitsuba's rough plastic takes one alpha per BSDF). A pixel's kind is
+    its label's, glass where ``light_classes`` ((H, W), 0 = none) marks a window."""
+    kind = materials.kind_lut[materials.labels.astype(np.intp)]
+    kind = np.where(np.isin(light_classes, GLASS_LIGHT_CLASSES), KINDS.index("glass"), kind).ravel()
+    rough = materials.roughness.astype(np.float64).ravel()
+    n = np.bincount(kind, minlength=len(KINDS))
+    total = np.bincount(kind, weights=rough, minlength=len(KINDS))
+    mean = np.where(n > 0, total / np.maximum(n, 1), 0.5)
+    return {k: float(np.clip(mean[i] * mean[i], 0.01, 1.0)) for i, k in enumerate(KINDS)}
+
+
 def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, table: LightTable,
                 annotation: LightAnnotation | None = None, active: ActiveLights | None = None,
-                params: BuildParams = BuildParams(), *, variant: str | None = None) -> BuiltScene:
+                params: BuildParams = BuildParams(), *, variant: str | None = None,
+                previous: "BuiltScene | None" = None) -> BuiltScene:
     """Build the night scene in memory.
 
     Parameters
     ----------
-    mesh : camera-frame scene mesh (OpenCV frame, front faces toward the camera).
+    mesh : camera-frame scene mesh (OpenCV frame, front faces toward the camera) with the
+        light ids of ``annotation`` (:func:`npsim_core.chain.stages.lit_mesh`).
     intrinsics : the camera of the mesh (``mesh.width`` x ``mesh.height``).
     materials : albedo/roughness maps and BSDF kinds (:func:`materials.estimate_materials`).
     table : light table (units, throw spots, ego headlights, sky).
     annotation : light instances; their faces become separate emissive meshes.
     active : initial light states (None: all off until :meth:`BuiltScene.apply_lights`).
     variant : Mitsuba variant (None -> :func:`variant.choose_variant`).
+    previous : a scene built from the same mesh geometry, table, ``params``, variant and albedo
+        with another annotation: only the shapes of the bands and lights whose faces changed are
+        built again, the others are taken from it (``info["rebuilt"]`` says how many). It must
+        not be rendered afterwards (its BSDFs may change). Ignored when it does not match.
     """
     t0 = time.perf_counter()
     _check(mesh, intrinsics)
@@ -447,53 +489,85 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     ys = _y_scale(intrinsics)
     geo = _gather(mesh, ys, materials.labels, annotation.instance_map if annotation is not None else None)
     F = len(geo.faces)
+    if annotation is None:
+        geo.face_light[:] = 0
+    light_map = annotation.class_map() if annotation is not None else np.zeros(materials.labels.shape, np.uint8)
+    prev = previous if (previous is not None and previous._face_light is not None
+                        and len(previous._face_light) == F and previous.variant == mi.variant()
+                        and previous._albedo is not None and previous._albedo.shape == materials.albedo.shape
+                        and np.array_equal(previous._albedo, materials.albedo)) else None
 
-    bitmap = mi.Bitmap(np.ascontiguousarray(materials.albedo, dtype=np.float32))
-    tex = mi.load_dict({"type": "bitmap", "bitmap": bitmap, "raw": True, "filter_type": "nearest",
-                        "wrap_mode": "clamp"})
+    if previous is not None:  # its acceleration structure goes before the new one is built (memory)
+        previous.scene, previous._params, previous._sensors = None, None, {}
     kind_of_face = materials.kind_lut[geo.face_label.astype(np.intp)]
     light_cls = geo.face_light // 1000
     kind_of_face = np.where(np.isin(light_cls, GLASS_LIGHT_CLASSES), KINDS.index("glass"), kind_of_face)
-    rough = materials.roughness
+    alphas = kind_alphas(materials, light_map)
 
-    def mean_alpha(sel: np.ndarray) -> float:
-        # Mitsuba's rough plastic takes one alpha per BSDF: mean roughness² of the pixels of that kind.
-        px = np.clip((geo.uv[geo.faces[sel][:, 0]] * [rough.shape[1], rough.shape[0]]).astype(int),
-                     0, [rough.shape[1] - 1, rough.shape[0] - 1])
-        r = float(np.mean(rough[px[:, 1], px[:, 0]])) if len(px) else 0.5
-        return float(np.clip(r * r, 0.01, 1.0))
-
-    bsdf_cache: dict[str, object] = {}
+    if prev is not None:
+        bsdfs, tex = prev._bsdfs, prev._texture
+        for kind, a in alphas.items():  # roughness may follow the lights (windows are glass)
+            b = bsdfs.get(kind)
+            if b is not None and kind != "diffuse" and prev._alphas.get(kind) != a:
+                bp_ = mi.traverse(b)
+                bp_["alpha"] = a
+                bp_.update()
+    else:
+        bitmap = mi.Bitmap(np.ascontiguousarray(materials.albedo, dtype=np.float32))
+        tex = mi.load_dict({"type": "bitmap", "bitmap": bitmap, "raw": True, "filter_type": "nearest",
+                            "wrap_mode": "clamp"})
+        bsdfs = {}
 
     def bsdf(kind: str):
         # One BSDF per kind, shared by all shapes of that kind (rough plastic takes ~0.07 s to build).
-        if kind in bsdf_cache:
-            return bsdf_cache[kind]
-        sel = kind_of_face == KINDS.index(kind)
+        if kind in bsdfs:
+            return bsdfs[kind]
         if kind == "diffuse":
             b = mi.load_dict({"type": "diffuse", "reflectance": tex})
         elif kind == "glass":
             # Unlit window: dark glass-like coat (spec 4 % via plastic IOR 1.5, little diffuse).
             b = mi.load_dict({"type": "roughplastic", "diffuse_reflectance": {"type": "rgb", "value": 0.03},
-                              "alpha": mean_alpha(sel), "int_ior": 1.5})
+                              "alpha": alphas[kind], "int_ior": 1.5})
         else:
-            b = mi.load_dict({"type": "roughplastic", "diffuse_reflectance": tex, "alpha": mean_alpha(sel),
+            b = mi.load_dict({"type": "roughplastic", "diffuse_reflectance": tex, "alpha": alphas[kind],
                               "int_ior": 1.5, "nonlinear": kind == "paint"})
-        bsdf_cache[kind] = b
+        bsdfs[kind] = b
         return b
 
+    # What changed since ``previous``: faces whose light id changed; a band is rebuilt when a face
+    # of it joined or left the lights, a light when any of its faces changed.
+    if prev is not None:
+        changed = np.flatnonzero(geo.face_light != prev._face_light)
+        old, new = prev._face_light[changed], geo.face_light[changed]
+        dirty_bands = set(np.unique(geo.face_band[changed[(old == 0) | (new == 0)]]).tolist())
+        dirty_lights = set(np.unique(np.concatenate([old, new])).tolist()) - {0}
+        reused = prev._shapes
+    else:
+        changed, dirty_bands, dirty_lights, reused = None, set(), set(), {}
+
     objects: dict[str, object] = {}
+    shapes: dict[str, object] = {}
     light_ids = sorted(int(i) for i in np.unique(geo.face_light) if i != 0)
-    base = geo.face_light == 0
-    if annotation is None:
-        base = np.ones(F, bool)
-        light_ids = []
-    for ki, kind in enumerate(KINDS):
-        sel = base & (kind_of_face == ki)
-        if sel.any():
-            props = mi.Properties()
-            props["bsdf"] = bsdf(kind)
-            objects[f"mesh_{kind}"] = _submesh(mi, f"mesh_{kind}", geo, sel, props)
+    # non-light faces: one shape per (kind, band); faces grouped by one sort
+    n_band = int(geo.face_band.max()) + 1 if F else 1
+    base = np.flatnonzero(geo.face_light == 0)
+    group = kind_of_face[base].astype(np.int64) * n_band + geo.face_band[base]
+    order = np.argsort(group, kind="stable")
+    base, group = base[order], group[order]
+    del order
+    keys, starts = np.unique(group, return_index=True)
+    ends = np.append(starts[1:], len(group))
+    del group
+    for g, i0, i1 in zip(keys.tolist(), starts.tolist(), ends.tolist()):
+        ki, band = divmod(g, n_band)
+        name = f"mesh_{KINDS[ki]}_{band}"
+        if name in reused and band not in dirty_bands:
+            shapes[name] = reused[name]
+            continue
+        props = mi.Properties()
+        props["bsdf"] = bsdf(KINDS[ki])
+        shapes[name] = _submesh(mi, name, geo, base[i0:i1], props)
+    del base
 
     built = BuiltScene(scene=None, variant=mi.variant(), intrinsics=intrinsics, table=table, n_faces=F)
     throw = table.throw
@@ -508,14 +582,22 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
     lit_faces = lit_faces[np.argsort(geo.face_light[lit_faces], kind="stable")]
     bounds = np.searchsorted(geo.face_light[lit_faces], light_ids + [np.iinfo(np.int32).max])
     for j, lid in enumerate(light_ids):
+        name = f"light_{lid}"
+        if name in reused and lid not in dirty_lights:
+            shapes[name] = reused[name]
+            built.area_keys[lid] = prev.area_keys[lid]
+            built.area_m2[lid], built.distance_m[lid] = prev.area_m2[lid], prev.distance_m[lid]
+            if lid in prev.spot_keys:
+                built.spot_keys[lid] = prev.spot_keys[lid]
+                objects[prev.spot_keys[lid][0]] = prev._spots[prev.spot_keys[lid][0]]
+            continue
         sel = lit_faces[bounds[j]:bounds[j + 1]]
         props = mi.Properties()
         kind = KINDS[int(np.bincount(kind_of_face[sel]).argmax())]
         props["bsdf"] = bsdf(kind)
         props["emitter"] = mi.load_dict({"type": "area", "radiance": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
                                          "sampling_weight": OFF_WEIGHT})
-        name = f"light_{lid}"
-        objects[name] = _submesh(mi, name, geo, sel, props)
+        shapes[name] = _submesh(mi, name, geo, sel, props)
         built.area_keys[lid] = f"{name}.emitter"
         area, cen, n = _face_areas_centroid(geo, sel)
         built.area_m2[lid] = area
@@ -534,6 +616,17 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
                               "beam_width": float(throw.get("beam_deg", 45.0)),
                               "to_world": _spot_transform(mi, origin, d), "sampling_weight": OFF_WEIGHT}
             built.spot_keys[lid] = (sname, area * float(throw.get("gain", 20.0)))
+    built._spots = {k: v for k, v in objects.items() if k.startswith("spot_")}
+    n_rebuilt = sum(1 for k, v in shapes.items() if reused.get(k) is not v)
+    if changed is not None and len(changed):
+        rows = geo.uv[geo.faces[changed].ravel()]
+        x, y = rows[:, 0] * materials.labels.shape[1], rows[:, 1] * materials.labels.shape[0]
+        built.changed_box = (int(x.min()), int(y.min()), int(np.ceil(x.max())) + 1, int(np.ceil(y.max())) + 1)
+    elif changed is not None:
+        built.changed_box = (0, 0, 0, 0)
+    objects.update(shapes)
+    built._shapes, built._bsdfs, built._texture, built._alphas = shapes, bsdfs, tex, alphas
+    built._face_light, built._albedo = geo.face_light, materials.albedo
 
     # Ego vehicle headlights: level frame (y down), lamps 0.65 m above the ground, aimed 15 m ahead.
     ego = table.ego_headlight
@@ -568,12 +661,15 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
                   "sensor": camera_dict(intrinsics)}
     if params.sky:
         # Sky power ~ pi * L_sky * (area it lights): weigh it against the lamps with the mesh's area.
-        mesh_area = _mesh_area(geo)
-        v = geo.vertices
+        if prev is not None and prev._sky_weight is not None:
+            built._sky_weight = prev._sky_weight
+        else:
+            mesh_area = _mesh_area(geo)
+            v = geo.vertices
+            built._sky_weight = max(math.pi * _lum(table.sky_radiance) * mesh_area
+                                    / (float(np.median(np.linalg.norm(v, axis=1))) ** 2 + NEAR_D0_M2), OFF_WEIGHT)
         scene_dict["sky"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(table.sky_radiance)},
-                             "sampling_weight": max(math.pi * _lum(table.sky_radiance) * mesh_area
-                                                    / (float(np.median(np.linalg.norm(v, axis=1))) ** 2 + NEAR_D0_M2),
-                                                    OFF_WEIGHT)}
+                             "sampling_weight": built._sky_weight}
     scene_dict.update(objects)
     t_load = time.perf_counter()
     built.scene = mi.load_dict(scene_dict)
@@ -585,6 +681,8 @@ def build_scene(mesh: SceneMesh, intrinsics: Intrinsics, materials: Materials, t
         built.set_ego_headlights(built._ego_on)
     built.build_seconds = time.perf_counter() - t0
     built.info = {"variant": built.variant, "faces": F, "shapes": len(objects), "lights": len(light_ids),
+                  "rebuilt": (f"{n_rebuilt} of {len(shapes)} shapes (the bands and lights the annotation edit "
+                              f"changed)" if prev is not None else "all"),
                   "throw_spots": len(built.spot_keys), "ego_headlights": params.ego_headlights,
                   "y_scale": ys, "materials": materials.source, "scene_load_s": t_load}
     return built
