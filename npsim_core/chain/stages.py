@@ -16,6 +16,7 @@ functions here too, run by :class:`~npsim_core.chain.chain.Chain` for each seed.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -59,17 +60,25 @@ class LightsResult:
 
 @dataclass
 class MeshResult:
-    """The scene mesh. ``removed``: the grid faces post-processing replaced (for display);
-    ``layers``: the post-processed sheets per pixel (for reduction); ``counts``: what
-    post-processing did; ``depth``: the depth meshed; ``reduced``: how a face budget applied."""
+    """The scene mesh. ``layers``: the post-processed sheets per pixel (for reduction);
+    ``counts``: what post-processing did; ``depth``: the depth meshed; ``labels``: the frame's;
+    ``reduced``: how a face budget applied; :attr:`removed`: the grid faces post-processing
+    replaced (for display, made when first asked for: 60 MB at 2048x1024)."""
 
     mesh: SceneMesh
     depth: np.ndarray
     intrinsics: Intrinsics
-    removed: MeshPart | None = None
+    labels: np.ndarray | None = None
     layers: Any = None
     counts: dict = field(default_factory=dict)
     reduced: str = ""
+
+    @functools.cached_property
+    def removed(self) -> MeshPart | None:
+        """The Worldsheet grid faces the post-processing kernel replaced (None without it)."""
+        if self.layers is None or self.labels is None:
+            return None
+        return removed_faces(self.depth, self.intrinsics, self.labels, self.layers)
 
 
 @dataclass
@@ -254,8 +263,7 @@ def mesh_stage(inputs: dict, params, ctx) -> MeshResult:
                                params=replace(pp, far_limit=mp.far_limit, exclude=no_mesh_labels(pp.exclude)),
                                normals=s.normals)
         ctx.cancel()
-        out = MeshResult(res.mesh, depth, intr, removed_faces(depth, intr, s.labels, res.layers), res.layers,
-                         dict(res.counts))
+        out = MeshResult(res.mesh, depth, intr, s.labels, res.layers, dict(res.counts))
         if mp.face_budget and res.mesh.n_faces > mp.face_budget:
             from ..mesh.reduce import ReduceParams, reduce_mesh
             from ..mesh.types import limit_far

@@ -677,7 +677,7 @@ class SheetLayers:
         sv, su = np.divmod(label_src, W)
         uv = pixel_uv(su + (pos[:, 0] - cu_), sv + (pos[:, 1] - cv_), W, H)
         return (verts, pos.astype(np.float32), uv, self.labels.ravel()[label_src].astype(np.uint8), light.astype(np.int32),
-                corner.astype(np.int64))
+                corner.astype(np.int32 if H * W < 2**31 else np.int64))
 
     def full_parts(self, intr: Intrinsics) -> list[MeshPart]:
         """Full-resolution parts. Fast path for the big background sheet: compact vertex
@@ -700,7 +700,7 @@ class SheetLayers:
         verts, pix, uv = pts[ok], np.stack([uu, vv], 1).astype(np.float32), pixel_uv(su, sv, W, H)
         label = self.labels.ravel()[src].astype(np.uint8)
         light = self.background_light[ok].astype(np.int32)
-        corner = np.flatnonzero(ok.ravel())
+        corner = np.flatnonzero(ok.ravel()).astype(np.int32 if H * W < 2**31 else np.int64)
         if ne:
             HW = H * W
             sf = st.faces

@@ -35,7 +35,7 @@ class MeshPart:
         Light instance id (classId*1000+index) under each vertex, 0 = none.
     foreground : bool
         True for foreground-object sheets.
-    source : (V,) int64 or None
+    source : (V,) int32 (int64 for images of 2**31 pixels or more) or None
         Flat pixel index (``v * W + u``) each vertex belongs to: its own pixel, or for the extra
         vertices that close depth steps the grid corner they continue (their ``pixel`` lies
         between pixels). None: the rounded ``pixel``.
