@@ -23,7 +23,7 @@ class MeshPart:
         ``"background"`` or e.g. ``"car_3"`` (class name + object index).
     vertices : (V, 3) float32
         Camera-frame positions in metres.
-    faces : (F, 3) int64
+    faces : (F, 3) int32 or int64
         Vertex indices, front face toward the camera.
     uv : (V, 2) float32
         Texture coordinates ``((u + 0.5) / W, 1 - (v + 0.5) / H)`` of the source pixel.
