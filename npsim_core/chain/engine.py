@@ -189,10 +189,12 @@ class Engine:
     def source(self, name: str) -> Any:
         return self._sources[name][1]
 
-    def clear_cache(self) -> None:
+    def clear_cache(self, *names: str) -> None:
+        """Forget the cached results of the stages ``names`` (all stages when none is given)."""
         with self._lock:
-            for c in self._cache.values():
-                c.clear()
+            for name, c in self._cache.items():
+                if not names or name in names:
+                    c.clear()
 
     # ------------------------------------------------------------------ running
     def keys(self, params: Any) -> dict[str, str]:
