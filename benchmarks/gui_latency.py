@@ -19,7 +19,9 @@ the app is driven as a user would:
 * **peak RSS**: the process's peak resident memory (``VmHWM``, reset when the frame is opened)
   while the frame is opened, its full-resolution mesh built and the night previewed;
 * **longest stall**: the largest lateness of a 10 ms ``QTimer`` heartbeat on the GUI thread over
-  the whole session of that size (target: no gap over 100 ms).
+  the whole session of that size, from just before the frame is opened (the open itself counts;
+  the window's first paint at start-up does not) (target: no gap over 100 ms); each stall over
+  100 ms is listed with the benchmark phase, the app's busy label and the jobs running.
 
 Targets: slider → quick view ≤ 0.3 s at both sizes, brush stroke → canvas ≤ 50 ms,
 open a 2048×1024 frame → canvas shown ≤ 5 s, peak memory ≤ 2.5 GB.
@@ -101,17 +103,20 @@ def main(argv: list[str] | None = None) -> int:
         def beat() -> None:
             now = clock.elapsed()
             gaps.append(now - last[0] - 10)  # lateness beyond the 10 ms interval
-            where.append(phase[0] + ("" if win is None else f" ({win.busy_label.text()[:40]})"
-                                     if hasattr(win, "busy_label") else ""))
+            jobs = [ch.name for ch in (win.pipeline_jobs, win.render_jobs, win.view_jobs) if ch.is_busy]
+            where.append(f"{phase[0]} ({win.busy_label.text()[:40]}; jobs: {', '.join(jobs) or 'none'})")
             last[0] = now
         win = MainWindow()
         win.ask = lambda *a: "Discard"
         win.show()
-        wait(lambda: win.isVisible(), 10)
-        app.processEvents()
+        # the window's first paint (OpenGL context, empty 3D view) belongs to starting the app, not to opening
+        QTest.qWaitForWindowExposed(win)
+        t_start = time.perf_counter()
+        wait(lambda: time.perf_counter() - t_start > 1.0, 10)
         hb = QTimer()
         hb.setInterval(10)
         hb.timeout.connect(beat)
+        last[0] = clock.elapsed()  # every gap from here on counts, the open's included
         hb.start()
         # ---- open the frame
         phase[0] = "open (synchronous load)"
@@ -172,10 +177,10 @@ def main(argv: list[str] | None = None) -> int:
         brush_rows.append((f"{w}x{h}", float(np.median(times)), float(np.max(times)), painted))
         wait(lambda: not win.jobs_busy)
         hb.stop()
-        g = np.array(gaps[1:]) if len(gaps) > 1 else np.zeros(1)
+        g = np.array(gaps) if gaps else np.zeros(1)
         for i in np.argsort(g)[::-1][:3]:
             if g[i] > 100:
-                stall_rows.append((f"{w}x{h}", float(g[i]), where[i + 1]))
+                stall_rows.append((f"{w}x{h}", float(g[i]), where[i]))
         rows[-1] = rows[-1] + (t_settle, float(g.max()), float(np.percentile(g, 99)), int((g > 100).sum()), len(g))
         win.editor.session.discard_recovery()
         win.confirm_close = lambda: True

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import cv2
 
-from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtCore import QEventLoop, QObject, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
                                QMessageBox, QProgressDialog, QToolButton, QVBoxLayout, QWidget)
@@ -23,6 +23,7 @@ from npsim_core.annotation import find_recovery, load_recovery
 from npsim_core.errors import NpsimCancelled, NpsimInputError
 from npsim_core.scene import Scene
 from npsim_core.chain import Chain, ChainParams
+from npsim_core.memory import release_free_memory
 from npsim_core.views import VIEW_MODES, view_image
 
 from .editor.editor import AnnotationEditor
@@ -30,10 +31,17 @@ from .param_values import gui_values, with_gui_value
 from .params_panel import ParameterPanel
 from .render_panel import RenderPanel
 from .viewer3d import MeshViewer, build_display
+from .warmup import warm_up
 from .widgets import LogStrip, LossPlot
 from .workers import JobChannel
 
 ORG, APP = "NPSim", "NPSim"
+
+
+class _Done(QObject):
+    """Tells the GUI thread that a background load ended (queued: emitted from the loader thread)."""
+
+    done = Signal()
 
 
 class MainWindow(QMainWindow):
@@ -41,6 +49,7 @@ class MainWindow(QMainWindow):
 
     def __init__(self, scene: Scene | None = None, *, with_3d: bool = True):
         super().__init__()
+        warm_up()  # the workers' first imports would hold the GIL (freeze the window) after the first open
         self.setWindowTitle("NPSim")
         self.resize(1680, 1020)
         self.chain: Chain | None = None
@@ -51,9 +60,11 @@ class MainWindow(QMainWindow):
         self._t_change = 0.0
         self.last_latency: dict[str, float] = {}
         self.pipeline_jobs = JobChannel("pipeline", debounce_ms=60, parent=self)
-        self.render_jobs = JobChannel("render", debounce_ms=100, parent=self)
+        self.render_jobs = JobChannel("render", debounce_ms=100, parent=self, one_at_a_time=True)
         self.export_jobs = JobChannel("export", parent=self)
         self.view_jobs = JobChannel("view", parent=self)
+        self._loading = False  # a frame is being read in the background (see _in_background)
+        self._closed = False
         self._build_ui(with_3d)
         self._build_menus()
         self._connect()
@@ -227,19 +238,29 @@ class MainWindow(QMainWindow):
         super().keyPressEvent(event)
 
     # ----------------------------------------------------------------- scene
-    def set_scene(self, scene: Scene, params: ChainParams | None = None) -> None:
-        """Show ``scene`` and start computing its pipeline."""
+    @classmethod
+    def chains_for(cls, scene: Scene) -> tuple[Chain, Chain | None]:
+        """The chain of ``scene`` and, for a frame wider than :attr:`PROXY_WIDTH`, the proxy chain of
+        its quick views. Pure data work (hashing the frame, resampling the proxy): a background
+        load builds them in its thread."""
+        # a full-resolution result set of a large frame is hundreds of MB per stage: keep fewer
+        chain = Chain(scene, cache_size=2 if scene.width * scene.height > cls.LARGE_FRAME_PX else 4)
+        proxy = None
+        if scene.width > cls.PROXY_WIDTH * 1.25:
+            from npsim_core.chain import scaled_frame
+
+            proxy = Chain(scaled_frame(scene, cls.PROXY_WIDTH / scene.width))
+        return chain, proxy
+
+    def set_scene(self, scene: Scene, params: ChainParams | None = None, *,
+                  chains: tuple[Chain, Chain | None] | None = None) -> None:
+        """Show ``scene`` and start computing its pipeline (``chains``: from :meth:`chains_for`,
+        when a background load built them already)."""
         self.pipeline_jobs.cancel()
         self.render_jobs.cancel()
         self.chain = None  # the previous frame's results go before the next frame's are computed
         self.results = None
-        # a full-resolution result set of a large frame is hundreds of MB per stage: keep fewer
-        self.chain = Chain(scene, cache_size=2 if scene.width * scene.height > self.LARGE_FRAME_PX else 4)
-        self.proxy_chain = None
-        if scene.width > self.PROXY_WIDTH * 1.25:
-            from npsim_core.chain import scaled_frame
-
-            self.proxy_chain = Chain(scaled_frame(scene, self.PROXY_WIDTH / scene.width))
+        self.chain, self.proxy_chain = chains if chains is not None else self.chains_for(scene)
         if params is not None:
             self.params = params
         self.results = None
@@ -362,6 +383,11 @@ class MainWindow(QMainWindow):
     PROXY_WIDTH = 512
     #: The full-resolution chain starts this long after the last change on a proxied frame.
     FULL_RES_SETTLE_S = 0.8
+    #: Face budget of the 3D view's mesh (``Chain.display_mesh``): llvmpipe draws every face on each
+    #: repaint (~0.45 us a face on 2 loaded cores). At 2048x1024 this gives 71 k faces on a third-
+    #: resolution grid (683 columns: more than the ~530-px-wide 3D dock shows) instead of 155 k at
+    #: half resolution, whose repaint took 87-170 ms while the night rendered.
+    DISPLAY_FACES = 60_000
 
     def recompute(self) -> None:
         """Run the pipeline up to the mesh in a worker (stale runs are cancelled).
@@ -381,6 +407,7 @@ class MainWindow(QMainWindow):
 
         mode = self.view_mode.currentText()
         with_3d = self.viewer is not None
+        display_faces = self.DISPLAY_FACES
 
         def job(cancel: threading.Event, progress):
             # everything heavy happens here, off the GUI thread: stages, view images, 3D geometry
@@ -404,7 +431,8 @@ class MainWindow(QMainWindow):
             if with_3d and res.mesh is not None:
                 fields = {k: v for k, v in (("uncertainty", res.uncertain), ("error", res.depth_error()))
                           if v is not None}
-                display = build_display(chain.display_mesh(res, params=params), chain.scene.image,
+                display = build_display(chain.display_mesh(res, max_faces=display_faces, params=params),
+                                        chain.scene.image,
                                         removed=res.removed, fields=fields, fy=res.intrinsics.fy)
             return res, t0, display, view_image(chain.scene, res, mode), mode
         self.pipeline_jobs.submit(job)
@@ -488,6 +516,7 @@ class MainWindow(QMainWindow):
             for frame in chain.night_preview(res, params, light_override=override, cancel=cancel):
                 progress(frame)
                 last = frame
+                release_free_memory()  # the scene build's temporaries, before the next (longer) pass
             return last, t0
         self.render_panel.status.setText("rendering…")
         self.render_jobs.submit(job)
@@ -569,28 +598,87 @@ class MainWindow(QMainWindow):
         frames = getattr(self, "frames", [])
         if not 0 <= index < len(frames):
             return
+        if self._loading:
+            return
         try:
-            scene = frames[index].load()
+            scene, chains = self._load(frames[index].load, frames[index].name)
         except (NpsimInputError, OSError) as exc:
             self.on_error(f"{frames[index].name}: {exc}", "")
+            return
+        if self._closed:
             return
         self.frame_index = index
         self.frame_list.blockSignals(True)
         self.frame_list.setCurrentRow(index)
         self.frame_list.blockSignals(False)
-        self.set_scene(scene)
+        self.set_scene(scene, chains=chains)
 
     def step_frame(self, delta: int) -> None:
         if getattr(self, "frames", None):
             self.open_frame(min(max(getattr(self, "frame_index", 0) + delta, 0), len(self.frames) - 1))
 
     def open_scene(self, path: str | Path) -> None:
+        """Open a scene folder, project folder or dataset image (read in the background; returns
+        when the frame is shown)."""
         from npsim_core.chain import load_frame
 
+        if self._loading:
+            return
         try:
-            self.set_scene(load_frame(path))
+            scene, chains = self._load(lambda: load_frame(path), Path(path).name)
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
+            return
+        if not self._closed:
+            self.set_scene(scene, chains=chains)
+
+    def _load(self, read, name: str, scene_of=lambda value: value):
+        """``(read(), chains)``: what ``read`` returns and the chains of its scene (``scene_of(value)``),
+        computed in a thread while the window stays live."""
+        def job():
+            value = read()
+            chains = self.chains_for(scene_of(value))
+            release_free_memory()  # the decoders' temporaries
+            return value, chains
+        self._set_busy(f"opening {name}…")
+        try:
+            return self._in_background(job)
+        finally:
+            self._set_busy("")
+
+    def _in_background(self, fn):
+        """Run ``fn()`` in a thread and return its result (or raise its exception); meanwhile the
+        event loop keeps running, so a large frame's decoding and hashing (0.2-0.4 s at 2048x1024)
+        never freezes the window. Opening again meanwhile is ignored (:attr:`_loading`)."""
+        box: dict = {}
+        sig = _Done()
+        loop = QEventLoop()
+        sig.done.connect(loop.quit, Qt.ConnectionType.QueuedConnection)
+
+        def run() -> None:
+            try:
+                box["value"] = fn()
+            except BaseException as exc:  # handed to the caller on the GUI thread
+                box["error"] = exc
+            finally:
+                sig.done.emit()
+        self._loading = True
+        for a in (self.act_open_scene, self.act_open_image, self.act_open_dataset, self.act_next, self.act_prev,
+                  self.act_open_project, self.act_reopen):
+            a.setEnabled(False)
+        try:
+            t = threading.Thread(target=run, name="npsim-open", daemon=True)
+            t.start()
+            loop.exec()
+            t.join()
+        finally:
+            self._loading = False
+            for a in (self.act_open_scene, self.act_open_image, self.act_open_dataset, self.act_next, self.act_prev,
+                      self.act_open_project, self.act_reopen):
+                a.setEnabled(True)
+        if "error" in box:
+            raise box["error"]
+        return box["value"]
 
     def reopen_last(self) -> None:
         """Open the scene (or project) folder opened last time, remembered across runs."""
@@ -608,12 +696,16 @@ class MainWindow(QMainWindow):
     def open_project(self, folder: str | Path) -> None:
         from npsim_core.chain.project import load_project
 
+        if self._loading:
+            return
         try:
-            scene, params = load_project(folder)
+            (scene, params), chains = self._load(lambda: load_project(folder), Path(folder).name,
+                                                 scene_of=lambda v: v[0])
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
             return
-        self.set_scene(scene, params)
+        if not self._closed:
+            self.set_scene(scene, params, chains=chains)
 
     def save_project_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Save project into folder")
@@ -809,6 +901,7 @@ class MainWindow(QMainWindow):
             if not self.confirm_close():
                 event.ignore()
                 return
+        self._closed = True  # a frame still being read is not shown
         self.save_layout()
         for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
             ch.cancel()

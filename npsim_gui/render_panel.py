@@ -85,6 +85,7 @@ class RenderPanel(QWidget):
         lay.addWidget(splitter, 1)
         lay.addWidget(self.status)
         self.day: np.ndarray | None = None
+        self._day_at: tuple | None = None
         self.night: np.ndarray | None = None
         self._filling = False
         self.split.valueChanged.connect(self._refresh)
@@ -102,9 +103,25 @@ class RenderPanel(QWidget):
             self.denoiser.setCurrentIndex(i)
             self.denoiser.blockSignals(False)
 
+    #: The dimmed day shown before the first night is at most this wide (display only: the dock is
+    #: a few hundred pixels wide; a 2048-px placeholder cost 60 ms of conversions on the GUI thread).
+    PLACEHOLDER_WIDTH = 1024
+
     def set_day(self, rgb: np.ndarray) -> None:
         self.day = rgb
+        self._day_at = None  # (shape, day resized to it) for the split view
         self._refresh()
+
+    def _day_like(self, night: np.ndarray) -> np.ndarray:
+        """The day at the night's size, resized once per size (not on every split-slider move)."""
+        import cv2
+
+        h, w = night.shape[:2]
+        if self.day.shape[:2] == (h, w):
+            return self.day
+        if self._day_at is None or self._day_at[0] != (h, w):
+            self._day_at = ((h, w), cv2.resize(self.day, (w, h), interpolation=cv2.INTER_AREA))
+        return self._day_at[1]
 
     def set_night(self, rgb: np.ndarray, status: str = "") -> None:
         self.night = rgb
@@ -115,10 +132,18 @@ class RenderPanel(QWidget):
     def _refresh(self) -> None:
         if self.night is None:
             if self.day is not None:
-                self.view.set_image((self.day * 0.25).astype(np.uint8))
+                day = self.day
+                if day.shape[1] > self.PLACEHOLDER_WIDTH:
+                    import cv2
+
+                    k = self.PLACEHOLDER_WIDTH / day.shape[1]
+                    day = cv2.resize(day, (self.PLACEHOLDER_WIDTH, max(1, round(day.shape[0] * k))),
+                                     interpolation=cv2.INTER_AREA)
+                self.view.set_image(day >> 2)  # a quarter of the brightness: "no night yet"
             return
         frac = self.split.value() / 100.0
-        img = split_view(self.day, self.night, frac) if (self.day is not None and frac > 0) else self.night
+        img = split_view(self._day_like(self.night), self.night, frac) \
+            if (self.day is not None and frac > 0) else self.night
         self.view.set_image(img)
 
     def set_lights(self, groups: dict[int, list[int]], singles: list[int], state: dict[int, bool]) -> None:

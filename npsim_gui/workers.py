@@ -16,6 +16,7 @@ from typing import Any, Callable
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from npsim_core.errors import NpsimCancelled
+from npsim_core.memory import release_free_memory
 
 
 class _Signals(QObject):
@@ -57,9 +58,12 @@ class JobChannel(QObject):
     busy = Signal(bool)
 
     def __init__(self, name: str, pool: QThreadPool | None = None, debounce_ms: int = 0,
-                 parent: QObject | None = None):
+                 parent: QObject | None = None, *, one_at_a_time: bool = False):
         super().__init__(parent)
         self.name = name
+        #: Start a job only once the cancelled one has stopped (it stops at its next cancellation
+        #: check): two night renders at once shared the 2 cores and Mitsuba calls that hold the GIL.
+        self.one_at_a_time = one_at_a_time
         self.pool = pool or QThreadPool.globalInstance()
         self._serial = 0
         self._cancel: threading.Event | None = None
@@ -76,7 +80,7 @@ class JobChannel(QObject):
 
     @property
     def is_busy(self) -> bool:
-        return self._running > 0 or self._timer.isActive()
+        return self._running > 0 or self._timer.isActive() or self._pending is not None
 
     def submit(self, fn: Callable[[threading.Event, Callable[[Any], None]], Any]) -> None:
         """Run ``fn`` after the debounce interval, cancelling whatever ran before."""
@@ -102,6 +106,8 @@ class JobChannel(QObject):
         self.pool.waitForDone(timeout_ms)
 
     def _start_pending(self) -> None:
+        if self.one_at_a_time and self._running > 0:
+            return  # started when the running (cancelled) job has ended: _on_progress
         fn, self._pending = self._pending, None
         if fn is None:
             return
@@ -115,6 +121,7 @@ class JobChannel(QObject):
             try:
                 return fn(cancel, progress)
             finally:
+                release_free_memory()  # the job's temporaries are freed: hand their pages back (off the GUI thread)
                 try:
                     self._signals.progress.emit(-1, "ended")  # marks 'a job ended' for the busy counter
                 except RuntimeError:  # channel already deleted (window closed)
@@ -124,6 +131,8 @@ class JobChannel(QObject):
     def _on_progress(self, serial: int, info: object) -> None:
         if serial == -1:
             self._running = max(0, self._running - 1)
+            if self._pending is not None and not self._timer.isActive():
+                self._start_pending()  # a job held back by one_at_a_time
             if not self.is_busy:
                 self.busy.emit(False)
             return

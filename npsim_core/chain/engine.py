@@ -31,6 +31,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..errors import NpsimCancelled, NpsimInputError
+from ..memory import release_free_memory
 
 __all__ = ["Stage", "StageContext", "PreviousResult", "Engine", "EngineRun", "content_key"]
 
@@ -264,5 +265,6 @@ class Engine:
                 cache.popitem(last=False)
         run.results[name], run.timings[name] = value, seconds
         run.recomputed.append(name)
+        release_free_memory()  # the stage's temporaries are gone: their pages go back (see npsim_core.memory)
         ctx.progress(1.0, {"stage": name, "done": True, "seconds": seconds})
         return value

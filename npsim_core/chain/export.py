@@ -34,6 +34,7 @@ import numpy as np
 
 from ..camera import normals_from_depth
 from ..errors import NpsimCancelled, NpsimInputError
+from ..memory import release_free_memory
 from .chain import Chain, ChainResults
 from .params import ChainParams
 
@@ -253,6 +254,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         step(f"rendering night {k + 1}/{n_nights}")
         seed = params.night.seed + k
         frame = chain.night_final(res, params, seed=seed, cancel=cancel)
+        release_free_memory()  # the render's and the denoiser's temporaries
         stem = f"{n}_night_{k}"
         put(staging / f"{stem}.png", write_image, frame.image)
         if ex.extras:

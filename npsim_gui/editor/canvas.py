@@ -18,6 +18,7 @@ changes only the pixels shown for the base image, never the image data.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen
@@ -32,8 +33,13 @@ class ArrayLayerItem(QGraphicsItem):
     def __init__(self, rgba: np.ndarray | None = None, parent=None) -> None:
         super().__init__(parent)
         self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemUsesExtendedStyleOption, True)
+        # Repaints (any change in the window, a brush dab) blit a screen-sized copy of the layer
+        # instead of scaling and blending the whole 2048x1024 RGBA buffer again (30-80 ms a
+        # window repaint at 2048x1024 with three layers); update(rect) redraws only that part of it.
+        self.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._arr = np.zeros((1, 1, 4), np.uint8)
         self._img = QImage()
+        self._content: QRectF | None = None  # where the buffer may be non-transparent (None: anywhere)
         if rgba is not None:
             self.set_array(rgba)
 
@@ -41,7 +47,15 @@ class ArrayLayerItem(QGraphicsItem):
     def array(self) -> np.ndarray:
         return self._arr
 
-    def set_array(self, rgba: np.ndarray) -> None:
+    @property
+    def content_rect(self) -> QRectF | None:
+        """The box painted (pixels): the rest of the buffer is known to be transparent. None: all."""
+        return self._content
+
+    def set_array(self, rgba: np.ndarray, content: tuple[int, int, int, int] | None | str = "all") -> None:
+        """Show ``rgba`` (HxWx4, wrapped without a copy). ``content``: the (x0, y0, x1, y1) box
+        outside which it is transparent, None when it is all transparent, "all" (default) when unknown:
+        a 2048x1024 layer costs every repaint 20-40 ms of blending, also where it is empty."""
         arr = np.ascontiguousarray(rgba, dtype=np.uint8)
         if arr.ndim != 3 or arr.shape[2] != 4:
             raise ValueError(f"layer arrays must be HxWx4 RGBA, got {arr.shape}")
@@ -49,15 +63,27 @@ class ArrayLayerItem(QGraphicsItem):
         self._arr = arr
         h, w = arr.shape[:2]
         self._img = QImage(arr.data, w, h, 4 * w, QImage.Format.Format_RGBA8888)
+        if isinstance(content, str):
+            self._content = None if content == "all" else QRectF()
+        else:
+            self._content = QRectF() if content is None else self._box(content)
         self.update()
 
+    @staticmethod
+    def _box(rect: tuple[int, int, int, int]) -> QRectF:
+        x0, y0, x1, y1 = rect
+        return QRectF(x0, y0, x1 - x0, y1 - y0)
+
     def update_rect(self, rect: tuple[int, int, int, int] | None) -> None:
-        """Repaint the (x0, y0, x1, y1) pixel box after its buffer region changed."""
+        """Repaint the (x0, y0, x1, y1) pixel box after its buffer region changed (None: anywhere)."""
         if rect is None:
+            self._content = None
             self.update()
         else:
-            x0, y0, x1, y1 = rect
-            self.update(QRectF(x0, y0, x1 - x0, y1 - y0))
+            box = self._box(rect)
+            if self._content is not None:
+                self._content = box if self._content.isEmpty() else self._content.united(box)
+            self.update(box)
 
     def boundingRect(self) -> QRectF:  # noqa: N802 (Qt API)
         return QRectF(0, 0, self._arr.shape[1], self._arr.shape[0])
@@ -66,6 +92,8 @@ class ArrayLayerItem(QGraphicsItem):
         if self._img.isNull():
             return
         r = option.exposedRect.intersected(self.boundingRect())
+        if self._content is not None:
+            r = r.intersected(self._content)
         if r.isEmpty():
             return
         # Whole pixels only, so the source and target rectangles match exactly.
@@ -183,11 +211,10 @@ class EditorCanvas(QGraphicsView):
         return auto_display(self._base_source)
 
     def _show_base(self) -> None:
-        rgb = self._base_source
+        rgb = np.ascontiguousarray(self._base_source)
         lut = display_lut(*self.display)
-        arr = np.empty(rgb.shape[:2] + (4,), np.uint8)
-        arr[..., :3] = rgb if lut is None else lut[rgb]
-        arr[..., 3] = 255
+        # OpenCV passes (LUT, RGB -> RGBA): 5 ms instead of 40 ms for a 2048x1024 view
+        arr = cv2.cvtColor(rgb if lut is None else cv2.LUT(rgb, lut), cv2.COLOR_RGB2RGBA)
         first = self.base.array.shape[:2] != arr.shape[:2]
         self.base.set_array(arr)
         self.scene().setSceneRect(QRectF(0, 0, arr.shape[1], arr.shape[0]))

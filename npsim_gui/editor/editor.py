@@ -22,7 +22,7 @@ from npsim_core.labels import light_class
 from npsim_core.superpixels import METHODS
 
 from .canvas import EditorCanvas
-from .overlays import boundary_rgba, class_color, labels_rgba, lights_region
+from .overlays import boundary_rgba, class_color, labels_rgba, lights_region, lit_box
 from .palette import ClassPalette, InstanceList
 from .proposals import ProposalBook, proposal_rgba
 from .session import EditorSession, join_group
@@ -52,6 +52,7 @@ class AnnotationEditor(QWidget):
         self.canvas = EditorCanvas(self)
         self.canvas.handler = self.controller
         self._lights_rgba = np.zeros((1, 1, 4), np.uint8)
+        self._labels_layer_for: np.ndarray | None = None  # the labels the label layer was drawn from
         self._shown_highlight: set[int] = set()  # highlighted lights the light layer was drawn with
         self._stats: dict | None = None  # ann.stats() cache, dropped on every edit
         self._refresh_timer = QTimer(self)
@@ -194,7 +195,7 @@ class AnnotationEditor(QWidget):
                                                 ("lights", "Lights", "M"))):
             cb = QCheckBox(f"{title} ({key})")
             cb.setChecked(name != "labels")
-            cb.toggled.connect(lambda v, n=name: self.canvas.set_layer_visible(n, v))
+            cb.toggled.connect(lambda v, n=name: self._on_layer_toggled(n, v))
             self.canvas.set_layer_visible(name, cb.isChecked())
             sl_ = QSlider(Qt.Orientation.Horizontal)
             sl_.setRange(0, 100)
@@ -504,22 +505,39 @@ class AnnotationEditor(QWidget):
         s = self.session
         self.canvas.set_base_image(s.image)
         H, W = s.ann.shape
-        if s.labels is not None:
-            self.canvas.set_layer("labels", labels_rgba(s.labels))
-        else:
-            self.canvas.set_layer("labels", np.zeros((H, W, 4), np.uint8))
+        self._labels_layer_for = None  # drawn when first shown (hidden by default: 90 ms at 2048x1024)
+        self._show_labels_layer()
         self.layer_boxes["labels"].setEnabled(s.labels is not None)
-        self.canvas.set_layer("superpixels", np.zeros((H, W, 4), np.uint8))
+        # nothing to show until the superpixels arrive: an empty full-size layer still costs every repaint
+        self.canvas.set_layer("superpixels", np.zeros((1, 1, 4), np.uint8))
         self._lights_rgba = np.zeros((H, W, 4), np.uint8)
         self._stats = None
         self._shown_highlight = s.highlighted()
-        lights_region(s.ann.instance_map, self._lights_rgba, None, self._shown_highlight)
-        self.canvas.set_layer("lights", self._lights_rgba)
+        # only the box of the labelled pixels: the rest of a fresh layer is transparent (and not painted)
+        box = lit_box(s.ann.instance_map)
+        lights_region(s.ann.instance_map, self._lights_rgba, box, self._shown_highlight)
+        self.canvas.layers["lights"].set_array(self._lights_rgba, content=box)
         self.sp_status.setText("computing…")
         self._sync_superpixel_widgets()
         self.canvas.fit()
         self._refresh_lists()
         self._on_current()
+
+    def _on_layer_toggled(self, name: str, visible: bool) -> None:
+        self.canvas.set_layer_visible(name, visible)
+        if name == "labels" and visible:
+            self._show_labels_layer()
+
+    def _show_labels_layer(self) -> None:
+        """Draw the semantic label layer when it is visible and not drawn for these labels yet."""
+        s = self.session
+        if not self.canvas.layers["labels"].isVisible() or s.labels is None:
+            if self._labels_layer_for is not s.labels:
+                self.canvas.set_layer("labels", np.zeros((1, 1, 4), np.uint8))
+            return
+        if self._labels_layer_for is not s.labels:
+            self.canvas.set_layer("labels", labels_rgba(s.labels))
+            self._labels_layer_for = s.labels
 
     def _sync_superpixel_widgets(self) -> None:
         p = self.session.sp_params
