@@ -331,9 +331,9 @@ class MainWindow(QMainWindow):
         self.recompute()
 
     def _annotation_edited(self) -> None:
-        """An edit only changes the lights: the depth, normal and 3D views stay as they are; the mesh
-        (light ids per vertex) and the night scene are rebuilt by the night render, and only when
-        the night preview is shown (else when it is shown next)."""
+        """An edit only changes the lights: the depth, normal and 3D views stay as they are (the mesh is
+        never rebuilt for it); the night scene updates the shapes of the lights it touched when the
+        night preview is shown (else when it is shown next)."""
         if self.chain is not None:
             # never chain.set_annotation here: it waits for the chain's lock, which a running job holds
             # (seconds on a large frame); the next job applies a snapshot (_annotation_for_job)

@@ -136,7 +136,7 @@ def test_cancel_stops_a_running_job_and_returns_to_idle(qtbot, settings):
     win.close()
 
 
-def test_annotation_edit_rebuilds_the_mesh_only_for_a_shown_night_preview(qtbot, settings):
+def test_annotation_edit_rebuilds_the_night_scene_only_for_a_shown_night_preview(qtbot, settings):
     from npsim_core.annotation_ops import new_instance, paint
 
     win = _window(qtbot)
@@ -171,7 +171,7 @@ def test_annotation_edit_rebuilds_the_mesh_only_for_a_shown_night_preview(qtbot,
     qtbot.waitUntil(lambda: win.render_panel.night is not night and not win.jobs_busy, timeout=120_000)
     assert iid in win.chain.annotation.instance_ids()  # the night used the edit
     done = [st for r in runs for st in r]
-    assert "night_scene" in done  # (the core no longer rebuilds the mesh for an edit: its light ids follow)
+    assert "night_scene" in done and "mesh" not in done  # the lights never rebuild the mesh
     assert not {"geometry", "filter", "uncertain", "refine"} & set(done)
     assert win.results is results  # the depth, normal and 3D views stay as they were
     win.close()
