@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import npsim_core.mesh.export as mesh_export
 from npsim_core.camera import Intrinsics, backproject, normals_from_depth
 from npsim_core.errors import NpsimInputError
 from npsim_core.mesh.export import FORMATS, export_mesh, run_length
@@ -471,7 +472,7 @@ def test_reduce_budget_is_met_and_error_grows_as_it_shrinks():
 # ----------------------------------------------------------------------------------------------------------
 # Export
 
-def test_export_round_trip(tmp_path):
+def test_export_round_trip(tmp_path, monkeypatch):
     d, lab, intr = toy_scene()
     lights = np.zeros(d.shape, np.int32)
     lights[36:40, 70:80] = 4001
@@ -504,6 +505,12 @@ def test_export_round_trip(tmp_path):
     assert "o pole_1" in text and "o background" in text and "vt " in text
     assert (tmp_path / "toy.mtl").read_text().count("map_Kd toy_texture.png") == 1
     assert (tmp_path / "toy_texture.png").exists()
+    t = trimesh.load(paths["obj"], process=False, force="mesh")
+    assert len(t.faces) == m.n_faces
+    # written in blocks of rows (memory): any block size gives the same file
+    monkeypatch.setattr(mesh_export, "OBJ_BLOCK", 7)
+    small = export_mesh(m, tmp_path / "blocks", "toy", ("obj",))["obj"]
+    assert small.read_text() == text
     with pytest.raises(NpsimInputError, match="format"):
         export_mesh(m, tmp_path, "toy", ["stl"])
     assert run_length(np.array([3, 3, 5, 5, 5, 3])) == [[3, 2], [5, 3], [3, 1]]

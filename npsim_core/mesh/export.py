@@ -94,26 +94,35 @@ def export_ply(mesh: SceneMesh, path: str | Path) -> Path:
     return path
 
 
+#: Rows of vertices or faces formatted at a time by :func:`export_obj`.
+OBJ_BLOCK = 1 << 18
+
+
 def export_obj(mesh: SceneMesh, path: str | Path, image: np.ndarray | None = None) -> Path:
     """Write OBJ + MTL (+ PNG texture when ``image`` is given); one ``o`` group per part."""
     path = Path(path)
     parts = _parts(mesh)
     mtl = path.with_suffix(".mtl")
     tex = path.with_name(path.stem + "_texture.png")
-    chunks = ["# NPSim scene mesh, OpenCV camera frame (x right, y down, z forward), metres\n",
-              f"mtllib {mtl.name}\n"]
-    off = 1
-    for _, p in parts:
-        v = p.vertices.astype(np.float64)
-        chunks.append(f"o {p.name}\ng {p.name}\nusemtl scene\n")
-        chunks.append("".join(f"v {x:.6g} {y:.6g} {z:.6g}\n" for x, y, z in v.tolist()))
-        chunks.append("".join(f"vt {s:.7g} {t:.7g}\n" for s, t in p.uv.astype(np.float64).tolist()))
-        f = p.faces + off
-        chunks.append("".join(f"f {a}/{a} {b}/{b} {c}/{c}\n" for a, b, c in f.tolist()))
-        off += p.n_vertices
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="ascii") as fh:
-            fh.writelines(chunks)
+            fh.write("# NPSim scene mesh, OpenCV camera frame (x right, y down, z forward), metres\n")
+            fh.write(f"mtllib {mtl.name}\n")
+            off = 1
+            for _, p in parts:
+                fh.write(f"o {p.name}\ng {p.name}\nusemtl scene\n")
+                # in blocks of rows: the whole text of a 28 M-face mesh (2 GB, and its Python lists)
+                # took 10.9 GB at once
+                for k in range(0, p.n_vertices, OBJ_BLOCK):
+                    v = p.vertices[k:k + OBJ_BLOCK].astype(np.float64).tolist()
+                    fh.write("".join(f"v {x:.6g} {y:.6g} {z:.6g}\n" for x, y, z in v))
+                for k in range(0, p.n_vertices, OBJ_BLOCK):
+                    uv = p.uv[k:k + OBJ_BLOCK].astype(np.float64).tolist()
+                    fh.write("".join(f"vt {s:.7g} {t:.7g}\n" for s, t in uv))
+                for k in range(0, p.n_faces, OBJ_BLOCK):
+                    f = (p.faces[k:k + OBJ_BLOCK].astype(np.int64) + off).tolist()
+                    fh.write("".join(f"f {a}/{a} {b}/{b} {c}/{c}\n" for a, b, c in f))
+                off += p.n_vertices
     lines = ["newmtl scene", "Ka 1 1 1", "Kd 1 1 1", "Ks 0 0 0", "d 1", "illum 1"]
     if image is not None:
         write_image(tex, np.asarray(image))
