@@ -1,4 +1,4 @@
-"""``npsim sample --size WxH -o DIR [--seed S]``: write the synthetic street scene as a scene folder."""
+"""``npsim sample --size WxH -o DIR [--seed S] [--variant NAME]``: write the synthetic street scene as a scene folder."""
 
 from __future__ import annotations
 
@@ -19,6 +19,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size", default="512x256", help="image size WIDTHxHEIGHT in pixels (default 512x256)")
     p.add_argument("-o", "--output", required=True, help="output scene folder (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="layout / prediction-error seed (default 0)")
+    from npsim_core.synthetic.street import VARIANTS
+
+    p.add_argument("--variant", default="default", choices=list(VARIANTS),
+                   help="street variant (docs/synthetic.md): " + ", ".join(VARIANTS) + " (default: default)")
     p.add_argument("--spp", type=int, default=None, help="Mitsuba samples per pixel (default: 16 up to 512x256 "
                                                          "pixels, 4 above; rounded up to 4, 16, 64, ...)")
     p.add_argument("--preview", metavar="PNG", default=None,
@@ -40,9 +44,11 @@ def run(args: argparse.Namespace) -> int:
         raise NpsimInputError(f"--spp {args.spp}: must be at least 1")
     out = check_output_folder(args.output)
     spp = args.spp if args.spp is not None else auto_spp(w, h)
-    print(f"npsim sample: generating {w}x{h} street (seed {args.seed}, {spp} spp) ...", file=sys.stderr, flush=True)
+    variant = getattr(args, "variant", "default")
+    print(f"npsim sample: generating {w}x{h} street (variant {variant}, seed {args.seed}, {spp} spp) ...",
+          file=sys.stderr, flush=True)
     t0 = time.perf_counter()
-    scene = make_street_scene(w, h, args.seed, spp=spp)
+    scene = make_street_scene(w, h, args.seed, spp=spp, variant=variant)
     t1 = time.perf_counter()
     print(f"npsim sample: generated in {t1 - t0:.1f} s at {scene.provenance.get('spp')} spp "
           f"({scene.provenance.get('timing_s')}); writing {out}",

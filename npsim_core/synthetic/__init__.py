@@ -34,7 +34,7 @@ from .texture import albedo_factor
 
 __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_prediction", "SCENE_VERSION",
            "CAMERA_HEIGHT", "CAMERA_PITCH", "build_street", "raycast", "CameraPose", "street_ground_truth",
-           "cache_dir", "auto_spp", "VARIANTS"]
+           "cache_dir", "auto_spp", "VARIANTS", "street_right_view"]
 
 #: Bump whenever the scene's content changes (it is part of the cache key; it covers the
 #: hard variants too, whose layouts are new in version 4 and leave the default street unchanged).
@@ -261,3 +261,44 @@ def street_scene(width: int = 256, height: int = 128, seed: int = 0, variant: st
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return load_scene(folder)
+
+
+def street_right_view(width: int, height: int, seed: int = 0, *, baseline: float = 0.209313,
+                      spp: int | None = None, variant: str = "default") -> np.ndarray:
+    """The street's day image (sRGB uint8, HxWx3) seen by a right stereo camera ``baseline`` m to the
+    right of the left one (same intrinsics, pose and sun), rendered exactly as :func:`make_street_scene`
+    renders the left view (Mitsuba sun + numpy sky ambient, same surface texture in world coordinates).
+
+    The scene is shifted by ``-baseline`` along x instead of moving the camera (world x = camera x,
+    the pitch is about x), so the ray caster and the renderer are reused unchanged. Used by the
+    Cityscapes-layout fixture's semi-global matching (:mod:`.cityscapes`, docs/synthetic.md).
+    """
+    from dataclasses import replace as _replace
+
+    from .render import render_day
+
+    width, height = _check_size(width, height)
+    variant = _check_variant(variant)
+    spp = _pow4(auto_spp(width, height) if spp is None else int(spp))
+    layout = build_street(int(seed), variant)
+    shift = np.array([float(baseline), 0.0, 0.0])
+    prims = _replace(layout.prims, lo=layout.prims.lo - shift, hi=layout.prims.hi - shift)
+    intr = Intrinsics.cityscapes(width, height)
+    pose = CameraPose(CAMERA_HEIGHT, CAMERA_PITCH)
+    gt = raycast(prims, intr, pose)
+    hit = gt.prim >= 0
+    idx = np.maximum(gt.prim, 0)
+    labels = np.where(hit, prims.label[idx], SKY).astype(np.uint8)
+    albedo = np.where(hit[..., None], prims.color[idx], 0.0).astype(np.float32)
+    lights = _lights(prims, gt.prim, layout)
+    glass = hit & (prims.material[idx] == MATERIALS.index("glass"))
+    # World points of the *unshifted* street, so the texture sticks to the surfaces.
+    points_w = (backproject(gt.depth, intr) @ pose.R_cw.astype(np.float32) + pose.center.astype(np.float32)
+                + shift.astype(np.float32))
+    tex = albedo_factor(points_w, labels, lights.instance_map, seed)
+    linear = render_day(prims, intr, pose, spp=spp, seed=seed, sun=layout.sun, albedo=albedo,
+                        normals=gt.normals, prim=gt.prim, glass_mask=glass.astype(np.float32), texture=tex)
+    image = linear_to_srgb8(linear * EXPOSURE)
+    if VARIANTS[variant].busy:
+        image[frame_border_labels(width, height) == RECTIFICATION_BORDER] = 0
+    return image

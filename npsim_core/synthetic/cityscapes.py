@@ -35,7 +35,7 @@ from ..io import atomic_write_bytes, atomic_write_text, write_image
 from ..labels import cityscapes
 
 __all__ = ["write_cityscapes_fixture", "simulate_stereo_disparity", "instance_ids", "ego_vehicle_mask",
-           "native_intrinsics", "camera_json", "fixture_seed", "fixture_stem", "BASELINE", "NATIVE_SIZE"]
+           "native_intrinsics", "camera_json", "sgm_disparity", "fixture_seed", "fixture_stem", "BASELINE", "NATIVE_SIZE"]
 
 #: Cityscapes' stereo baseline (m), as in every camera JSON of the dataset.
 BASELINE = 0.209313
@@ -352,6 +352,55 @@ def simulate_stereo_disparity(depth: np.ndarray, labels: np.ndarray, fx: float, 
     return out, info
 
 
+def sgm_disparity(left: np.ndarray, right: np.ndarray, labels: np.ndarray, *,
+                  max_disparity: float | None = None, block: int = 5) -> tuple[np.ndarray, dict[str, float]]:
+    """A Cityscapes disparity PNG (uint16, ``p = disparity*256 + 1``, 0 invalid) by semi-global matching.
+
+    Cityscapes' disparity comes from SGM; OpenCV's ``StereoSGBM`` (5 paths, ``MODE_SGBM``) on a
+    rendered pair reproduces its structured errors -- streaks along rows, object edges fattened
+    toward the background, speckle islands, 1/16 px sub-pixel steps, wrong matches on weakly
+    textured and reflective surfaces, no match in the left ``numDisparities`` columns and at
+    occlusions (left-right check). No speckle filter runs (``speckleWindowSize`` 0): real
+    Cityscapes disparity keeps its islands, so the chain has to cope with them.
+
+    Parameters
+    ----------
+    left, right : HxWx3 uint8
+        Rectified sRGB pair (the right camera to the right of the left one).
+    labels : HxW uint8
+        labelIds of the left view; sky (23) and labelIds 0-3 (ego vehicle, borders) are holes,
+        as in Cityscapes files.
+    max_disparity : float, optional
+        Largest disparity searched (px); default 256 px at 2048 px wide, scaled to the width
+        (about 1.85 m at Cityscapes' baseline and focal length). Rounded up to a multiple of 16.
+    block : int
+        Matching block size (odd, px).
+
+    Returns
+    -------
+    (disparity, info)
+        The uint16 PNG array and ``coverage`` (fraction of valid pixels), ``num_disparities``.
+    """
+    H, W = labels.shape
+    if left.shape[:2] != (H, W) or right.shape[:2] != (H, W):
+        raise NpsimInputError(f"stereo pair {left.shape[:2]} / {right.shape[:2]} does not match labels {(H, W)}")
+    md = 256.0 * W / NATIVE_SIZE[0] if max_disparity is None else float(max_disparity)
+    nd = int(16 * max(1, math.ceil(md / 16)))
+    b = int(block) | 1
+    gl = cv2.cvtColor(left, cv2.COLOR_RGB2GRAY)
+    gr = cv2.cvtColor(right, cv2.COLOR_RGB2GRAY)
+    sgbm = cv2.StereoSGBM_create(minDisparity=0, numDisparities=nd, blockSize=b, P1=8 * b * b, P2=32 * b * b,
+                                 disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=0, speckleRange=0,
+                                 preFilterCap=63, mode=cv2.STEREO_SGBM_MODE_SGBM)
+    d16 = sgbm.compute(gl, gr)                                        # int16, disparity * 16, < 0 invalid
+    d = d16.astype(np.float64) / 16.0
+    ok = (d16 > 0) & (labels != _SKY) & (labels > 3)
+    p = np.rint(d * 256.0) + 1.0
+    ok &= (p >= 2.0) & (p <= 65535.0)
+    out = np.where(ok, p, 0.0).astype(np.uint16)
+    return out, {"coverage": float(ok.mean()), "num_disparities": float(nd)}
+
+
 # --------------------------------------------------------------------------- writer
 def _check_name(what: str, value: str) -> str:
     if not isinstance(value, str) or not value or value in (".", "..") or "/" in value or os.sep in value:
@@ -362,7 +411,8 @@ def _check_name(what: str, value: str) -> str:
 def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: tuple[int, int] = (256, 128),
                              split: str = "val", city: str = "synthcity", seed: int = 0, corrupt: int = 1,
                              noise: float = 0.02, hole_fraction: float = 0.2, ego_vehicle: bool = True,
-                             color: bool = True) -> list[str]:
+                             color: bool = True, stereo: str = "sgm", truth: str | os.PathLike | None = None,
+                             variant: str = "default") -> list[str]:
     """Write a Cityscapes-layout dataset of synthetic streets under ``root``; return the frame stems.
 
     Per frame ``i`` (street ``street_scene(W, H, seed + i)``, stem :func:`fixture_stem`)::
@@ -386,9 +436,20 @@ def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: 
         :class:`~npsim_core.errors.NpsimInputError`.
     size : (W, H)
         Image size (2:1 is Cityscapes' aspect).
+    stereo : {"sgm", "noise"}
+        ``sgm`` (default): the street's right view is rendered (baseline :data:`BASELINE`, the
+        same scaled native intrinsics) and matched with OpenCV's semi-global matching
+        (:func:`sgm_disparity`), so the disparity has real SGM errors. ``noise``: the older
+        model, exact disparity with simulated holes and i.i.d. + smooth noise
+        (:func:`simulate_stereo_disparity`).
     noise, hole_fraction : float
-        Stereo defects, see :func:`simulate_stereo_disparity` (coverage about
-        ``1 - hole_fraction``).
+        Stereo defects of ``stereo="noise"``, see :func:`simulate_stereo_disparity` (coverage
+        about ``1 - hole_fraction``).
+    truth : path, optional
+        Folder (outside the dataset tree) that receives each frame's exact z-depth as
+        ``<stem>_depth.npy`` (float32 m, NaN on sky), for benchmarks.
+    variant : str
+        Street variant (:data:`~npsim_core.synthetic.VARIANTS`).
     ego_vehicle : bool
         Paint the ego vehicle's bonnet (labelId 1, no disparity) over the bottom rows.
     """
@@ -406,14 +467,24 @@ def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: 
         raise NpsimInputError(f"seed must be a non-negative integer, got {seed!r}")
     _check_name("split", split)
     _check_name("city", city)
+    if stereo not in ("sgm", "noise"):
+        raise NpsimInputError(f"stereo must be 'sgm' or 'noise', got {stereo!r}")
     root = Path(root)
+    if truth is not None:
+        truth = Path(truth)
+        try:
+            truth.resolve().relative_to(root.resolve())
+            raise NpsimInputError(f"truth folder {truth} is inside the dataset {root}; give a folder outside it "
+                                  "(a real dataset has no exact depth)")
+        except ValueError:
+            pass
     table = cityscapes()
     stems = []
     for i in range(int(frames)):
         s = fixture_seed(seed, i)
         stem = fixture_stem(city, i)
-        scene = street_scene(W, H, s)
-        layout, intr, _, gt = street_ground_truth(W, H, s)
+        scene = street_scene(W, H, s, variant=variant)
+        layout, intr, _, gt = street_ground_truth(W, H, s, variant=variant)
         if intr != scene.intrinsics:
             raise RuntimeError("synthetic scene and ray caster disagree on the intrinsics")
         image, labels = scene.image, scene.labels.copy()
@@ -429,8 +500,19 @@ def write_cityscapes_fixture(root: str | os.PathLike, *, frames: int = 3, size: 
         if scene.lights is not None:
             inst = scene.lights.instance_map
             glass = np.where(np.isin(inst // 1000, _GLASS_LIGHT_CLASSES), inst, 0)
-        disp, _ = simulate_stereo_disparity(scene.depth_gt, labels, fx, seed=s, noise=noise,
-                                            hole_fraction=hole_fraction, glass=glass)
+        if stereo == "sgm":
+            from . import street_right_view
+
+            right = street_right_view(W, H, s, baseline=BASELINE * fx / intr.fx, variant=variant)
+            if ego_vehicle:  # the bonnet is rigid with the cameras: the same pixels in both views
+                right = _paint_ego_vehicle(right, hood)
+            disp, _ = sgm_disparity(image, right, labels)
+        else:
+            disp, _ = simulate_stereo_disparity(scene.depth_gt, labels, fx, seed=s, noise=noise,
+                                                hole_fraction=hole_fraction, glass=glass)
+        if truth is not None:
+            truth.mkdir(parents=True, exist_ok=True)
+            np.save(truth / f"{stem}_depth.npy", np.asarray(scene.depth_gt, np.float32))
         inst_ids = instance_ids(labels, gt.prim, layout.prims)
 
         img_path = fixture_image(root, stem, split, city)
@@ -468,6 +550,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--city", default="synthcity")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--corrupt", type=int, default=1, help="last N frames get a truncated image (default 1)")
+    ap.add_argument("--stereo", choices=("sgm", "noise"), default="sgm",
+                    help="sgm (default): render the right view and run OpenCV semi-global matching; "
+                         "noise: exact disparity with simulated holes and noise")
+    ap.add_argument("--truth", default=None, metavar="DIR",
+                    help="also write each frame's exact depth to DIR/<stem>_depth.npy (outside the dataset)")
+    ap.add_argument("--variant", default="default", help="street variant (default, receding, busy, ...)")
     ap.add_argument("--noise", type=float, default=0.02)
     ap.add_argument("--hole-fraction", type=float, default=0.2)
     ap.add_argument("--no-ego-vehicle", action="store_true")
@@ -476,7 +564,8 @@ def main(argv: list[str] | None = None) -> int:
         w, h = (int(v) for v in args.size.lower().split("x"))
         stems = write_cityscapes_fixture(args.root, frames=args.frames, size=(w, h), split=args.split,
                                          city=args.city, seed=args.seed, corrupt=args.corrupt, noise=args.noise,
-                                         hole_fraction=args.hole_fraction, ego_vehicle=not args.no_ego_vehicle)
+                                         hole_fraction=args.hole_fraction, ego_vehicle=not args.no_ego_vehicle,
+                                         stereo=args.stereo, truth=args.truth, variant=args.variant)
     except (NpsimInputError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
