@@ -115,3 +115,51 @@ def test_forced_and_inferred_colour():
     act = activate_lights(ann, t, 0, image=img, force={12001: False})
     assert not act.lights[12001].on and act.lights[12001].chromaticity == pytest.approx((rg, bg))
     assert activate_lights(None, t, 0).lights == {}
+
+
+def _signal_heads() -> LightAnnotation:
+    """Two three-lamp signal heads (one upright, one horizontal) and a window, as an annotator draws them."""
+    m = np.zeros((20, 24), np.int32)
+    for k in range(3):
+        m[2 + 5 * k:5 + 5 * k, 2:5] = 12001 + k          # upright: top to bottom
+        m[2:5, 8 + 4 * k:11 + 4 * k] = 12004 + k         # horizontal: left to right
+    m[15:18, 15:20] = 1001
+    return LightAnnotation(m, {20001: GroupInstance(20001, (12001, 12002, 12003)),
+                               20002: GroupInstance(20002, (12004, 12005, 12006))})
+
+
+def test_a_traffic_light_group_lights_exactly_one_lamp_in_that_lamps_colour():
+    ann, t = _signal_heads(), load_light_table()
+    colours = t.traffic_light["colours"]
+    place = {12001: "red", 12002: "amber", 12003: "green", 12004: "red", 12005: "amber", 12006: "green"}
+    shown = set()
+    for seed in range(40):
+        act = activate_lights(ann, t, seed, image=np.full((20, 24, 3), 200, np.uint8))
+        for gid in (20001, 20002):
+            on = [i for i in ann.groups[gid].members if act.lights[i].on]
+            assert len(on) == 1, (seed, gid, on)           # one lamp per head, never all three (white)
+            st = act.lights[on[0]]
+            assert st.chromaticity == pytest.approx(colours[place[on[0]]])
+            assert st.radiance[1] > 0 and max(st.radiance) == pytest.approx(
+                t.unit_scale * st.strength * max(colours[place[on[0]]][0], 1, colours[place[on[0]]][1]))
+        lit = [place[i] for i in act.on_ids if i // 1000 == 12]
+        assert lit[0] == lit[1]                              # heads of one direction show the same state
+        shown.add(lit[0])
+        assert act.lights[1001].chromaticity != act.lights[12001].chromaticity
+    assert shown == {"red", "amber", "green"}               # the seed picks the state
+    # Colours red and green differ as a night shows them: red lamp redder than green, green greener.
+    assert colours["red"][0] > 3 > colours["green"][0] and colours["green"][1] > colours["red"][1]
+
+
+def test_the_state_the_day_photo_shows_and_an_annotators_colours_win():
+    ann, t = _signal_heads(), load_light_table()
+    ann.meta["traffic_light_states"] = {"20002": "green"}
+    ann.meta["lamp_colours"] = {"12004": "green", "12006": "red"}  # a head ordered the other way round
+    for seed in range(10):
+        on = activate_lights(ann, t, seed).on_ids
+        assert 12003 in on and 12004 in on and not {12001, 12002, 12005, 12006} & set(on)
+    ann.meta["traffic_light_direction"] = {"20001": "crossing"}   # another direction: drawn on its own
+    states = {tuple(activate_lights(ann, t, s).on_ids) for s in range(30)}
+    assert any(12003 not in on for on in states)
+    p = load_light_table().traffic_light
+    assert abs(sum(p["state_p"].values()) - 1) < 1e-9 and set(p["order"]) <= set(p["colours"])

@@ -285,3 +285,26 @@ def test_touching_vehicles_without_instance_ids_split_where_depth_jumps():
     assert spans[0][0] == 10 and spans[1][1] == 110 and abs(spans[0][1] - 60) <= 1 and spans[0][1] == spans[1][0]
     depth[20:50, 10:110] = 10.0 + np.linspace(0, 1.0, 100)[None, :]   # one car's side receding: no split
     assert len(_split_by_depth(_check_inputs(img, lab, depth, None, None), 20, 10, m)) == 1
+
+
+def test_a_proposed_signal_head_lights_one_lamp_the_one_the_day_photo_shows():
+    from npsim_core.render.lights import activate_lights, load_light_table
+
+    img, lab = _canvas()
+    lab[30:60, 90:100] = TRAFFIC_LIGHT
+    img[30:60, 90:100] = (15, 15, 15)
+    for k, col in enumerate(((60, 10, 10), (60, 45, 5), (40, 250, 150))):    # green lit, red and amber dark
+        img[32 + 10 * k:38 + 10 * k, 92:98] = col
+    props = propose_lights(img, lab)
+    ann = props.above(0.5)
+    (gid,) = [g for g in ann.groups if class_of(g) == 20]
+    members = sorted(ann.groups[gid].members, key=lambda i: np.nonzero(ann.mask(i))[0].mean())
+    assert [ann.meta["lamp_colours"][str(i)] for i in members] == ["red", "amber", "green"]
+    assert ann.meta["traffic_light_states"] == {str(gid): "green"}
+    table = load_light_table()
+    for seed in range(5):
+        act = activate_lights(ann, table, seed, image=img)
+        assert [i for i in members if act.lights[i].on] == [members[2]]
+        assert act.lights[members[2]].chromaticity == pytest.approx(table.traffic_light["colours"]["green"])
+    img[52:58, 92:98] = (20, 60, 40)                                # nothing lit by day: no state, the seed picks
+    assert "traffic_light_states" not in propose_lights(img, lab).above(0.5).meta

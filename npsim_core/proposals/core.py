@@ -40,8 +40,11 @@ class LightProposals:
             members = tuple(x for x in g.members if x in keep_set)
             if members:
                 groups[gid] = GroupInstance(gid, members)
-        out = LightAnnotation(new_map, groups, {i for i in ann.extra_ids if i in keep_set}, dict(ann.meta))
-        return out
+        meta = dict(ann.meta)
+        for key in ("lamp_colours", "traffic_light_states", "traffic_light_direction"):  # only kept ids
+            if key in meta:
+                meta[key] = {k: v for k, v in meta[key].items() if int(k) in keep_set or int(k) in groups}
+        return LightAnnotation(new_map, groups, {i for i in ann.extra_ids if i in keep_set}, meta)
 
     def ids_in_group(self, group_id: int) -> tuple[int, ...]:
         """Member light ids of ``group_id`` (empty for an unknown group)."""
@@ -75,6 +78,8 @@ class Light:
     x0: int
     mask: np.ndarray
     confidence: float
+    #: Signal lamps: the lamp's colour ("red", "amber", "green"), saved as ``meta.lamp_colours``.
+    colour: str | None = None
 
 
 @dataclass
@@ -84,6 +89,8 @@ class Group:
     class_id: int
     members: list[Light]
     confidence: float
+    #: Signal heads: the lamp the day photo shows lit, saved as ``meta.traffic_light_states``.
+    state: str | None = None
 
 
 @dataclass
@@ -185,6 +192,8 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
     counters: dict[int, int] = {}
     conf: dict[int, float] = {}
     groups: dict[int, GroupInstance] = {}
+    colours: dict[str, str] = {}
+    states: dict[str, str] = {}
 
     def new_id(cls: int) -> int | None:
         k = counters.get(cls, 0) + 1
@@ -209,6 +218,8 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
             return None
         region[free] = lid
         conf[lid] = float(np.clip(li.confidence, 0.0, 1.0))
+        if li.colour:
+            colours[str(lid)] = li.colour
         return lid
 
     for it in items:
@@ -223,7 +234,10 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
             continue
         groups[gid] = GroupInstance(gid, tuple(members))
         conf[gid] = float(np.clip(it.confidence, 0.0, 1.0))
-    return LightProposals(LightAnnotation(m, groups), conf)
+        if it.state:
+            states[str(gid)] = it.state
+    meta = {k: v for k, v in (("lamp_colours", colours), ("traffic_light_states", states)) if v}
+    return LightProposals(LightAnnotation(m, groups, meta=meta), conf)
 
 
 def propose_lights(image: np.ndarray, labels: np.ndarray, depth: np.ndarray | None = None,

@@ -9,6 +9,9 @@ from .core import Context, Group, Light, components
 TRAFFIC_LIGHT = 19
 INFERRED = 12
 TRAFFIC_LIGHT_GROUP = 20
+#: Lamp colours of a head in reading order (top to bottom; left to right on a horizontal head),
+#: as resources/light_table.json's ``traffic_light.order``.
+LAMP_ORDER = ("red", "amber", "green")
 
 
 def _cells(mask: np.ndarray, vertical: bool, frac: float) -> list[np.ndarray]:
@@ -31,8 +34,24 @@ def _cells(mask: np.ndarray, vertical: bool, frac: float) -> list[np.ndarray]:
     return out
 
 
+def lit_cell(lum: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | None:
+    """Index of the cell the day photo shows lit: its mean linear luminance at least ``ratio`` times
+    every other cell's; None when no cell stands out (all dark, or glare on all)."""
+    means = np.array([float(lum[c].mean()) if c.any() else 0.0 for c in cells])
+    k = int(np.argmax(means))
+    others = np.delete(means, k)
+    if means[k] <= 0 or (others.size and means[k] < ratio * max(float(others.max()), 1e-4)):
+        return None
+    return k
+
+
 def propose(ctx: Context) -> list[Group]:
     """One traffic_light_group of three 'inferred' lamps per traffic-light component.
+
+    Lamps are named red, amber, green in reading order (:data:`LAMP_ORDER`); a cell much brighter
+    than the other two by day (``tl_lit_ratio``) is the lamp the signal shows, kept as the
+    group's state, so the night lights that lamp (npsim_core.render.lights.traffic_light_states);
+    without one the night's seed picks the state.
 
     Confidence: 0.8 for a housing elongated like a signal head (aspect >= ``tl_min_aspect``), 0.4 for a
     squat one (seen edge-on or merged with something), lowered for components under 4 px across, raised
@@ -59,6 +78,7 @@ def propose(ctx: Context) -> list[Group]:
             contrast = float(np.abs(img[lamps].mean(0) - img[rim].mean(0)).max()) / 255.0
             conf += 0.15 * min(1.0, contrast / 0.15)
         conf = float(np.clip(conf, 0.0, 1.0))
-        lights = [Light(INFERRED, y0, x0, c, conf) for c in cells]
-        out.append(Group(TRAFFIC_LIGHT_GROUP, lights, conf))
+        lights = [Light(INFERRED, y0, x0, c, conf, colour=LAMP_ORDER[k]) for k, c in enumerate(cells)]
+        lit = lit_cell(ctx.lum[y0:y0 + h, x0:x0 + w], cells, p.tl_lit_ratio)
+        out.append(Group(TRAFFIC_LIGHT_GROUP, lights, conf, state=None if lit is None else LAMP_ORDER[lit]))
     return out

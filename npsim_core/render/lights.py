@@ -22,6 +22,13 @@ group as one (one Bernoulli with the member-count-weighted mean p). Ungrouped
 lights draw their own p. Everything comes from one ``numpy.random.Generator``
 seeded with ``seed`` and visits lights in sorted id order: the same seed gives
 the same night.
+
+Traffic lights: a signal head shows one lamp. In a ``traffic_light_group`` of two or three
+``inferred`` lamps exactly one is lit, the lamp whose colour (red / amber / green) is the
+state of the group's direction; the state is drawn once per direction and seed from the
+table's ``traffic_light.state_p`` (a second stream, so the other lights' draws are
+unchanged) unless the annotation says what the day photo shows, and the lit lamp takes the
+table's colour for that state instead of its daytime colour (:func:`traffic_light_states`).
 """
 
 from __future__ import annotations
@@ -117,6 +124,8 @@ class LightTable:
     throw: dict
     sky_radiance: tuple[float, float, float]
     source: str = "default"
+    #: Signal heads: lamp colours (name -> (r/g, b/g)), lamp order in a head, state probabilities.
+    traffic_light: dict = field(default_factory=dict)
 
     def spec(self, class_id: int) -> LightClassSpec:
         try:
@@ -207,7 +216,30 @@ def parse_light_table(doc: dict, source: str = "light table") -> LightTable:
     ego = dict(doc.get("ego_headlight", {}))
     _range(ego, "strength", f"{source}: ego_headlight", 0.0, 1e9)
     return LightTable(classes=classes, unit_scale=unit, ego_headlight=ego, throw=dict(doc.get("throw", {})),
-                      sky_radiance=tuple(float(v) for v in sky), source=source)  # type: ignore[arg-type]
+                      sky_radiance=tuple(float(v) for v in sky), source=source,  # type: ignore[arg-type]
+                      traffic_light=_traffic_light_section(doc.get("traffic_light", {}), source))
+
+
+def _traffic_light_section(doc: dict, source: str) -> dict:
+    """Validated ``traffic_light`` section: colours {name: (r/g, b/g)}, order, order_two, state_p (sums to 1)."""
+    where = f"{source}: traffic_light"
+    if not isinstance(doc, dict):
+        raise NpsimInputError(f"{where} must be an object with 'colours', 'order' and 'state_p'")
+    colours = {}
+    for name, ch in dict(doc.get("colours", {})).items():
+        if not (isinstance(ch, (list, tuple)) and len(ch) == 2 and all(float(x) > 0 for x in ch)):
+            raise NpsimInputError(f"{where}: colour {name!r} must be [r/g, b/g] with positive values, got {ch!r}")
+        colours[str(name)] = (float(ch[0]), float(ch[1]))
+    order = [str(c) for c in doc.get("order", [])]
+    order_two = [str(c) for c in doc.get("order_two", [])]
+    state_p = {str(k): float(v) for k, v in dict(doc.get("state_p", {})).items()}
+    for what, names in (("order", order), ("order_two", order_two), ("state_p", list(state_p))):
+        bad = [c for c in names if c not in colours]
+        if bad:
+            raise NpsimInputError(f"{where}: {what} names {bad}, which have no entry in 'colours'")
+    if state_p and (any(v < 0 for v in state_p.values()) or abs(sum(state_p.values()) - 1.0) > 1e-6):
+        raise NpsimInputError(f"{where}: state_p must be non-negative probabilities summing to 1, got {state_p}")
+    return {"colours": colours, "order": order, "order_two": order_two, "state_p": state_p}
 
 
 def load_light_table(path: str | Path | None = None) -> LightTable:
@@ -288,6 +320,68 @@ def inferred_chromaticity(image: np.ndarray, mask: np.ndarray) -> tuple[float, f
     return (float(np.clip(lin[0] / lin[1], 0.05, 20.0)), float(np.clip(lin[2] / lin[1], 0.05, 20.0)))
 
 
+def _lamp_order(annotation: LightAnnotation, members: list[int]) -> list[int]:
+    """Lamps of one signal head in reading order: top to bottom, or left to right when the head's
+    lamps spread wider than tall (a horizontal head)."""
+    cent = {}
+    for m in members:
+        ys, xs = np.nonzero(annotation.instance_map == m)
+        cent[m] = (float(ys.mean()), float(xs.mean())) if ys.size else (0.0, 0.0)
+    ys = [c[0] for c in cent.values()]
+    xs = [c[1] for c in cent.values()]
+    axis = 1 if (max(xs) - min(xs)) > (max(ys) - min(ys)) else 0
+    return sorted(members, key=lambda m: (cent[m][axis], m))
+
+
+def traffic_light_states(annotation: LightAnnotation | None, table: LightTable, seed: int
+                         ) -> dict[int, tuple[str, str]]:
+    """Which lamp of every signal head is lit: ``{lamp id: (lamp colour, state of its head)}``.
+
+    A signal head is a ``traffic_light_group`` (20) holding two or three ``inferred`` (12) lamps
+    and nothing else. A lamp's colour is ``annotation.meta["lamp_colours"][str(id)]`` when given,
+    else its place in the head (:func:`_lamp_order`; ``traffic_light.order`` or ``order_two``). The
+    state of a direction (``meta["traffic_light_direction"][str(group id)]``, default ``"ahead"``:
+    every head facing the camera) is what the day photo shows (``meta["traffic_light_states"]``, the
+    first head of that direction that has one), else a draw from ``traffic_light.state_p`` with
+    ``default_rng([seed, 20])`` per direction in sorted order; a head without a lamp of that colour
+    (a two-lamp head on amber) shows red. Empty without a ``traffic_light`` table section.
+    """
+    tl = table.traffic_light
+    if annotation is None or not tl or not tl.get("colours") or not tl.get("state_p"):
+        return {}
+    meta = annotation.meta or {}
+    given_col = {int(k): str(v) for k, v in dict(meta.get("lamp_colours") or {}).items()}
+    seen = {int(k): str(v) for k, v in dict(meta.get("traffic_light_states") or {}).items()}
+    direction = {int(k): str(v) for k, v in dict(meta.get("traffic_light_direction") or {}).items()}
+    heads: dict[int, dict[int, str]] = {}
+    for gid in sorted(annotation.groups):
+        g = annotation.groups[gid]
+        mem = [int(m) for m in g.members]
+        if g.class_id != 20 or not 2 <= len(mem) <= 3 or any(class_of(m) != INFERRED_CLASS for m in mem):
+            continue
+        order = tl["order"] if len(mem) == 3 else tl["order_two"]
+        placed = _lamp_order(annotation, mem)
+        heads[gid] = {m: given_col.get(m, order[k] if k < len(order) else "") for k, m in enumerate(placed)}
+    if not heads:
+        return {}
+    rng = np.random.default_rng([int(seed), 20])
+    names = list(tl["state_p"])
+    probs = np.array([tl["state_p"][n] for n in names], float)
+    state: dict[str, str] = {}
+    for d in sorted({direction.get(g, "ahead") for g in heads}):
+        drawn = names[int(rng.choice(len(names), p=probs / probs.sum()))]  # always drawn: stable per seed
+        obs = [seen[g] for g in sorted(heads) if direction.get(g, "ahead") == d and seen.get(g) in tl["colours"]]
+        state[d] = obs[0] if obs else drawn
+    out: dict[int, tuple[str, str]] = {}
+    for gid, lamps in heads.items():
+        st = state[direction.get(gid, "ahead")]
+        if st not in lamps.values():
+            st = "red" if "red" in lamps.values() else next(iter(lamps.values()))
+        for m, col in lamps.items():
+            out[m] = (col, st)
+    return out
+
+
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
     x = np.asarray(x, dtype=np.float32)
@@ -337,6 +431,7 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
                 p = float(np.mean([shared[(gid, class_of(m))]["p"] for m in mem]))
                 group_on[gid] = bool(rng.random() < p)
 
+    signal = traffic_light_states(annotation, table, seed)
     states: dict[int, LightState] = {}
     for lid in ids:
         cid = class_of(lid)
@@ -353,11 +448,15 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
             on = group_on[gid] if group_all_together else bool(u < p)
         else:
             p, s, jit, on = own_p, own_s, own_jit, bool(u < own_p)
+        chroma = spec.chromaticity
+        if lid in signal:  # one lamp per signal head, in its table colour (not its daytime look)
+            colour, shown = signal[lid]
+            on = on and colour == shown
+            chroma = table.traffic_light["colours"].get(colour, chroma)
+        elif cid == INFERRED_CLASS and image is not None:
+            chroma = inferred_chromaticity(image, annotation.mask(lid)) or chroma
         if force and lid in force:
             on = bool(force[lid])
-        chroma = spec.chromaticity
-        if cid == INFERRED_CLASS and image is not None:
-            chroma = inferred_chromaticity(image, annotation.mask(lid)) or chroma
         if spec.spread > 0:
             chroma = (chroma[0] * math.exp(spec.spread * jit[0]), chroma[1] * math.exp(spec.spread * jit[1]))
         rad = table.radiance(s, chroma) if on else np.zeros(3)
