@@ -9,8 +9,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from npsim_core.chain import ChainParams
-from npsim_core.chain.params import DEPTH_SOURCES, LIGHT_SOURCES
+from npsim_core.chain.names import DEPTH_SOURCES, LIGHT_SOURCES
 from npsim_core.errors import NpsimInputError
 
 
@@ -77,7 +76,8 @@ def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> 
                    help="proposals below this confidence are not used (lights.min_confidence, default 0.5)")
 
 
-def params_from_args(args: argparse.Namespace) -> ChainParams:
+def params_from_args(args: argparse.Namespace) -> "ChainParams":  # noqa: F821 (imported here: start-up time)
+    from npsim_core.chain.params import ChainParams
     from npsim_core.io import read_json
 
     params = ChainParams()

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import check_output_folder, load_frame
 from npsim_core.errors import NpsimInputError
 
 
@@ -38,6 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _load(args: argparse.Namespace):
+    from npsim_core.chain import load_frame
+
     path = Path(args.scene)
     if path.is_dir() and args.fov is not None:
         raise NpsimInputError("--fov applies to dataset images; a scene folder has intrinsics.json")
@@ -45,7 +46,8 @@ def _load(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from npsim_core.geometry import estimate_geometry
+    from npsim_core.chain import check_output_folder
+    from npsim_core.geometry import DEPTH_FAR_M, DEPTH_NEAR_M, DepthLimits, estimate_geometry
     from npsim_core.geometry.files import FilesParams
     from npsim_core.geometry.network import NetworkParams
     from npsim_core.geometry.popup import PopupParams
@@ -76,12 +78,16 @@ def run(args: argparse.Namespace) -> int:
     est = estimate_geometry(scene, args.method, params)
     valid = float(((est.depth == est.depth) & (est.depth > 0)).mean())
     if valid == 0:
-        raise NpsimInputError(f"{scene.name}: the {args.method} depth has no valid pixel (all NaN, <= 0 or sky); "
+        raise NpsimInputError(f"{scene.name}: the {args.method} depth has no valid pixel (all NaN, <= 0, nearer than "
+                              f"{DEPTH_NEAR_M:g} m, beyond {DEPTH_FAR_M:g} m, or sky); "
                               "nothing written -- check the depth file and its units")
     result = est.apply(scene)
     save_scene(result, out)
     print(f"{scene.name}: {args.method} depth/normals -> {out}/depth_pred.npy, normals_pred.npy "
           f"({100 * float((est.depth == est.depth).mean()):.1f}% valid)")
+    lim = DepthLimits(**est.info["depth_limits"])
+    if lim.dropped:
+        print(f"  {lim.sentence()}")
     ref = reference_of(scene)
     if ref is not None:
         sc = score_depth(est.depth, scene.intrinsics, scene.labels, ref)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="describe a frame (scene folder, project, dataset image)")
@@ -14,6 +12,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def describe_scene(scene) -> str:
+    import numpy as np
+
     from npsim_core.labels import cityscapes, light_class
 
     table = cityscapes()

@@ -5,9 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import Chain, check_output_folder, export_frame, load_frame
-from npsim_core.chain.export import check_mesh_formats
-
 from ..options import add_param_options, log, params_from_args, stage_logger
 
 
@@ -34,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from npsim_core.chain import Chain, check_output_folder, export_frame, load_frame
+    from npsim_core.chain.export import check_mesh_formats
+
     params = params_from_args(args)
     for name, value in (("stride", args.stride), ("face_budget", args.budget), ("far_limit", args.far)):
         if value is not None:

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from npsim_core.chain import check_output_folder, load_frame
 from npsim_core.errors import NpsimInputError
 
 from ..options import add_param_options, params_from_args
@@ -58,6 +57,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from npsim_core.chain import check_output_folder, load_frame
+
     from .run import process_frame
 
     if args.variants < 1:

@@ -9,10 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from npsim_core.chain import (Chain, ChainParams, check_output_folder, export_frame, frame_errors, iter_frames,
-                              load_frame)
 from npsim_core.errors import NpsimInputError
 
 from ..options import add_param_options, log, params_from_args, stage_logger
@@ -74,6 +70,8 @@ def _summary(errors: dict) -> str:
 
 def dataset_summary(scores: list[dict]) -> list[str]:
     """Mean scores over the frames, per reference kind (lines for the log)."""
+    import numpy as np
+
     lines = []
     for kind in sorted({e["reference"] for e in scores}):
         rows = [e for e in scores if e["reference"] == kind]
@@ -89,6 +87,8 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
                   inputs: dict | None = None, scores: list | None = None) -> list[Path]:
     """Run the chain on ``scene`` and export to ``out`` (progress on stderr); its scores are
     appended to ``scores`` when given."""
+    from npsim_core.chain import Chain, export_frame, frame_errors
+
     chain = Chain(scene)
     t0 = time.perf_counter()
 
@@ -116,6 +116,8 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
 
 
 def run_one(args: argparse.Namespace) -> int:
+    from npsim_core.chain import check_output_folder, load_frame
+
     params = params_from_args(args)
     check_output_folder(args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, trainids=args.trainids)
@@ -126,6 +128,7 @@ def run_one(args: argparse.Namespace) -> int:
 
 def run_sample_headless(out: str, size: tuple[int, int]) -> int:
     """The main job without a display: sample scene -> refined depth, mesh, nights, all on disk."""
+    from npsim_core.chain import ChainParams
     from npsim_core.synthetic import street_scene
 
     scene = street_scene(*size)
@@ -139,6 +142,7 @@ def run_sample_headless(out: str, size: tuple[int, int]) -> int:
 
 
 def run_batch(args: argparse.Namespace) -> int:
+    from npsim_core.chain import check_output_folder, iter_frames
     from npsim_core.chain.batch import run_batch as run_frames
 
     params = params_from_args(args)
@@ -177,6 +181,7 @@ def default_workers() -> int:
 
 
 def run_sweep(args: argparse.Namespace) -> int:
+    from npsim_core.chain import check_output_folder, load_frame
     from npsim_core.chain.sweep import parse_grid, run_sweep as sweep, write_sweep
 
     params = params_from_args(args)

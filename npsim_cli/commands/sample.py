@@ -19,10 +19,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size", default="512x256", help="image size WIDTHxHEIGHT in pixels (default 512x256)")
     p.add_argument("-o", "--output", required=True, help="output scene folder (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="layout / prediction-error seed (default 0)")
-    from npsim_core.synthetic.street import VARIANTS
-
-    p.add_argument("--variant", default="default", choices=list(VARIANTS),
-                   help="street variant (docs/synthetic.md): " + ", ".join(VARIANTS) + " (default: default)")
+    # The variants are checked in run(): importing npsim_core.synthetic here cost every command's
+    # start 0.15 s and numpy + OpenCV (issue #28, benchmarks/cli_start.py).
+    p.add_argument("--variant", default="default",
+                   help="street variant (docs/synthetic.md; default: default; an unknown name lists them)")
     p.add_argument("--spp", type=int, default=None, help="Mitsuba samples per pixel (default: 16 up to 512x256 "
                                                          "pixels, 4 above; rounded up to 4, 16, 64, ...)")
     p.add_argument("--preview", metavar="PNG", default=None,
@@ -45,6 +45,10 @@ def run(args: argparse.Namespace) -> int:
     out = check_output_folder(args.output)
     spp = args.spp if args.spp is not None else auto_spp(w, h)
     variant = getattr(args, "variant", "default")
+    from npsim_core.synthetic.street import VARIANTS
+
+    if variant not in VARIANTS:
+        raise NpsimInputError(f"--variant {variant!r}: unknown street variant; choose one of {', '.join(VARIANTS)}")
     print(f"npsim sample: generating {w}x{h} street (variant {variant}, seed {args.seed}, {spp} spp) ...",
           file=sys.stderr, flush=True)
     t0 = time.perf_counter()

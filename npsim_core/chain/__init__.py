@@ -8,11 +8,19 @@
 * :mod:`.export`  -- one writer for every output kind, nights included, and the manifest.
 """
 
-from .chain import DEPTH_STAGES, Chain, ChainResults, NightFrame
-from .export import EXPORT_KINDS, check_output_folder, export_frame, frame_errors, verify_frame
-from .params import CameraSetup, ChainParams, MeshParams, NightParams
-from .session import FrameSource, iter_frames, load_frame, scaled_frame
+from importlib import import_module
 
-__all__ = ["Chain", "ChainResults", "NightFrame", "DEPTH_STAGES", "ChainParams", "CameraSetup", "MeshParams",
-           "NightParams", "EXPORT_KINDS", "export_frame", "frame_errors", "check_output_folder", "verify_frame", "FrameSource", "iter_frames", "load_frame",
-           "scaled_frame"]
+#: Public names and their modules, imported on first use (PEP 562): the command line imports
+#: ``.params`` to build its parser and must not pay for the stages' imports (issue #28).
+_EXPORTS = {"Chain": "chain", "ChainResults": "chain", "NightFrame": "chain", "DEPTH_STAGES": "chain",
+            "EXPORT_KINDS": "export", "check_output_folder": "export", "export_frame": "export",
+            "frame_errors": "export", "verify_frame": "export", "ChainParams": "params", "CameraSetup": "params",
+            "MeshParams": "params", "NightParams": "params", "FrameSource": "session", "iter_frames": "session",
+            "load_frame": "session", "scaled_frame": "session"}
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

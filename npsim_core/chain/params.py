@@ -16,9 +16,10 @@ from typing import Any
 from ..errors import NpsimInputError
 from ..mesh.postprocess import PostprocessParams
 from ..refine.bilateral import FilterParams
-from ..refine.optimize import PRESETS, RefineParams
+from ..refine.params import PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DENOISERS, DenoiseParams
+from .names import DEPTH_SOURCES, LIGHT_SOURCES
 
 __all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "LightsParams",
            "LIGHT_SOURCES", "MESH_DEPTHS", "DEPTH_SOURCES", "parse_value"]
@@ -38,8 +39,6 @@ class CameraSetup:
     hfov_deg: float = 0.0
 
 
-#: Where the input depth comes from (docs/method.md §2.2); ``auto`` picks per frame.
-DEPTH_SOURCES = ("auto", "files", "stereo", "network", "prior")
 
 
 @dataclass(frozen=True)
@@ -54,11 +53,14 @@ class DepthSource:
     checkpoint : a local depth-network checkpoint folder ('' = none; nothing is downloaded).
     stereo_max_m : stereo depth beyond this many metres counts as a hole (filled from the prior)
         and is not used for scoring.
+    near_limit : metres; any input depth nearer than this is invalid (NaN), from every source, and
+        the pixels dropped are counted in the log (the far limit is ``mesh.far_limit``).
     """
 
     source: str = "auto"
     checkpoint: str = ""
     stereo_max_m: float = 80.0
+    near_limit: float = 0.1
 
     def __post_init__(self) -> None:
         if self.source not in DEPTH_SOURCES:
@@ -68,6 +70,8 @@ class DepthSource:
                                   "(CLI: --checkpoint DIR)")
         if not self.stereo_max_m > 0:
             raise NpsimInputError(f"depth.stereo_max_m must be > 0, got {self.stereo_max_m}")
+        if not (math.isfinite(float(self.near_limit)) and float(self.near_limit) >= 0):
+            raise NpsimInputError(f"depth.near_limit must be a finite number of metres >= 0, got {self.near_limit}")
 
 
 @dataclass(frozen=True)
@@ -247,8 +251,6 @@ class ExportParams:
             raise NpsimInputError(f"export.mesh_formats: unknown {bad or 'empty'}; choose from {', '.join(FORMATS)}")
 
 
-#: Where a frame's light annotation comes from (``lights.source``; docs/method.md §7.5).
-LIGHT_SOURCES = ("auto", "annotation", "proposed", "none", "file")
 
 
 @dataclass(frozen=True)

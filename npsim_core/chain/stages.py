@@ -103,14 +103,20 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     intr = Intrinsics.from_fov(s.width, s.height, hfov) if hfov > 0 else s.intrinsics
     s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
     s, source = input_geometry(s, src)
-    d = np.asarray(s.depth, np.float32)
-    with np.errstate(invalid="ignore"):
-        bad = ~(np.isfinite(d) & (d > 0) & (d <= far_limit))
-    if bad.all():
-        raise NpsimInputError(f"scene {s.name!r}: no valid depth within {far_limit:g} m (all sky, NaN, <= 0 or "
-                              "beyond the far limit, mesh.far_limit); there is nothing to reconstruct")
-    if bad.any():
-        s = s.with_(depth=np.where(bad, np.float32(np.nan), d))
+    from ..geometry import DepthLimits, limit_depth
+
+    near = min(float(src.near_limit), far_limit / 2)
+    d, lim = limit_depth(s.depth, near, far_limit)  # issue #28: every source, the pixels dropped counted
+    if not np.isfinite(d).any():
+        raise NpsimInputError(f"scene {s.name!r}: no valid depth within {far_limit:g} m (all sky, NaN, <= 0, "
+                              f"nearer than {near:g} m (depth.near_limit) or beyond the far limit, mesh.far_limit); "
+                              "there is nothing to reconstruct")
+    est = s.provenance.get("geometry", {}).get("depth_limits") if isinstance(s.provenance.get("geometry"), dict) else None
+    if est:  # what the estimator itself dropped
+        lim = lim + DepthLimits(est["near_m"], est["far_m"], est["dropped_near"], est["dropped_far"])
+    if lim.dropped:
+        source += f"; {lim.sentence()}"
+        s = s.with_(depth=d, provenance=dict(s.provenance, depth_limits=lim.to_json()))
     return GeometryResult(s, source)
 
 

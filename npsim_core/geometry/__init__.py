@@ -23,6 +23,62 @@ from ..scene import Scene
 
 METHODS = ("popup", "files", "network", "stereo")
 
+#: Depth limits applied to every depth that enters the program, from every source (issue #28):
+#: nearer than ``DEPTH_NEAR_M`` (a camera sees nothing 10 cm in front of its lens; 1e-30 m built
+#: vertices on the camera centre) or beyond ``DEPTH_FAR_M`` (``mesh.far_limit``'s default: a sky
+#: at 1e30 m scored AbsRel 6e27) is invalid (NaN), and the count is reported.
+DEPTH_NEAR_M = 0.1
+DEPTH_FAR_M = 300.0
+
+
+@dataclass(frozen=True)
+class DepthLimits:
+    """What :func:`limit_depth` dropped: pixel counts nearer than ``near_m`` and beyond ``far_m``."""
+
+    near_m: float
+    far_m: float
+    dropped_near: int = 0
+    dropped_far: int = 0
+
+    @property
+    def dropped(self) -> int:
+        return self.dropped_near + self.dropped_far
+
+    def __add__(self, other: "DepthLimits") -> "DepthLimits":
+        return DepthLimits(max(self.near_m, other.near_m), min(self.far_m, other.far_m),
+                           self.dropped_near + other.dropped_near, self.dropped_far + other.dropped_far)
+
+    def sentence(self) -> str:
+        """'' when nothing was dropped, else e.g. '12 pixels dropped as invalid (3 nearer than 0.1 m, 9
+        beyond 300 m)'."""
+        if not self.dropped:
+            return ""
+        return (f"{self.dropped} pixel{'s' if self.dropped != 1 else ''} dropped as invalid ({self.dropped_near} "
+                f"nearer than {self.near_m:g} m, {self.dropped_far} beyond {self.far_m:g} m)")
+
+    def to_json(self) -> dict:
+        return {"near_m": self.near_m, "far_m": self.far_m, "dropped_near": self.dropped_near,
+                "dropped_far": self.dropped_far}
+
+
+def limit_depth(depth: np.ndarray, near_m: float = DEPTH_NEAR_M,
+                far_m: float = DEPTH_FAR_M) -> tuple[np.ndarray, DepthLimits]:
+    """``depth`` (m) with finite values outside [``near_m``, ``far_m``] set to NaN, and their counts.
+
+    NaN, inf and values <= 0 were invalid already (docs/method.md §1.1) and are not counted; the
+    result is float32 (a copy only when something changed)."""
+    if not (np.isfinite(near_m) and np.isfinite(far_m) and 0 <= near_m < far_m):
+        raise NpsimInputError(f"depth limits must satisfy 0 <= near < far (metres), got near {near_m}, far {far_m}")
+    d = np.asarray(depth, np.float32)
+    with np.errstate(invalid="ignore"):
+        fin = np.isfinite(d) & (d > 0)
+        near = fin & (d < near_m)
+        far = fin & (d > far_m)
+    lim = DepthLimits(float(near_m), float(far_m), int(near.sum()), int(far.sum()))
+    if lim.dropped:
+        d = np.where(near | far, np.float32(np.nan), d)
+    return d, lim
+
 
 @dataclass(frozen=True)
 class GeometryEstimate:
@@ -56,7 +112,8 @@ def _jsonable(v: Any) -> bool:
     return isinstance(v, (str, int, float, bool, type(None), list, tuple, dict))
 
 
-def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None) -> GeometryEstimate:
+def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None,
+                      limits: tuple[float, float] = (DEPTH_NEAR_M, DEPTH_FAR_M)) -> GeometryEstimate:
     """Estimate depth and normals for ``scene`` with ``method``.
 
     Parameters
@@ -67,6 +124,9 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None) -
     params : PopupParams | FilesParams | NetworkParams | StereoParams, optional
         The method's frozen parameters (defaults when ``None``; ``files`` and
         ``network`` need paths, so their params are required).
+    limits : (near, far) metres
+        Depth outside is invalid (:func:`limit_depth`); the counts dropped are in
+        ``info["depth_limits"]``.
     """
     from .files import FilesParams, estimate_from_files
     from .network import NetworkParams, estimate_network
@@ -85,7 +145,12 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None) -
         params = ptype()
     if not isinstance(params, ptype):
         raise NpsimInputError(f"geometry method {method!r} takes {ptype.__name__}, got {type(params).__name__}")
-    return fn(scene, params)
+    est = fn(scene, params)
+    depth, lim = limit_depth(est.depth, *limits)
+    normals = est.normals
+    if lim.dropped:
+        normals = np.where(np.isfinite(depth)[..., None], normals, np.float32(np.nan)).astype(np.float32)
+    return GeometryEstimate(depth, normals, est.method, {**est.info, "depth_limits": lim.to_json()})
 
 
 def invalid_label_mask(labels: np.ndarray, invalid_ids: tuple[int, ...]) -> np.ndarray:
@@ -95,4 +160,5 @@ def invalid_label_mask(labels: np.ndarray, invalid_ids: tuple[int, ...]) -> np.n
     return lut[labels]
 
 
-__all__ = ["GeometryEstimate", "estimate_geometry", "METHODS", "invalid_label_mask"]
+__all__ = ["GeometryEstimate", "estimate_geometry", "METHODS", "invalid_label_mask", "limit_depth", "DepthLimits",
+           "DEPTH_NEAR_M", "DEPTH_FAR_M"]

@@ -22,7 +22,7 @@ import numpy as np
 from ..camera import normals_from_depth
 from ..errors import NpsimInputError
 from ..scene import Scene
-from . import GeometryEstimate, invalid_label_mask
+from . import DEPTH_NEAR_M, GeometryEstimate, invalid_label_mask
 from .popup import PopupParams, estimate_popup
 
 __all__ = ["StereoParams", "estimate_stereo"]
@@ -75,11 +75,12 @@ def segment_normals(depth: np.ndarray, labels: np.ndarray, intrinsics, sigma: fl
     return out
 
 
-def stereo_valid(scene: Scene, max_depth: float) -> np.ndarray:
-    """Pixels whose stereo depth is usable: finite, positive, within ``max_depth``, not sky/ego/border."""
+def stereo_valid(scene: Scene, max_depth: float, near: float = DEPTH_NEAR_M) -> np.ndarray:
+    """Pixels whose stereo depth is usable: finite, within [``near``, ``max_depth``] (the near limit
+    of every input depth, issue #28), not sky/ego/border."""
     st = scene.depth_stereo
     with np.errstate(invalid="ignore"):
-        ok = np.isfinite(st) & (st > 0) & (st <= max_depth)
+        ok = np.isfinite(st) & (st >= near) & (st > 0) & (st <= max_depth)
     return ok & ~invalid_label_mask(scene.labels, STEREO_EXCLUDED)
 
 

@@ -8,9 +8,18 @@
 The cached chain filter -> uncertain -> refine is :class:`npsim_core.chain.Chain`.
 """
 
-from .bilateral import FilterParams, cross_bilateral, cross_bilateral_reference
-from .optimize import PRESETS, RefinementProblem, RefineParams, RefineResult, refine_depth
-from .uncertainty import UncertaintyParams, region_variance, uncertain_map
+from importlib import import_module
 
-__all__ = ["FilterParams", "cross_bilateral", "cross_bilateral_reference", "UncertaintyParams", "uncertain_map",
-           "region_variance", "RefineParams", "RefineResult", "RefinementProblem", "refine_depth", "PRESETS"]
+#: Public names and their modules, imported on first use (PEP 562): :mod:`.optimize` imports
+#: torch, which the command line's start must not pay for (issue #28).
+_EXPORTS = {"FilterParams": "bilateral", "cross_bilateral": "bilateral", "cross_bilateral_reference": "bilateral",
+            "UncertaintyParams": "uncertainty", "uncertain_map": "uncertainty", "region_variance": "uncertainty",
+            "RefineParams": "params", "PRESETS": "params", "RefinementProblem": "optimize",
+            "RefineResult": "optimize", "refine_depth": "optimize"}
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -117,6 +117,10 @@ class FilterParams:
         return replace(self, sigma_s=sig, scale_width=0)
 
 
+#: Depths below this (m) are invalid in the filter (module doc).
+MIN_DEPTH_M = 1e-6
+
+
 def _prepare(depth, image, labels, params: FilterParams, image_u8=None):
     params = params if params is not None else FilterParams()
     if not isinstance(params, FilterParams):
@@ -133,6 +137,10 @@ def _prepare(depth, image, labels, params: FilterParams, image_u8=None):
     else:
         rgb = as_image(image, shape)
     valid = valid_depth_mask(d)
+    with np.errstate(invalid="ignore"):
+        # Below a micrometre a depth is no measurement (every entrance drops < 0.1 m, issue #28);
+        # its inverse (1e30 for 1e-30 m) would overflow the float32 sums.
+        valid &= d >= MIN_DEPTH_M
     if params.domain == "inverse":
         with np.errstate(divide="ignore", invalid="ignore"):
             d = np.where(valid, 1.0 / d, np.nan).astype(np.float32)

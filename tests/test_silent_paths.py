@@ -1,0 +1,98 @@
+"""The last silent paths (issue #28): every depth limited at its entrance, no ignored parameter, a
+report that verifies, clean stops, a CLI that starts light, honest stereo scores, a refinement
+that never spoils an exact input, and messages that name the real cause."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from npsim_cli.main import main
+from npsim_core.chain import Chain, ChainParams
+from npsim_core.errors import NpsimInputError
+from npsim_core.io import write_npy
+from npsim_core.scene import save_scene
+from npsim_core.synthetic import street_scene
+
+FAST = ["--set", "refine.steps=5", "--spp", "1"]
+
+
+@pytest.fixture(scope="module")
+def street():
+    return street_scene(64, 32)
+
+
+@pytest.fixture(scope="module")
+def scene_dir(street, tmp_path_factory):
+    return save_scene(street, tmp_path_factory.mktemp("scene") / "street")
+
+
+# 7 ------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["mesh", "scene"], ["batch", "d", "-o", "o",
+                                                                                     "--workers", "x"]])
+def test_help_and_argument_errors_import_nothing_heavy(argv):
+    """``npsim --help`` took 4.5 s and 300 MB: every command module imported the chain (torch,
+    Mitsuba, OpenCV) to build its parser. Time is measured by benchmarks/cli_start.py."""
+    code = ("import sys\nfrom npsim_cli.main import main\ntry:\n    main(%r)\nexcept SystemExit:\n    pass\n"
+            "print('HEAVY:' + ','.join(m for m in ('torch', 'mitsuba', 'PySide6', 'ray', 'pyoidn', 'cv2', "
+            "'numpy') if m in sys.modules))" % (argv,))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("HEAVY:")]
+    assert line and line[-1] == "HEAVY:", out.stdout[-300:] + out.stderr[-300:]
+
+
+# 1 ------------------------------------------------------------------------------------------------------
+def _with_extremes(street):
+    d = street.depth.copy()
+    d[5, 5:15] = 1e-30
+    d[20, 5:12] = 1e30
+    return street.with_(depth=d)
+
+
+def test_depths_outside_the_limits_are_dropped_and_counted(street):
+    """1e-30 m built vertices on the camera centre (and overflowed the filter), 1e30 m passed as
+    valid; both are invalid now, at the chain's entrance, with the count in the depth source."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = Chain(_with_extremes(street)).compute(ChainParams().with_value("refine", "steps", 3), until="mesh")
+    assert np.isnan(res.depth_in[5, 5:15]).all() and np.isnan(res.depth_in[20, 5:12]).all()
+    assert "17 pixels dropped as invalid (10 nearer than 0.1 m, 7 beyond 300 m)" in res.depth_source
+    assert float(np.nanmin(res.depth)) >= 0.1
+    z = np.concatenate([p.vertices[:, 2] for p in res.mesh.parts if len(p.vertices)])
+    assert float(z.min()) >= 0.1 - 1e-6  # no vertex on the camera centre
+    near = Chain(_with_extremes(street)).compute(ChainParams().with_value("depth", "near_limit", 3.0),
+                                                 until="geometry")
+    assert "nearer than 3 m" in near.depth_source and np.nanmin(near.depth_in) >= 3.0
+
+
+def test_estimate_from_files_drops_absurd_depths_and_says_so(street, scene_dir, tmp_path, capsys):
+    d = street.depth_gt.copy()
+    d[10, 10:20] = 1e30
+    d[12, 10:14] = 1e-30
+    write_npy(tmp_path / "d.npy", d)
+    assert main(["estimate", str(scene_dir), "--method", "files", "--depth", str(tmp_path / "d.npy"),
+                 "-o", str(tmp_path / "e")]) == 0
+    out = capsys.readouterr().out
+    assert "14 pixels dropped as invalid (4 nearer than 0.1 m, 10 beyond 300 m)" in out
+    absrel = float(out.split("AbsRel ")[1].split(",")[0])
+    assert absrel < 0.01
+
+
+def test_the_filter_treats_subnanometre_depth_as_invalid(street):
+    import warnings
+
+    from npsim_core.refine.bilateral import cross_bilateral
+
+    d = street.depth.copy()
+    d[:4] = 1e-30
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = cross_bilateral(d, street.image, street.labels)
+    assert np.isfinite(out[8:]).any() and np.nanmax(out) < 1e4
