@@ -19,10 +19,11 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
                                QMessageBox, QProgressDialog, QToolButton, QVBoxLayout, QWidget)
 
-from npsim_core.annotation import find_recovery, load_recovery
+from npsim_core.annotation import annotation_paths, find_recovery, load_recovery
 from npsim_core.errors import NpsimCancelled, NpsimInputError
 from npsim_core.scene import Scene
 from npsim_core.chain import Chain, ChainParams
+from npsim_core.chain.session import frame_annotation_files, scene_annotation_files
 from npsim_core.memory import release_free_memory
 from npsim_core.views import VIEW_MODES, view_image
 
@@ -196,11 +197,16 @@ class MainWindow(QMainWindow):
         self._ann_timer.setSingleShot(True)
         self._ann_timer.setInterval(150)
         self._ann_timer.timeout.connect(self.request_render)
+        # The recovery file is written at most AUTOSAVE_MS after the first unsaved edit, also while edits
+        # keep coming (not restarted by each edit: a long session of strokes is never left unsaved).
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setSingleShot(True)
-        self.autosave_timer.setInterval(2000)
+        self.autosave_timer.setInterval(self.AUTOSAVE_MS)
         self.autosave_timer.timeout.connect(self._autosave)
-        self.editor.session.changed.connect(lambda *_: self.autosave_timer.start())
+        self.editor.session.changed.connect(
+            lambda *_: None if self.autosave_timer.isActive() else self.autosave_timer.start())
+        self.editor.session.saved.connect(self._on_saved)
+        self.editor.session.autosaved.connect(lambda p: self.log.log(f"unsaved edits kept in {p}"))
 
     def _set_busy(self, text: str) -> None:
         self.busy_label.setText(text)
@@ -265,9 +271,14 @@ class MainWindow(QMainWindow):
             self.params = params
         self.results = None
         self.light_override = None
-        folder = scene.provenance.get("folder")
+        self.render_panel.clear_night()
+        where = scene_annotation_files(scene)
+        folder, stem = where if where is not None else (None, scene.name)
         ann, dirty = scene.lights, False
-        rec = find_recovery(folder, scene.name) if folder else None
+        # the frame and its parameters are on screen before any question is asked about them
+        self._show_params()
+        self.editor.show_image(scene.image)
+        rec = find_recovery(folder, stem) if folder else None
         if rec is not None:
             choice = self.ask("Recover unsaved edits", f"{scene.name}: the last session ended without saving its "
                               "light annotation. Restore the unsaved edits?", ["Restore", "Discard"])
@@ -278,20 +289,24 @@ class MainWindow(QMainWindow):
                     self.on_error(str(exc), "")
             else:
                 rec.unlink(missing_ok=True)
-        self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=scene.name, dirty=dirty)
+        if ann is not None and ann.shape != (scene.height, scene.width):
+            self.on_error(f"{rec}: the recovered annotation is {ann.shape[1]}x{ann.shape[0]}, the frame "
+                          f"{scene.width}x{scene.height}; not used", "")
+            ann, dirty = scene.lights, False
+        self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=stem, dirty=dirty)
         if ann is not scene.lights:
             self.chain.set_annotation(ann)
         self._ann_version = self._ann_applied = 0
         self.render_panel.set_day(scene.image)
-        self._show_params()
         self.render_panel.seed.blockSignals(True)
         self.render_panel.seed.setValue(self.params.night.seed)
         self.render_panel.seed.blockSignals(False)
         self._update_title()
         self.log.log(f"scene {scene.name}: {scene.width}x{scene.height}"
                      + (" (with ground truth)" if scene.depth_gt is not None else ""))
-        if folder:
-            QSettings(ORG, APP).setValue("last_scene", folder)
+        src = scene.provenance.get("folder") or scene.provenance.get("image")
+        if src:
+            QSettings(ORG, APP).setValue("last_scene", str(src))
         self.recompute()
 
     def _show_params(self) -> None:
@@ -578,13 +593,18 @@ class MainWindow(QMainWindow):
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
             return
+        if not self.leave_frame("open the dataset"):
+            return
         self.frames = frames
         self.frame_list.blockSignals(True)
         self.frame_list.clear()
         for f in frames:
             p = Path(f.path)
-            # the editor saves a frame's annotation beside its image (inside a scene folder)
-            done = any(p.glob("*_lights.json")) if p.is_dir() else any(p.parent.glob(f"{f.name}*_lights.json"))
+            # a frame's annotation: inside its scene folder, else where frame_annotation_files puts it
+            if p.is_dir():
+                done = any(p.glob("*_lights.json"))
+            else:
+                done = annotation_paths(*frame_annotation_files(p))["json"].exists()
             self.frame_list.addItem(("✓ " if done else "   ") + f.name)
         self.frame_list.blockSignals(False)
         if self.frames_dock.isHidden():
@@ -592,13 +612,19 @@ class MainWindow(QMainWindow):
             if not getattr(self, "_narrow", True):
                 self.resizeDocks([self.params_dock, self.frames_dock], [600, 160], Qt.Orientation.Vertical)
         self.log.log(f"dataset {root}: {len(frames)} frames (✓ = annotated); Ctrl+Right / Ctrl+Left step through them")
-        self.open_frame(0)
+        self.open_frame(0, asked=True)
 
-    def open_frame(self, index: int) -> None:
+    def open_frame(self, index: int, *, asked: bool = False) -> None:
+        """Open frame ``index`` of the dataset (after asking about unsaved edits unless ``asked``)."""
         frames = getattr(self, "frames", [])
         if not 0 <= index < len(frames):
             return
         if self._loading:
+            return
+        if not asked and not self.leave_frame():
+            self.frame_list.blockSignals(True)  # stay: the list keeps showing the frame that is open
+            self.frame_list.setCurrentRow(getattr(self, "frame_index", -1))
+            self.frame_list.blockSignals(False)
             return
         try:
             scene, chains = self._load(frames[index].load, frames[index].name)
@@ -622,7 +648,7 @@ class MainWindow(QMainWindow):
         when the frame is shown)."""
         from npsim_core.chain import load_frame
 
-        if self._loading:
+        if self._loading or not self.leave_frame():
             return
         try:
             scene, chains = self._load(lambda: load_frame(path), Path(path).name)
@@ -696,7 +722,7 @@ class MainWindow(QMainWindow):
     def open_project(self, folder: str | Path) -> None:
         from npsim_core.chain.project import load_project
 
-        if self._loading:
+        if self._loading or not self.leave_frame("open the project"):
             return
         try:
             (scene, params), chains = self._load(lambda: load_project(folder), Path(folder).name,
@@ -717,18 +743,83 @@ class MainWindow(QMainWindow):
 
         if self.chain is None:
             return
+        s = self.editor.session
         try:
-            save_project(folder, self.chain.scene.with_(lights=self.editor.session.ann), self.params, self.results)
+            save_project(folder, self.chain.scene.with_(lights=s.ann), self.params, self.results)
             self.log.log(f"project saved to {folder}")
         except (NpsimInputError, OSError) as exc:
             self.on_error(str(exc), "")
+            return
+        if s.is_dirty:
+            if s.folder is None:
+                # a frame that exists only in memory: from now on its annotation lives in the project
+                s.folder, s.stem = Path(folder) / "scene", self.chain.scene.name
+                s.save_in_background()
+            else:  # the project holds a copy; the frame's own annotation file is saved too
+                self.save_annotation()
 
     def save_annotation(self) -> None:
+        """Save the frame's light annotation where the command line reads it (``X_lights.json`` beside a
+        dataset image, or the annotations folder of a read-only dataset; in the background)."""
         try:
-            paths = self.editor.session.save()
-            self.log.log(f"annotation saved: {paths}")
-        except (NpsimInputError, OSError) as exc:
-            self.on_error(str(exc), "")
+            self.editor.session.save_in_background()
+            self._set_busy("saving the annotation…")
+        except NpsimInputError as exc:
+            self._save_failed(str(exc))
+
+    def save_annotation_now(self) -> bool:
+        """Save on this thread (before leaving a frame or closing); False, with a message, when it failed."""
+        s = self.editor.session
+        try:
+            s.wait_for_writes()
+            paths = s.save()
+        except NpsimInputError as exc:
+            self._save_failed(str(exc))
+            return False
+        self._on_saved(paths, "")
+        return True
+
+    def _save_failed(self, message: str) -> None:
+        self._autosave()  # the edits stay in the recovery file at least
+        self.on_error(f"annotation not saved: {message}", "")
+        self.ask("Annotation not saved", f"{message}\n\nYour edits are kept in the recovery file; nothing "
+                 "was overwritten.", ["OK"])
+
+    def _on_saved(self, paths, error: str) -> None:
+        if self.busy_label.text() == "saving the annotation…":
+            self._set_busy("")
+        if error:
+            self._save_failed(error)
+            return
+        self.log.log(f"annotation saved: {paths['json']}")
+        self.statusBar().showMessage(f"saved {paths['json']}", 5000)
+        self._mark_frame_done()
+        self._update_title()
+
+    def _mark_frame_done(self) -> None:
+        """✓ in the Frames dock for the frame shown (its annotation is on disk)."""
+        frames = getattr(self, "frames", None)
+        k = getattr(self, "frame_index", -1)
+        if frames and 0 <= k < self.frame_list.count() and self.chain is not None \
+                and frames[k].name == self.chain.scene.name:
+            self.frame_list.item(k).setText("✓ " + frames[k].name)
+
+    def leave_frame(self, what: str = "open another frame") -> bool:
+        """Before another frame replaces this one: Save / Discard / Cancel when the annotation has unsaved
+        edits. True = go ahead."""
+        s = self.editor.session
+        if self.chain is None or not s.is_dirty:
+            return True
+        self._autosave()
+        choice = self.ask("Unsaved annotation", f"{self.chain.scene.name}: save the light annotation before you "
+                          f"{what}?", ["Save", "Discard", "Cancel"])
+        if choice == "Save":
+            return self.save_annotation_now()
+        if choice == "Discard":
+            s.wait_for_writes()
+            s.discard_recovery()
+            return True
+        return False
 
     def export_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Export into folder")
@@ -779,6 +870,9 @@ class MainWindow(QMainWindow):
         self.log.log(f"error: {message}")
         self.statusBar().showMessage(message, 10000)
         self.last_error = message
+
+    #: The recovery file is written this long (ms) after the first edit not yet in it.
+    AUTOSAVE_MS = 1000
 
     #: Screens narrower than this get one right-hand column: parameters over the night preview.
     NARROW_SCREEN = 1500
@@ -875,32 +969,21 @@ class MainWindow(QMainWindow):
 
     def confirm_close(self) -> bool:
         """Save / Discard / Cancel when the annotation has unsaved edits. True = go ahead."""
-        s = self.editor.session
-        if not s.is_dirty:
-            return True
-        choice = self.ask("Unsaved annotation", "Save your light annotation before closing?",
-                          ["Save", "Discard", "Cancel"])
-        if choice == "Save":
-            self.save_annotation()
-            return not s.is_dirty
-        if choice == "Discard":
-            s.discard_recovery()
-            return True
-        return False
+        return self.leave_frame("close")
 
     def _autosave(self) -> None:
-        try:
-            if self.editor.session.is_dirty:
-                self.editor.session.autosave()
-        except Exception as exc:  # never lose the session over a failing autosave; say so
-            self.log.log(f"autosave failed: {exc}")
+        """Write the recovery file of unsaved edits (in the background)."""
+        self.autosave_timer.stop()
+        s = self.editor.session
+        if s.is_dirty and s.folder is not None and not s.readonly_reason:
+            s.autosave_in_background()
 
     def closeEvent(self, event) -> None:  # noqa: N802
         if self.editor.session.is_dirty:
-            self._autosave()  # nothing is lost even if the dialog is answered wrongly
-            if not self.confirm_close():
+            if not self.confirm_close():  # autosaves first: nothing is lost even if answered wrongly
                 event.ignore()
                 return
+        self.editor.session.wait_for_writes()
         self._closed = True  # a frame still being read is not shown
         self.save_layout()
         for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):

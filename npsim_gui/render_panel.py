@@ -123,6 +123,12 @@ class RenderPanel(QWidget):
             self._day_at = ((h, w), cv2.resize(self.day, (w, h), interpolation=cv2.INTER_AREA))
         return self._day_at[1]
 
+    def clear_night(self, status: str = "no render yet") -> None:
+        """Forget the night shown (another frame opens): the dimmed day stands in until the next one."""
+        self.night = None
+        self.status.setText(status)
+        self._refresh()
+
     def set_night(self, rgb: np.ndarray, status: str = "") -> None:
         self.night = rgb
         if status:

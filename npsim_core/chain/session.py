@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -20,7 +21,63 @@ import numpy as np
 from ..errors import NpsimInputError
 from ..scene import Scene
 
-__all__ = ["FrameSource", "load_frame", "iter_frames", "scaled_frame"]
+__all__ = ["FrameSource", "load_frame", "iter_frames", "scaled_frame", "annotations_root", "frame_annotation_files",
+           "scene_annotation_files"]
+
+#: Environment variable naming the annotations folder used for read-only datasets (docs/annotation.md,
+#: "Where a frame's annotation is saved").
+ANNOTATIONS_ENV = "NPSIM_ANNOTATIONS"
+
+
+def annotations_root() -> Path:
+    """The annotations folder for frames whose dataset folder cannot be written.
+
+    ``$NPSIM_ANNOTATIONS`` when set, else ``$XDG_DATA_HOME/npsim/annotations`` (default
+    ``~/.local/share/npsim/annotations``). Inside it a frame's files sit under its image folder's
+    absolute path (``/data/cs/leftImg8bit/val/x/a.png`` -> ``ROOT/data/cs/leftImg8bit/val/x/a_lights.json``),
+    so frames of different datasets never collide.
+    """
+    env = os.environ.get(ANNOTATIONS_ENV)
+    if env:
+        return Path(env).expanduser()
+    data = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(data) / "npsim" / "annotations"
+
+
+def _writable(folder: Path) -> bool:
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
+def frame_annotation_files(image_path: str | Path) -> tuple[Path, str]:
+    """``(folder, stem)`` of a dataset image's light annotation (``folder/<stem>_lights.json`` and its PNGs).
+
+    The editor writes it beside the image (``X_leftImg8bit.png`` -> ``X_lights.json``), where
+    ``--lights auto`` and ``npsim batch`` read it. When the image's folder is not writable (a
+    read-only dataset) the same names go to :func:`annotations_root` under the folder's absolute
+    path. An annotation already saved in one of the two places is found there (beside first).
+    """
+    from ..annotation import annotation_paths, annotation_stem
+
+    image = Path(image_path)
+    stem = annotation_stem(image)
+    beside = image.parent
+    mirror = annotations_root() / beside.resolve().relative_to(beside.resolve().anchor)
+    for folder in (beside, mirror):
+        if annotation_paths(folder, stem)["json"].exists():
+            return folder, stem
+    return (beside if _writable(beside) else mirror), stem
+
+
+def scene_annotation_files(scene: Scene) -> tuple[Path, str] | None:
+    """``(folder, stem)`` where the light annotation of a loaded frame is saved: its scene folder
+    (``<name>_lights.json``, also inside a project), else :func:`frame_annotation_files` of its
+    dataset image; None for a frame that exists only in memory (e.g. a generated street)."""
+    prov = scene.provenance
+    if prov.get("folder"):
+        return Path(prov["folder"]), scene.name
+    if prov.get("image"):
+        return frame_annotation_files(prov["image"])
+    return None
 
 
 @dataclass(frozen=True)
@@ -65,16 +122,17 @@ def load_frame(path: str | Path, *, hfov_deg: float | None = None, trainids: boo
 
 def load_source(src) -> Scene:
     """A dataset entry's scene (:class:`~npsim_core.datasets.SceneSource`) with the light annotation
-    the editor saved beside its image, when there is one (module-level: picklable for workers)."""
-    from ..annotation import annotation_paths, annotation_stem, load_annotation
+    the editor saved for it, when there is one: beside its image, or in the annotations folder of a
+    read-only dataset (:func:`frame_annotation_files`; module-level: picklable for workers)."""
+    from ..annotation import annotation_paths, load_annotation
 
     scene = src.load()
     image = Path(src.image_path)
-    stem = annotation_stem(image)
-    path = annotation_paths(image.parent, stem)["json"]
+    folder, stem = frame_annotation_files(image)
+    path = annotation_paths(folder, stem)["json"]
     if scene.lights is not None or not path.exists():
         return scene
-    ann = load_annotation(image.parent, stem)
+    ann = load_annotation(folder, stem)
     if ann.shape != (scene.height, scene.width):
         raise NpsimInputError(f"{path}: the light annotation is {ann.shape[1]}x{ann.shape[0]} but {image.name} is "
                               f"{scene.width}x{scene.height}; it belongs to another image (move or delete it)")

@@ -333,6 +333,12 @@ class AnnotationEditor(QWidget):
         """Edit ``image`` (HxWx3 uint8) with optional labelIds and annotation."""
         self.session.load(image, labels, ann, folder, stem, dirty=dirty)
 
+    def show_image(self, rgb: np.ndarray) -> None:
+        """Show ``rgb`` fitted in the canvas before its annotation is loaded (e.g. while a question about
+        it is asked), so the canvas and its zoom read-out never show the previous or an empty image."""
+        self.canvas.set_base_image(rgb)
+        self.canvas.fit()
+
     def set_base_image(self, rgb: np.ndarray | None) -> None:
         """Show another view (e.g. a depth visualisation) under the overlays; None = the image."""
         self.canvas.set_base_image(self.session.image if rgb is None else rgb)
