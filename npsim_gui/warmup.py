@@ -16,7 +16,8 @@ import threading
 #: and after the first pipeline and night of a 2048x1024 frame).
 CORE_MODULES = (
     "npsim_core.datasets", "npsim_core.geometry", "npsim_core.geometry.files", "npsim_core.geometry.network",
-    "npsim_core.geometry.popup", "npsim_core.geometry.stereo", "npsim_core.refine.gauss_newton",
+    "npsim_core.geometry.popup", "npsim_core.geometry.stereo", "npsim_core.refine.optimize",
+    "npsim_core.refine.gauss_newton",
     "npsim_core.mesh.reduce", "npsim_core.mesh.postprocess", "npsim_core.proposals", "npsim_core.render.ego",
     "npsim_core.render.render", "npsim_core.render.scene_builder", "npsim_core.render.denoise",
     "npsim_core.render.camera_post",
