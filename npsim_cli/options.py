@@ -17,6 +17,12 @@ def log(cmd: str, msg: str) -> None:
     print(f"[npsim {cmd}] {msg}", file=sys.stderr, flush=True)
 
 
+def log_warnings(cmd: str, scene) -> None:
+    """Log what loading ``scene`` noticed but did not refuse (:func:`npsim_core.scene.scene_warnings`)."""
+    for w in scene.provenance.get("warnings", []):
+        log(cmd, f"{scene.name}: WARNING: {w}")
+
+
 def stage_logger(cmd: str, name: str, every_s: float = 5.0):
     """A chain progress callback that logs each stage's start and, in long stages, a step every
     ``every_s`` seconds."""

@@ -163,6 +163,24 @@ ARRAY_FILES = {"depth": "depth_pred.npy", "normals": "normals_pred.npy",
                "roughness": "roughness.npy"}
 
 
+#: What replaces a file ``scene.json`` names when it is missing (said in the log and manifest).
+MISSING_FALLBACK = {
+    "depth": "the input depth falls back to the next source (stereo, a network with --checkpoint, else the "
+             "pop-up prior)",
+    "normals": "the input normals are computed from the depth",
+    "depth_gt": "the frame is not scored against ground truth",
+    "normals_gt": "the normals are not scored against ground truth",
+    "depth_stereo": "the frame has no stereo depth (neither input nor reference)",
+    "roughness": "the nights use the roughness fallback (per-class priors)",
+    "albedo": "the nights use the albedo fallback (the linearised day image and per-class priors)",
+}
+
+
+def scene_warnings(scene: Scene) -> list[str]:
+    """What loading ``scene`` noticed but did not refuse (e.g. a named file that is missing)."""
+    return list(scene.provenance.get("warnings", []))
+
+
 def save_scene(scene: Scene, folder: str | Path) -> Path:
     """Write ``scene`` as a scene folder (every file atomically). Returns the folder."""
     folder = Path(folder)
@@ -192,7 +210,7 @@ def save_scene(scene: Scene, folder: str | Path) -> Path:
         "format": "npsim-scene", "version": 1, "name": scene.name,
         "width": scene.width, "height": scene.height,
         "camera_height_m": scene.camera_height, "camera_pitch_rad": scene.camera_pitch,
-        "files": files, "provenance": scene.provenance})
+        "files": files, "provenance": {k: v for k, v in scene.provenance.items() if k != "warnings"}})
     return folder
 
 
@@ -232,15 +250,20 @@ def load_scene(folder: str | Path, *, with_ground_truth: bool = True) -> Scene:
         raise NpsimInputError(f"{folder}: intrinsics.json is missing; write fx, fy, cx, cy, width, height "
                               "(pixels) or use 'npsim run --fov DEG'")
     arrays: dict[str, Any] = {}
+    warnings: list[str] = []
     for attr, fname in ARRAY_FILES.items():
         if attr.endswith("_gt") and not with_ground_truth:
             continue
         p = folder / files.get(attr, fname)
+        if attr in files and not p.exists():  # named, yet gone: the fallback must be said (issue #28)
+            warnings.append(f"{meta_path} names {files[attr]}, which is missing: {MISSING_FALLBACK[attr]}")
         if p.exists():
             if attr.startswith("depth") or attr == "roughness":
                 arrays[attr] = read_depth(p) if attr.startswith("depth") else read_array(p).astype(np.float32)
             else:
                 arrays[attr] = read_normals(p)
+    if "albedo" in files and not (folder / files["albedo"]).exists():
+        warnings.append(f"{meta_path} names {files['albedo']}, which is missing: {MISSING_FALLBACK['albedo']}")
     if (folder / files.get("albedo", "albedo.png")).exists():
         alb = read_image(folder / files.get("albedo", "albedo.png")).astype(np.float32) / 255.0
         arrays["albedo"] = alb ** 2.2
@@ -255,4 +278,5 @@ def load_scene(folder: str | Path, *, with_ground_truth: bool = True) -> Scene:
     return Scene(name=name, image=image, labels=labels, intrinsics=intr, lights=lights,
                  camera_height=float(meta.get("camera_height_m", DEFAULT_CAMERA_HEIGHT)),
                  camera_pitch=float(meta.get("camera_pitch_rad", DEFAULT_CAMERA_PITCH)),
-                 provenance=dict(meta.get("provenance", {}), folder=str(folder)), **arrays)
+                 provenance=dict(meta.get("provenance", {}), folder=str(folder),
+                                 **({"warnings": warnings} if warnings else {})), **arrays)

@@ -96,3 +96,35 @@ def test_the_filter_treats_subnanometre_depth_as_invalid(street):
         warnings.simplefilter("error")
         out = cross_bilateral(d, street.image, street.labels)
     assert np.isfinite(out[8:]).any() and np.nanmax(out) < 1e4
+
+
+# 5 ------------------------------------------------------------------------------------------------------
+def test_estimate_in_place_keeps_the_previous_prediction(street, tmp_path, capsys):
+    folder = save_scene(street, tmp_path / "s")
+    first = np.load(folder / "depth_pred.npy")
+    assert main(["estimate", str(folder), "--method", "popup"]) == 0
+    assert "kept" in capsys.readouterr().out
+    np.testing.assert_array_equal(np.load(folder / "depth_pred.prev.npy"), first)
+    assert (folder / "normals_pred.prev.npy").is_file() and (folder / "scene.prev.json").is_file()
+    popup = np.load(folder / "depth_pred.npy")
+    write_npy(tmp_path / "d.npy", street.depth_gt)
+    assert main(["estimate", str(folder), "--method", "files", "--depth", str(tmp_path / "d.npy")]) == 0
+    np.testing.assert_array_equal(np.load(folder / "depth_pred.prev.npy"), first)  # never overwritten
+    np.testing.assert_array_equal(np.load(folder / "depth_pred.prev2.npy"), popup)
+
+
+# 6, 11 --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("gone,said", [("depth_pred.npy", "input depth falls back"),
+                                       ("albedo.png", "albedo fallback"),
+                                       ("roughness.npy", "roughness fallback")])
+def test_a_file_scene_json_names_but_lost_is_said_in_log_and_manifest(street, tmp_path, capsys, gone, said):
+    s = street.with_(albedo=np.full(street.image.shape, 0.5, np.float32),
+                     roughness=np.full(street.labels.shape, 0.5, np.float32))
+    folder = save_scene(s, tmp_path / "s")
+    (folder / gone).unlink()
+    out = tmp_path / "out"
+    assert main(["run", str(folder), "-o", str(out), "--nights", "0"] + FAST) == 0
+    err = capsys.readouterr().err
+    assert f"WARNING: {folder / 'scene.json'} names {gone}, which is missing" in err and said in err
+    man = json.loads(next(out.glob("*_export.json")).read_text())
+    assert any(gone in w and said in w for w in man["warnings"])

@@ -4,7 +4,8 @@ SCENE is a scene folder (``npsim sample``) or one labelled image from a
 dataset (a Cityscapes/ACDC image path is matched to its labels; in a plain
 folder, ``x.png`` to ``x_labelIds.png``). The result is written as a scene
 folder (``-o DIR``, default: SCENE itself when it is a scene folder) with
-``depth_pred.npy`` / ``normals_pred.npy`` replaced; the errors against the frame's
+``depth_pred.npy`` / ``normals_pred.npy`` replaced -- the previous ones (and ``scene.json``) are kept as
+``depth_pred.prev.npy``, ``normals_pred.prev.npy``, ``scene.prev.json`` (``.prev2``... when those exist); the errors against the frame's
 reference (ground truth, else its stereo depth) are printed when it has one.
 """
 
@@ -45,6 +46,31 @@ def _load(args: argparse.Namespace):
     return load_frame(path, hfov_deg=args.fov, trainids=args.trainids), (path if path.is_dir() else None)
 
 
+#: What an estimate replaces in a scene folder (kept as ``<stem>.prev[N]<suffix>`` first).
+REPLACED = ("depth_pred.npy", "normals_pred.npy", "scene.json")
+
+
+def keep_previous(folder: Path) -> list[tuple[str, str]]:
+    """Copy the prediction files an estimate is about to replace in ``folder`` to the first free
+    ``depth_pred.prev.npy``, ``depth_pred.prev2.npy``, ... (likewise the normals and scene.json), so
+    a user's earlier prediction is never lost (issue #28). Returns (old, kept) names."""
+    import shutil
+
+    kept = []
+    for name in REPLACED:
+        src = folder / name
+        if not src.is_file():
+            continue
+        stem, suffix = name.rsplit(".", 1)
+        k = 1
+        while (folder / f"{stem}.prev{k if k > 1 else ''}.{suffix}").exists():
+            k += 1
+        dst = folder / f"{stem}.prev{k if k > 1 else ''}.{suffix}"
+        shutil.copy2(src, dst)
+        kept.append((name, dst.name))
+    return kept
+
+
 def run(args: argparse.Namespace) -> int:
     from npsim_core.chain import check_output_folder
     from npsim_core.geometry import DEPTH_FAR_M, DEPTH_NEAR_M, DepthLimits, estimate_geometry
@@ -82,7 +108,10 @@ def run(args: argparse.Namespace) -> int:
                               f"{DEPTH_NEAR_M:g} m, beyond {DEPTH_FAR_M:g} m, or sky); "
                               "nothing written -- check the depth file and its units")
     result = est.apply(scene)
+    kept = keep_previous(out)
     save_scene(result, out)
+    if kept:
+        print(f"{scene.name}: the previous prediction is kept: " + ", ".join(f"{a} -> {b}" for a, b in kept))
     print(f"{scene.name}: {args.method} depth/normals -> {out}/depth_pred.npy, normals_pred.npy "
           f"({100 * float((est.depth == est.depth).mean()):.1f}% valid)")
     lim = DepthLimits(**est.info["depth_limits"])

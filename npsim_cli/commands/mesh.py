@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..options import add_param_options, log, params_from_args, stage_logger
+from ..options import add_param_options, log, log_warnings, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     scene = load_frame(args.scene, hfov_deg=args.fov, with_ground_truth=False)
     chain = Chain(scene)
     log("mesh", f"{scene.name}: {scene.width}x{scene.height}")
+    log_warnings("mesh", scene)
     res = chain.compute(params, progress=stage_logger("mesh", scene.name))
     written = export_frame(chain, params, Path(args.out), kinds=("mesh",), mesh_formats=formats,
                            inputs={"scene": str(args.scene), "variant": args.variant})

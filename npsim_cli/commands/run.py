@@ -11,7 +11,7 @@ from pathlib import Path
 
 from npsim_core.errors import NpsimInputError
 
-from ..options import add_param_options, log, params_from_args, stage_logger
+from ..options import add_param_options, log, log_warnings, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -95,6 +95,7 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     on_stage = stage_logger(cmd, scene.name)
 
     log(cmd, f"{scene.name}: {scene.width}x{scene.height}")
+    log_warnings(cmd, scene)
     res = chain.compute(params, progress=on_stage)
     log(cmd, f"{scene.name}: lights: {res.lights.note}" if res.lights is not None else f"{scene.name}: no lights")
     log(cmd, f"{scene.name}: depth from {res.depth_source}; stages "

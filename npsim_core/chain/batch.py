@@ -42,6 +42,7 @@ class FrameOutcome:
     nights: list = field(default_factory=list)
     files: int = 0
     peak_rss_mb: float = 0.0
+    warnings: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -103,7 +104,7 @@ def run_frame(src: FrameSource, params: ChainParams, out_root: str | Path, night
             _cityscapes_copy(folder, Path(out_root), src, nights)
         return FrameOutcome(src.name, "done", time.perf_counter() - t0, depth_source=man["depth_source"],
                             scores=man["errors"], nights=man["nights"], files=len(files),
-                            peak_rss_mb=_peak_rss_mb())
+                            peak_rss_mb=_peak_rss_mb(), warnings=list(man.get("warnings", [])))
     except (NpsimInputError, OSError) as exc:
         return FrameOutcome(src.name, "failed", time.perf_counter() - t0, error=str(exc))
     except NpsimCancelled:
@@ -206,6 +207,8 @@ def run_batch(sources: list[FrameSource], params: ChainParams, out_root: str | P
             eta = f"; about {left * (time.perf_counter() - t0) / n / 60:.1f} min left"
         what = f"done in {o.seconds:.1f} s" if o.status == "done" else f"FAILED: {o.error}"
         log(f"[{n}/{len(todo)}] {o.name}: {what}{eta}")
+        for w in o.warnings:
+            log(f"{o.name}: WARNING: {w}")
 
     if ray_address:
         _run_ray(todo, params, out_root, nights, layout, ray_address, finished)

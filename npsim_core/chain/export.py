@@ -285,7 +285,8 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
     manifest = {
         "format": "npsim-export", "scene": n, "size": [s.width, s.height], "inputs": inputs or {},
         "provenance": {k: str(v) for k, v in s.provenance.items() if k != "files"},
-        "depth_source": res.depth_source, "params": params.to_json(),
+        "depth_source": res.depth_source, "warnings": list(s.provenance.get("warnings", [])),
+        "params": params.to_json(),
         "timings": {k: round(v, 4) for k, v in timings.items()},
         "mesh": mesh_info,
         "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
