@@ -55,11 +55,15 @@ class DepthSource:
         and is not used for scoring.
     near_limit : metres; any input depth nearer than this is invalid (NaN), from every source, and
         the pixels dropped are counted in the log (the far limit is ``mesh.far_limit``).
+    stereo_surfaces : stereo depth is replaced by robust per-segment surface fits where the labels
+        say the surface is simple (speckle and edge-fattening removal, local planes in inverse
+        depth; :mod:`npsim_core.geometry.surfaces`, docs/relight.md). Off = the stereo as matched.
     """
 
     source: str = "auto"
     checkpoint: str = ""
     stereo_max_m: float = 80.0
+    stereo_surfaces: bool = True
     near_limit: float = 0.1
 
     def __post_init__(self) -> None:
@@ -153,6 +157,9 @@ class NightParams:
         ``CameraParams.bloom``, docs/relight.md says why it is off).
     light_table : a user light table JSON merged over the default ('' = the default).
     variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
+    delight : without albedo maps, the day's sun and sky are estimated from the photo and the
+        normals and divided out of the photo (:func:`npsim_core.render.materials.delit_albedo`,
+        docs/relight.md); off = the per-class prior fallback.
     """
 
     seed: int = 0
@@ -177,6 +184,7 @@ class NightParams:
     bloom: float = 0.0
     light_table: str = ""
     variant: str = ""
+    delight: bool = True
 
     def __post_init__(self) -> None:
         for name in ("final_max_depth", "preview_max_depth"):

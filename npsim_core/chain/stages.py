@@ -142,9 +142,14 @@ def input_geometry(s: Scene, src) -> tuple[Scene, str]:
 
         est = estimate_geometry(s, "stereo", StereoParams(max_depth=src.stereo_max_m))
         i = est.info
-        return est.apply(s), (f"stereo: {100 * i['stereo_valid']:.1f} % of pixels within {src.stereo_max_m:g} m, "
-                              f"{100 * i['filled_from_prior']:.1f} % filled from the pop-up prior x "
-                              f"{i['prior_scale']:.3f}")
+        note = (f"stereo: {100 * i['stereo_valid']:.1f} % of pixels within {src.stereo_max_m:g} m, "
+                f"{100 * i['filled_from_prior']:.1f} % filled from the pop-up prior x {i['prior_scale']:.3f}")
+        out = est.apply(s)
+        if getattr(src, "stereo_surfaces", False):
+            out, fit = stereo_surfaces(s, out, src.stereo_max_m)
+            note += (f"; surfaces fitted on {100 * fit['fitted_fraction']:.1f} % of pixels "
+                     f"({fit['segments']} segments, {100 * fit['speckle_fraction']:.2f} % speckle dropped)")
+        return out, note
     if kind == "network":
         from ..geometry.network import NetworkParams
 
@@ -153,6 +158,22 @@ def input_geometry(s: Scene, src) -> tuple[Scene, str]:
         return estimate_geometry(s, "network", NetworkParams(checkpoint=src.checkpoint)).apply(s), \
             f"network: {src.checkpoint}"
     return estimate_geometry(s, "popup").apply(s), "prior: semantic pop-up"
+
+
+def stereo_surfaces(frame: Scene, est: Scene, max_depth: float) -> tuple[Scene, dict]:
+    """``est`` (the frame with its stereo estimate applied) with the stereo replaced by robust
+    per-segment surface fits and their normals (:func:`npsim_core.geometry.surfaces.fit_surfaces`;
+    docs/relight.md "Nights of real frames"); the fit's counts."""
+    from ..geometry.stereo import stereo_valid
+    from ..geometry.surfaces import fit_surfaces
+
+    valid = stereo_valid(frame, max_depth)
+    depth, normals, info = fit_surfaces(frame.depth_stereo, valid, est.depth, frame.labels, est.intrinsics,
+                                        frame.instances)
+    ok = np.isfinite(normals).all(-1)
+    normals = np.where(ok[..., None], normals, est.normals).astype(np.float32)
+    depth = np.where(np.isfinite(est.depth), depth, np.float32(np.nan)).astype(np.float32)  # sky stays sky
+    return est.with_(depth=depth, normals=normals, provenance=dict(est.provenance, stereo_surfaces=info)), info
 
 
 def filter_stage(inputs: dict, params, ctx) -> np.ndarray:
@@ -411,7 +432,7 @@ def guides_stage(inputs: dict, params, ctx):
 
 # --------------------------------------------------------------------------- the graph
 STAGES: tuple[Stage, ...] = (
-    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=3),
+    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=4),
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
     Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),

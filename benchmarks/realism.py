@@ -1,0 +1,176 @@
+"""Realism benchmark of issue 25 (results: docs/relight.md "Nights of real frames", README).
+
+Usage::
+
+    python -m benchmarks.realism [--size 2048x1024] [--seed 0] [--frames 1] [--dir DIR]
+        [--spp 16] [--variant default] [--figure docs/img/PNG] [--legacy]
+
+On the Cityscapes-layout fixture with semi-global-matching stereo (``--stereo sgm``, the default;
+its exact depth written outside the dataset with ``--truth``), per frame:
+
+1. the night of the chain at its defaults from the SGM stereo (the frame's own disparity; no true
+   albedo or roughness, as on a real frame),
+2. the night of the exact depth (``depth.source=files`` with the exact depth and its normals),
+   with the same lights (the proposals of run 1), seed, spp and materials estimation,
+3. with ``--legacy``: the night from the SGM stereo with the issue-25 steps off
+   (``depth.stereo_surfaces=false``, ``night.delight=false``) -- the "before".
+
+It prints the structure ratio per class and whole frame of each night (and the stereo night's
+ratio relative to the exact one: target within 10 %), the de-lit albedo's error against the
+street's true albedo per class against photo-as-albedo (target: at least halved on building,
+road, car), the global statistics against real night photos (target: within 15 %), the frame
+time (geometry + one night) and the load. Timings on a shared machine: size and load printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+MEASURED = ("road", "sidewalk", "building", "vegetation", "car")
+#: The issue-25 steps off (the "before").
+LEGACY = ["depth.stereo_surfaces=false", "night.delight=false"]
+
+
+def _frame(root: Path, stem: str):
+    from npsim_core.datasets import open_dataset
+
+    for src in open_dataset(root):
+        if src.name == stem or stem in str(src.image_path):
+            return src.load()
+    raise SystemExit(f"frame {stem} not in {root}")
+
+
+def night_of(scene, params, annotation=None):
+    """(night sRGB, chain results, frame time s, the chain) of ``scene`` at ``params``."""
+    from npsim_core.chain import Chain
+
+    chain = Chain(scene)
+    if annotation is not None:
+        chain.set_annotation(annotation)
+        params = replace(params, lights=replace(params.lights, source="annotation"))
+    t0 = time.perf_counter()
+    res = chain.compute(params)
+    night = chain.night_final(res, params)
+    return night, res, time.perf_counter() - t0, chain
+
+
+def albedo_errors(scene, mats_albedo: np.ndarray, truth: np.ndarray) -> dict:
+    """Mean relative error of albedo luminance per class after one global scale (median ratio over
+    the measured classes): |est·k − true| / true. Scale-free, as a single photo's albedo is."""
+    from npsim_core.realism import CLASSES
+
+    w = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    le, lt = mats_albedo @ w, truth @ w
+    sel = np.isin(scene.labels, [i for c in MEASURED for i in CLASSES[c]]) & (lt > 0.005)
+    k = float(np.median(lt[sel] / np.maximum(le[sel], 1e-6)))
+    out = {}
+    for c in MEASURED:
+        m = np.isin(scene.labels, CLASSES[c]) & (lt > 0.005)
+        out[c] = float(np.mean(np.abs(le[m] * k - lt[m]) / lt[m])) if m.sum() > 50 else None
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.realism")
+    ap.add_argument("--size", default="512x256")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--spp", type=int, default=None, help="night.final_spp (default: the chain's)")
+    ap.add_argument("--variant", default="default")
+    ap.add_argument("--dir", default=None, help="fixture folder (default: a temporary one)")
+    ap.add_argument("--figure", default=None, help="write day | before | after | exact nights as a PNG")
+    ap.add_argument("--legacy", action="store_true", help="also the night with the issue-25 steps off")
+    ap.add_argument("--save", default=None, help="folder for the nights' PNGs")
+    args = ap.parse_args(argv)
+    from npsim_core.camera import normals_from_depth
+    from npsim_core.chain import ChainParams
+    from npsim_core.realism import REAL_NIGHT, global_stats, structure_ratio
+    from npsim_core.render.materials import estimate_materials, photo_albedo
+    from npsim_core.synthetic import street_scene
+    from npsim_core.synthetic.cityscapes import fixture_stem, write_cityscapes_fixture
+
+    W, H = (int(v) for v in args.size.lower().split("x"))
+    tmp = Path(args.dir) if args.dir else Path(tempfile.mkdtemp(prefix="npsim-realism-"))
+    root, truth_dir = tmp / "dataset", tmp / "truth"
+    stem = fixture_stem("synthcity", 0)
+    t0 = time.perf_counter()
+    if not (truth_dir / f"{stem}_depth.npy").exists():
+        write_cityscapes_fixture(root, frames=1, size=(W, H), seed=args.seed, corrupt=0, stereo="sgm",
+                                 truth=truth_dir, variant=args.variant)
+    t_fixture = time.perf_counter() - t0
+    scene = _frame(root, stem)
+    truth = np.load(truth_dir / f"{stem}_depth.npy")
+    params = ChainParams()
+    if args.spp:
+        params = replace(params, night=replace(params.night, final_spp=int(args.spp)))
+
+    rows = {}
+    stereo_night, res, t_stereo, chain = night_of(scene, params)
+    ann = chain.lights(params).annotation
+    rows["SGM stereo (defaults)"] = (stereo_night.image, t_stereo, chain)
+    exact = scene.with_(depth=truth, normals=normals_from_depth(truth, scene.intrinsics), depth_stereo=None)
+    exact_params = replace(params, depth=replace(params.depth, source="files"))
+    ex_night, _, t_exact, ex_chain = night_of(exact, exact_params, ann)
+    rows["exact depth"] = (ex_night.image, t_exact, ex_chain)
+    if args.legacy:
+        leg = params.with_sets(LEGACY)
+        lg_night, _, t_leg, lg_chain = night_of(scene, leg, ann)
+        rows["SGM stereo, issue-25 steps off"] = (lg_night.image, t_leg, lg_chain)
+
+    load = os.getloadavg()
+    print(f"\nrealism benchmark: {W}x{H} fixture (--stereo sgm, seed {args.seed}, variant {args.variant}), "
+          f"spp {params.night.final_spp}, fixture written in {t_fixture:.1f} s, load {load[0]:.2f} {load[1]:.2f}")
+    ref = structure_ratio(scene.image, scene.labels, ex_night.image)
+    print("\nstructure ratio (night vs its day photo; per class; [x] = relative to the exact-depth night)")
+    print(f"{'night':34s} {'whole':>13s} " + " ".join(f"{c:>13s}" for c in MEASURED) + "  frame s")
+    for name, (img, t, _) in rows.items():
+        sr = structure_ratio(scene.image, scene.labels, img)
+        cells = [f"{sr['whole']:.2f} [{sr['whole'] / ref['whole']:.2f}]"]
+        for c in MEASURED:
+            v, r = sr["classes"][c], ref["classes"][c]
+            cells.append("-" if v is None or r is None else f"{v:.2f} [{v / r:.2f}]")
+        print(f"{name:34s} " + " ".join(f"{x:>13s}" for x in cells) + f"  {t:7.1f}")
+
+    print("\nglobal statistics (grey at 1024 px wide; target within 15 % of real nights)")
+    print(f"{'night':34s} {'mean':>6s} {'median':>6s} {'p99':>6s} {'%>240':>6s} {'R/B':>6s}")
+    print(f"{'real ACDC nights (SPEC §10)':34s} " + " ".join(f"{v:6.2f}" for v in REAL_NIGHT.values()))
+    for name, (img, _, _) in rows.items():
+        st = global_stats(img)
+        print(f"{name:34s} " + " ".join(f"{st[k]:6.2f}" for k in REAL_NIGHT))
+
+    # De-lit albedo against the street's true albedo (the reference only; never given to the chain).
+    true = street_scene(W, H, args.seed, variant=args.variant)
+    gt_albedo = np.asarray(true.albedo, np.float32)
+    mats = chain.night_inputs(params)[2].materials
+    photo = photo_albedo(scene.image)
+    fallback = estimate_materials(scene.image, scene.labels).albedo
+    print("\nalbedo error vs the true albedo (mean |k·est − true| / true per class, one global scale k)")
+    print(f"{'albedo':34s} " + " ".join(f"{c:>10s}" for c in MEASURED))
+    for name, a in (("photo as albedo (linearised)", photo), ("per-class prior fallback (before)", fallback),
+                    (f"chain's ({mats.source})", mats.albedo)):
+        e = albedo_errors(scene, a, gt_albedo)
+        print(f"{name:34s} " + " ".join(f"{'-' if e[c] is None else f'{e[c]:.3f}':>10s}" for c in MEASURED))
+
+    if args.save:
+        from npsim_core.io import write_image
+
+        out = Path(args.save)
+        for name, (img, _, _) in rows.items():
+            write_image(out / (name.split(" (")[0].replace(" ", "_").replace(",", "") + ".png"), img)
+    if args.figure:
+        from npsim_core.io import write_image
+
+        imgs = [scene.image] + [img for img, _, _ in rows.values()]
+        write_image(Path(args.figure), np.concatenate(imgs, axis=0))
+        print(f"figure: {args.figure} (day, " + ", ".join(rows) + ")")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
