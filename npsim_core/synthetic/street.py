@@ -32,6 +32,7 @@ ROAD, SIDEWALK, BUILDING, POLE, TRAFFIC_LIGHT, TRAFFIC_SIGN, VEGETATION, SKY, PE
 EGO_VEHICLE, RECTIFICATION_BORDER, OUT_OF_ROI, RIDER, TRUCK, BUS, BICYCLE = 1, 2, 3, 25, 27, 28, 33
 # Light-source classes (resources/light_classes.json).
 WINDOW_BUILDING, WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, STREET_LIGHT_HT, ADVERTISEMENT, INFERRED = 1, 2, 3, 4, 8, 10, 12
+MOVING_FRONT, MOVING_REAR = 5, 6
 STREET_LIGHT_LT = 9
 WINDOWS_GROUP, CAR_GROUP, TRAFFIC_LIGHT_GROUP = 13, 14, 20
 
@@ -63,6 +64,9 @@ class _Hard:
     clutter: bool = False        # poles, bollards, signs and trees in front of the facades
     busy: bool = False           # people and riders on bicycles on the sidewalks and the road, a truck or a
     #                              bus, the ego vehicle's hood and the Cityscapes frame-border labels
+    lights: bool = False         # light-proposal test bed (docs/proposals.md): stepped gables and dormers, shop
+    #                              fronts with awnings and signs, glass office floors, varied windows and balconies,
+    #                              plates on every car, cars driving ahead and oncoming, signals showing a state
 
 
 #: The street variants (docs/synthetic.md): name -> features.
@@ -74,8 +78,10 @@ VARIANTS = {
     "clutter": _Hard(clutter=True),
     "hard": _Hard(receding=True, occluded_base=True, corner=True, clutter=True),
     "busy": _Hard(busy=True),
+    "lights": _Hard(occluded_base=True, lights=True),
 }
 _VARIANT_CODE = {name: k for k, name in enumerate(VARIANTS)}
+_VARIANT_CODE["lights"] = 101  # fixed, so its layout does not depend on the variants listed before it
 
 
 def check_variant(variant: str) -> str:
@@ -125,6 +131,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     P = PrimitiveList.new()
     ids = _Ids()
     groups: dict[int, list[int]] = {}
+    kinds: dict[int, str] = {}  # lights variant: light id -> kind of window (facade_kind docstring)
     far_z = float(rng.uniform(95.0, 120.0))
     if hard.receding:  # a longer street, so the long blocks recede toward the vanishing point
         far_z = 150.0 + 2.0 * (far_z - 95.0)
@@ -188,7 +195,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
             shop = bool(rng.random() < 0.6)
             if not (hard.receding and z > 90.0):
                 _facade_windows(P, rng, ids, groups, axis=0, plane=fx, out=-side, along=(z, z1), height=h,
-                                ground_shop=shop)
+                                ground_shop=shop, style=xr if hard.lights else None, kinds=kinds)
             if corner:  # the corner building's second facade faces the camera across the cross street
                 _facade_windows(P, xr, ids, groups, axis=2, plane=z, out=-1,
                                 along=(min(fx, back), max(fx, back)), height=h, ground_shop=True)
@@ -228,7 +235,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
             length = float(rng.uniform(3.9, 4.8))
             if rng.random() < occupancy and not _in_mouth(cross, side, z, z + length):
                 _car(P, rng, ids, groups, x_lo=min(x_in, x_out) + 0.05, x_hi=max(x_in, x_out) - 0.05,
-                     z0=z, length=length, forward=bool(rng.random() < p_forward))
+                     z0=z, length=length, forward=bool(rng.random() < p_forward), plate=xr if hard.lights else None)
                 n_cars += 1
             gap = float(rng.uniform(0.8, 4.0))
             if hard.occluded_base:
@@ -258,7 +265,8 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     if _in_mouth(cross, 1, tl_z, tl_z) and cross[1][0] + 2.5 <= tl_z <= cross[1][1] - 2.5:
         tl_z = cross[1][0] + 1.2  # at a crossing: on the near corner's sidewalk, not in the cross road
     tl_group = ids.new(TRAFFIC_LIGHT_GROUP)
-    groups[tl_group] = _traffic_light(P, ids, RIGHT_WALK_X[0] + 0.45, tl_z)
+    tl_state = ("red", "amber", "green")[int(xr.choice(3, p=[0.45, 0.1, 0.45]))] if hard.lights else None
+    groups[tl_group] = _traffic_light(P, ids, RIGHT_WALK_X[0] + 0.45, tl_z, state=tl_state)
     sign_z = _free_z(rng, pole_zs + [(1, tl_z)], 1, (12.0, 22.0))
     _traffic_sign(P, rng, RIGHT_WALK_X[0] + 0.35, sign_z)
     # Hedges (vegetation) along the left facade's first metres.
@@ -274,6 +282,10 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     if hard.clutter:
         _clutter(P, xr, facades, far_z, cross)
     busy = _busy(P, xr, far_z) if hard.busy else {}
+    if hard.lights:
+        busy.update(_light_extras(P, xr, ids, groups, pole_zs, tl_z, tl_state))
+        busy["traffic_light_states"] = {str(g): tl_state for g, m in groups.items() if g // 1000 == TRAFFIC_LIGHT_GROUP}
+        busy["light_kinds"] = {str(k): v for k, v in sorted(kinds.items())}
     info = {"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
             "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)}
     if variant != "default":
@@ -495,10 +507,12 @@ def _free_z(rng: np.random.Generator, taken: list, side: int, rng_z: tuple[float
 
 
 def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, axis: int,
-                    plane: float, out: int, along: tuple[float, float], height: float, ground_shop: bool) -> None:
+                    plane: float, out: int, along: tuple[float, float], height: float, ground_shop: bool,
+                    style: np.random.Generator | None = None, kinds: dict | None = None) -> None:
     """Rows of window panes on a facade (``axis`` 0: facade x = const, runs along z; 2: z = const, runs along x).
 
-    Each floor's panes form one windows_group.
+    Each floor's panes form one windows_group. With ``style`` (the lights variant's stream) the
+    facade takes one of :func:`_styled_facade`'s kinds instead, and ``kinds`` records each light's kind.
     """
     a0, a1 = along
     span = a1 - a0
@@ -510,6 +524,11 @@ def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, group
     if n < 1:
         return
     start = a0 + (span - n * pitch) / 2.0 + (pitch - win_w) / 2.0
+    if style is not None:
+        _styled_facade(P, style, ids, groups, kinds if kinds is not None else {}, axis=axis, plane=plane, out=out,
+                       height=height, ground_shop=ground_shop, n=n, start=start, pitch=pitch, win_w=win_w,
+                       win_h=win_h, glass=glass)
+        return
     floors = []
     if ground_shop:
         floors.append((0.8, 2.9, 1.6))  # shop windows: sill, top, width
@@ -532,9 +551,135 @@ def _facade_windows(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, group
         groups[gid] = members
 
 
+#: Facade kinds of the lights variant (:func:`_styled_facade`).
+FACADE_KINDS = ("plain", "varied", "gable", "dormers", "office")
+SIGN_COLORS = [(0.75, 0.08, 0.06), (0.05, 0.25, 0.65), (0.85, 0.70, 0.05), (0.10, 0.50, 0.15)]
+
+
+def _styled_facade(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, kinds: dict, *,
+                   axis: int, plane: float, out: int, height: float, ground_shop: bool, n: int, start: float,
+                   pitch: float, win_w: float, win_h: float, glass) -> None:
+    """The lights variant's facades (docs/proposals.md "The synthetic street's lights"), one kind per block:
+
+    * ``plain``: the default grid; ``varied``: widths 0.6-1.25x per bay, French windows over balcony
+      slabs (1 m deep) on 30 % of the bays;
+    * ``gable``: the default grid, then a stepped gable on the roof line (3 steps of 2 m) with
+      3 + 2 + 1 windows (kind ``gable``, one windows_group per step);
+    * ``dormers``: a mansard roof set back 1.5 m with a dormer (window kind ``dormer``) on every
+      other bay;
+    * ``office``: a glass curtain wall: one window_building light per floor band (kind
+      ``office_band``, 2.2 m of glass per 3.4 m floor).
+
+    Ground floors with shops get shop fronts instead of bay windows (kind ``shop``: 0.35-2.6 m glass
+    over two bays), awnings (1.3 m deep, 2.55-2.9 m) on 70 % and an advertisement sign above on 60 %.
+    ``kinds`` maps each light id to its kind (``window`` for the grid windows).
+    """
+    kind = FACADE_KINDS[int(rng.integers(len(FACADE_KINDS)))]
+
+    def box(c0, c1, y0, y1, o0, o1, color, material="diffuse"):  # o: metres outward from the facade plane
+        n0, n1 = sorted((plane + out * o0, plane + out * o1))
+        if axis == 0:
+            P.box((n0, y0, c0), (n1, y1, c1), BUILDING, color, material)
+        else:
+            P.box((c0, y0, n0), (c1, y1, n1), BUILDING, color, material)
+
+    def pane(c0, c1, y0, y1, o, what, color=glass, cls=WINDOW_BUILDING, material="glass"):
+        at, lid = plane + out * o, ids.new(cls)
+        if axis == 0:
+            P.rect(0, at, (y0, c0), (y1, c1), BUILDING, color, material, lid, out)
+        else:
+            P.rect(2, at, (c0, y0), (c1, y1), BUILDING, color, material, lid, out)
+        kinds[lid] = what
+        return lid
+
+    def floor(members):
+        if members:
+            groups[ids.new(WINDOWS_GROUP)] = members
+
+    a0, a1 = start - (pitch - win_w) / 2.0, start - (pitch - win_w) / 2.0 + n * pitch   # the bays' span
+    if ground_shop:
+        shops, k = [], 0
+        while k < n:
+            m = min(2, n - k)
+            c0, c1 = start + k * pitch - 0.25, start + (k + m - 1) * pitch + win_w + 0.25
+            shops.append(pane(c0, c1, 0.35, 2.6, 0.0, "shop"))
+            if rng.random() < 0.7:
+                col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))], 0.3)
+                box(c0 - 0.15, c1 + 0.15, 2.78, 2.9, 0.0, 1.3, col)
+                box(c0 - 0.15, c1 + 0.15, 2.55, 2.9, 1.25, 1.3, col)
+            if rng.random() < 0.6:
+                pane(c0 + 0.3, c1 - 0.3, 3.05, 3.55, 0.0, "sign", SIGN_COLORS[int(rng.integers(len(SIGN_COLORS)))],
+                     ADVERTISEMENT, "lamp")
+            k += m
+        floor(shops)
+    if kind == "office":
+        tint = (0.08, 0.14, 0.18)
+        y = 3.8
+        while y + 3.0 < height - 0.5:
+            floor([pane(a0 + 0.3, a1 - 0.3, y + 0.8, y + 3.0, 0.0, "office_band", tint)])
+            y += 3.4
+        return
+    widths = [win_w] * n
+    balcony = [False] * n
+    if kind == "varied":
+        widths = [float(min(pitch - 0.5, win_w * rng.uniform(0.6, 1.25))) for _ in range(n)]
+        balcony = [bool(rng.random() < 0.3) for _ in range(n)]
+    y = 4.0
+    while y + 1.0 + win_h < height - 0.8:
+        members = []
+        for k in range(n):
+            c = start + k * pitch + win_w / 2.0
+            c0, c1 = c - widths[k] / 2.0, c + widths[k] / 2.0
+            sill = y + 0.9
+            if balcony[k]:
+                box(c0 - 0.3, c1 + 0.3, y + 0.05, y + 0.2, 0.0, 1.0, (0.6, 0.6, 0.58))
+                sill = y + 0.25
+            members.append(pane(c0, c1, sill, y + 0.9 + win_h, 0.0, "window"))
+        floor(members)
+        y += 3.2
+    c = (a0 + a1) / 2.0
+    if kind == "gable" and a1 - a0 >= 7.0:
+        hw = min(6.0, (a1 - a0) / 2.0 - 0.5)
+        wall = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
+        for step in range(3):
+            half = hw * (1.0 - step / 3.0)
+            y0 = height + 2.0 * step
+            box(c - half, c + half, y0, y0 + 2.0, -8.0, 0.0, wall)
+            cnt = 3 - step
+            floor([pane(c - half + (j + 0.5) * 2 * half / cnt - 0.4, c - half + (j + 0.5) * 2 * half / cnt + 0.4,
+                        y0 + 0.45, y0 + 1.65, 0.0, "gable") for j in range(cnt)])
+    elif kind in ("gable", "dormers"):
+        roof = (0.30, 0.22, 0.20)
+        box(a0 - 0.5, a1 + 0.5, height, height + 2.8, -8.0, -1.5, roof)
+        members = []
+        for k in range(0, n, 2):
+            cc = start + k * pitch + win_w / 2.0
+            box(cc - 0.7, cc + 0.7, height + 0.2, height + 2.3, -1.6, -0.6, roof)
+            members.append(pane(cc - 0.45, cc + 0.45, height + 0.55, height + 1.85, -0.6, "dormer"))
+        floor(members)
+
+
+def _light_extras(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, pole_zs: list,
+                  tl_z: float, tl_state: str) -> dict:
+    """The lights variant's road users and signals: a car driving ahead in the ego lane (moving_rear
+    lamps toward the camera), an oncoming car in the left lane (moving_front), both with plates, and
+    a second signal on the left sidewalk showing the same state as the right one (one direction)."""
+    _car(P, rng, ids, groups, x_lo=-0.55, x_hi=1.65, z0=float(rng.uniform(11.0, 22.0)),
+         length=float(rng.uniform(4.0, 4.6)), forward=True, plate=rng, lamp_classes=(MOVING_FRONT, MOVING_REAR))
+    _car(P, rng, ids, groups, x_lo=-3.65, x_hi=-1.45, z0=float(rng.uniform(26.0, 40.0)),
+         length=float(rng.uniform(4.0, 4.6)), forward=False, plate=rng, lamp_classes=(MOVING_FRONT, MOVING_REAR))
+    z2 = _free_z(rng, pole_zs, -1, (24.0, 40.0))
+    groups[ids.new(TRAFFIC_LIGHT_GROUP)] = _traffic_light(P, ids, LEFT_WALK_X[1] - 0.45, z2, state=tl_state)
+    return {"moving_cars": 2, "traffic_lights": 2, "traffic_light_state": tl_state}
+
 def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, x_lo: float, x_hi: float,
-         z0: float, length: float, forward: bool) -> None:
-    """A parked car: body + cabin boxes, wheels, window panes, front/rear lamps; one car_group."""
+         z0: float, length: float, forward: bool, plate: np.random.Generator | None = None,
+         lamp_classes: tuple[int, int] = (PARKED_FRONT, PARKED_REAR)) -> None:
+    """A parked car: body + cabin boxes, wheels, window panes, front/rear lamps; one car_group.
+
+    ``plate`` (the lights variant's stream): number plates (0.52 x 0.11 m, white or yellow, 2 mm
+    proud of the body, centred below the lamps; never lights) front and rear. ``lamp_classes``:
+    (front, rear) light classes, moving_front/moving_rear for a car driving."""
     width = float(rng.uniform(1.7, 1.9))
     xc = (x_lo + x_hi) / 2.0
     xa, xb = xc - width / 2, xc + width / 2
@@ -566,7 +711,13 @@ def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *,
         members.append(lid)
     front, rear = ((z1, 1), (z0, -1)) if forward else ((z0, -1), (z1, 1))
     ly0, ly1 = body_top - 0.22, body_top - 0.07
-    for cls, (z, out), col in ((PARKED_FRONT, front, (0.75, 0.75, 0.72)), (PARKED_REAR, rear, (0.45, 0.03, 0.02))):
+    if plate is not None:
+        for z, out in (front, rear):
+            col = (0.82, 0.82, 0.78) if plate.random() < 0.7 else (0.80, 0.66, 0.12)
+            zp = z + out * 0.002
+            P.box((xc - 0.26, body_lo + 0.12, min(z, zp)), (xc + 0.26, body_lo + 0.23, max(z, zp)), CAR, col)
+    for cls, (z, out), col in ((lamp_classes[0], front, (0.75, 0.75, 0.72)),
+                               (lamp_classes[1], rear, (0.45, 0.03, 0.02))):
         for lx0, lx1 in ((xa + 0.08, xa + 0.38), (xb - 0.38, xb - 0.08)):
             lid = ids.new(cls)
             P.rect(2, z, (lx0, ly0), (lx1, ly1), CAR, col, "lamp", lid, out)
@@ -615,12 +766,21 @@ def _tree(P: PrimitiveList, rng: np.random.Generator, x: float, z: float) -> Non
     P.box((x - r2, 4.8, z - r2), (x + r2, 5.9, z + r2), VEGETATION, green * 0.9, "foliage")
 
 
-def _traffic_light(P: PrimitiveList, ids: _Ids, x: float, z: float) -> list[int]:
-    """Pole + housing facing the camera (-z) with red/amber/green lamps (class 'inferred')."""
+#: Signal lamp albedo by day when the lamp is lit (it glows: brighter, saturated) and when dark.
+SIGNAL_LIT = {"red": (0.95, 0.10, 0.06), "amber": (0.95, 0.62, 0.05), "green": (0.10, 0.85, 0.45)}
+SIGNAL_DARK = {"red": (0.16, 0.03, 0.03), "amber": (0.16, 0.11, 0.02), "green": (0.02, 0.12, 0.05)}
+
+
+def _traffic_light(P: PrimitiveList, ids: _Ids, x: float, z: float, state: str | None = None) -> list[int]:
+    """Pole + housing facing the camera (-z) with red/amber/green lamps (class 'inferred'), top to bottom.
+
+    ``state`` (lights variant): that lamp is lit by day (:data:`SIGNAL_LIT`), the others dark."""
     P.box((x - 0.07, KERB, z - 0.07), (x + 0.07, 2.5, z + 0.07), POLE, (0.25, 0.26, 0.27), "metal")
     P.box((x - 0.2, 2.5, z - 0.14), (x + 0.2, 3.5, z + 0.14), TRAFFIC_LIGHT, (0.05, 0.05, 0.05), "metal")
     members = []
-    for yc, col in ((3.33, (0.35, 0.04, 0.03)), (3.0, (0.35, 0.22, 0.02)), (2.67, (0.03, 0.25, 0.08))):
+    cols = ((0.35, 0.04, 0.03), (0.35, 0.22, 0.02), (0.03, 0.25, 0.08)) if state is None else \
+        tuple((SIGNAL_LIT if name == state else SIGNAL_DARK)[name] for name in ("red", "amber", "green"))
+    for yc, col in zip((3.33, 3.0, 2.67), cols):
         lid = ids.new(INFERRED)
         P.rect(2, z - 0.14, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid, -1)
         members.append(lid)
