@@ -127,7 +127,7 @@ def test_export_writes_all_outputs(window, qtbot, tmp_path):
     qtbot.waitUntil(lambda: hasattr(window, "last_export"), timeout=180_000)
     names = {p.name for p in window.last_export}
     n = window.chain.scene.name
-    for expected in (f"{n}_labelIds.png", f"{n}_depth_refined.npy", f"{n}_normals_refined_vis.png",
+    for expected in (f"{n}_labelIds.png", f"{n}_depth_refined.png", f"{n}_normals_refined_vis.png",
                      f"{n}_mesh.glb", f"{n}_night_0.png", f"{n}_night_0_labelIds.png",
                      f"{n}_lights_instanceIds.png", f"{n}_export.json"):
         assert expected in names

@@ -281,7 +281,8 @@ def frames(draw):
 def test_hard_frames_end_in_outputs_or_a_clear_error(frame, tmp_path_factory):
     out = tmp_path_factory.mktemp("hard")
     try:
-        files = export_frame(Chain(frame), QUICK, out, nights=0, mesh_formats=("ply",))
+        files = export_frame(Chain(frame), QUICK.with_value("export", "extras", True), out, nights=0,
+                             mesh_formats=("ply",))  # extras: the refined depth as float32 .npy
     except NpsimInputError as exc:
         assert str(exc)
         assert not any(out.iterdir())  # nothing half-written

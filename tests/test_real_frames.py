@@ -77,7 +77,8 @@ def test_run_on_a_real_layout_frame(dataset, tmp_path, capsys):
     assert man["depth_source"].startswith("stereo") and man["errors"]["reference"].startswith("stereo")
     assert np.isfinite(man["errors"]["refined"]["abs_rel"]) and "building" in man["errors"]["refined"]["classes"]
     names = set(man["files"])
-    for must in (f"{stems[0]}_depth_input.npy", f"{stems[0]}_night_0.png", f"{stems[0]}_night_0_labelIds.png",
+    assert not any("depth_input" in n for n in names)  # the dataset's stereo, not copied by default
+    for must in (f"{stems[0]}_depth_refined.png", f"{stems[0]}_night_0.png", f"{stems[0]}_night_0_labelIds.png",
                  f"{stems[0]}_mesh.glb"):
         assert must in names
     assert not any(n.endswith("_linear.npy") for n in names)  # only what a frame needs by default

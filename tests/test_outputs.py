@@ -1,0 +1,120 @@
+"""What a frame writes by default (issue: ≤ 25 MB a 2048x1024 frame): every default output loads
+back, the manifest's checksums cover every file, the input depth and float32 maps only with
+``--full-outputs``, the refined depth as a 16-bit PNG and the mesh as a Draco-compressed GLB
+within its stated position error."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+
+from npsim_core.annotation import load_annotation
+from npsim_core.chain.chain import Chain
+from npsim_core.chain.export import export_frame, file_checksum, verify_frame
+from npsim_core.chain.params import ChainParams
+from npsim_core.chain.stages import lit_mesh
+from npsim_core.io import read_depth, read_image, read_json, read_label_image
+from npsim_core.mesh.export import GLB_MAX_ERROR_M, export_glb, read_glb
+from npsim_core.synthetic import street_scene
+
+QUICK = ChainParams().with_value("refine", "steps", 8).with_value("night", "final_spp", 1)
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    scene = street_scene(128, 64)
+    chain = Chain(scene)
+    out = tmp_path_factory.mktemp("frame")
+    files = export_frame(chain, QUICK, out, nights=1)
+    return chain, out, files
+
+
+def _load(path):
+    """Load one output by its kind; raises when it does not load."""
+    name = path.name
+    if name.endswith(".json"):
+        return read_json(path)
+    if name.endswith("_depth_refined.png"):
+        return read_depth(path)
+    if name.endswith("_lights_instanceIds.png") or name.endswith("_lights_classIds.png"):
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if name.endswith("labelIds.png"):
+        return read_label_image(path)
+    if name.endswith(".png"):
+        return read_image(path, color=not name.endswith("_uncertain.png"))
+    if name.endswith(".glb"):
+        return read_glb(path)
+    if name.endswith(".npy"):
+        return np.load(path)
+    raise AssertionError(f"an output of unknown kind: {name}")
+
+
+def test_every_default_output_loads_back_and_is_checksummed(exported, tmp_path):
+    chain, out, files = exported
+    man = json.loads(files[-1].read_text())
+    on_disk = {p.name for p in out.iterdir()}
+    # the manifest covers every file in the folder (itself aside), each with its checksum
+    assert on_disk - {files[-1].name} == set(man["files"])
+    assert all(man["checksums"][n] == file_checksum(out / n) for n in man["files"])
+    assert verify_frame(out) is None
+    for f in man["files"]:
+        assert _load(out / f) is not None
+    n = chain.scene.name
+    ann = load_annotation(out, n)  # the light annotation as a whole, as the editor reads it
+    assert ann.instance_ids() == chain.annotation.instance_ids()
+    # no copy of the input depth, no float32 maps by default
+    assert not any("depth_input" in f or f.endswith(".npy") for f in man["files"])
+    res = chain.compute(QUICK, until="mesh")
+    d = read_depth(out / f"{n}_depth_refined.png")
+    ref = res.depth
+    valid = np.isfinite(ref) & (ref > 0)
+    assert np.array_equal(np.isfinite(d), valid)  # 0 = invalid, exactly where the depth is
+    assert np.abs(d[valid] - ref[valid]).max() <= 0.5 / 256 + 1e-6  # steps of 1/256 m
+    assert man["depth"]["clipped_beyond_255.99_m"] == 0
+    # --full-outputs (export.extras) adds the input depth and the float32 maps
+    full = export_frame(chain, QUICK.with_value("export", "extras", True), tmp_path, nights=0)
+    names = {p.name for p in full}
+    assert {f"{n}_depth_input.npy", f"{n}_depth_refined.npy", f"{n}_depth_input.png"} <= names
+    assert verify_frame(tmp_path) is None
+
+
+
+def test_compressed_glb_round_trip_within_its_error(exported, tmp_path):
+    chain, out, _ = exported
+    n = chain.scene.name
+    res = chain.compute(QUICK, until="mesh")
+    small, _ = lit_mesh(res.mesh_result, chain.lights(QUICK).annotation, QUICK.export.mesh_tolerance,
+                        QUICK.mesh.far_limit)
+    plain = export_glb(small, tmp_path / "plain.glb", chain.scene.image)
+    packed = out / f"{n}_mesh.glb"
+    assert packed.stat().st_size < plain.stat().st_size / 3
+    back = read_glb(packed)
+    assert (back.width, back.height) == (small.width, small.height)
+    want = [p for p in small.parts if p.n_faces]
+    assert [p.name for p in back.parts] == [p.name for p in want]
+    from scipy.spatial import cKDTree
+
+    for a, b in zip(want, back.parts):
+        assert b.n_faces == a.n_faces and b.foreground == a.foreground
+        # every written vertex lies within the stated error of one of the mesh's own vertices,
+        # with its label, light id and uv (draco reorders vertices, so matched by position)
+        dist, idx = cKDTree(a.vertices).query(b.vertices)
+        assert dist.max() <= GLB_MAX_ERROR_M
+        assert np.array_equal(a.label[idx], b.label) and np.array_equal(a.light_id[idx], b.light_id)
+        assert np.abs(a.uv[idx] - b.uv).max() * max(small.width, small.height) <= 0.125
+        # face labels and light ids follow from the vertices (ties of three labels aside)
+        np.testing.assert_array_equal(np.sort(a.face_light_id()), np.sort(b.face_light_id()))
+        la = a.label[a.faces]
+        tie = (la[:, 0] != la[:, 1]) & (la[:, 1] != la[:, 2]) & (la[:, 0] != la[:, 2])
+        if not tie.any():
+            np.testing.assert_array_equal(np.sort(a.face_label()), np.sort(b.face_label()))
+    # a maintained third-party reader (trimesh with DracoPy) loads it too, labels included
+    g = trimesh.load(packed, process=False)
+    assert sum(len(x.faces) for x in g.geometry.values()) == small.n_faces
+    assert "_LABEL" in g.geometry[want[0].name].vertex_attributes
+    # and the plain GLB reads back through the same reader
+    assert read_glb(plain).n_faces == small.n_faces
