@@ -10,10 +10,13 @@ with ``--checkpoint``, a local depth network aligned on the pop-up prior.
 Errors over all pixels with valid ground truth (sky excluded), docs/method.md §9.2.
 
 ``--variants``: the pop-up prior on the hard street layouts (docs/synthetic.md),
-AbsRel per class, before (``PopupParams(facades="flat", sidewalk_height=0)``, the
-earlier prior) and after (the default), with the prior's time (best of
-``--repeat``). The scenes are the exact ground truth and labels of
-``make_street_scene`` without the render (the prior reads only labels and camera).
+AbsRel per class and per variant and seed (``--seeds 0,1,2``), the share of pixels
+placed at the far limit (``far``) and of those the ones with a visible ground contact
+below them (``far|contact``, should be 0), the mean confidence, and the prior's time
+(best of ``--repeat``). ``--priors flat,default``: rows for
+``PopupParams(facades="flat", sidewalk_height=0)`` (the first prior) and the default.
+The scenes are the exact ground truth and labels of ``make_street_scene`` without the
+render (the prior reads only labels and camera).
 """
 
 from __future__ import annotations
@@ -39,6 +42,32 @@ def _row(name, seconds, depth, normals, scene):
 
 VARIANT_CLASSES = (("road", 7), ("sidewalk", 8), ("building", 11), ("vegetation", 21), ("car", 26))
 BEFORE = {"facades": "flat", "sidewalk_height": 0.0}
+PRIORS = {"flat": BEFORE, "segment": {"crowns": "segment"}, "default": {}}
+ALL_VARIANTS = "default,receding,occluded_base,corner,clutter,hard,canopy,square,shopfront,hard2"
+
+
+def far_limit_shares(depth: np.ndarray, scene, max_depth: float) -> tuple[float, float]:
+    """Share of the pixels with ground truth placed at ``max_depth``, and share of them standing on visible ground.
+
+    The second counts far-limit pixels of non-ground classes whose vertical run of their own
+    label ends on a ground pixel (a visible ground contact right below them).
+    """
+    from npsim_core.labels import cityscapes
+
+    valid = np.isfinite(scene.depth_gt)
+    at_far = valid & np.isfinite(depth) & (depth >= 0.999 * max_depth)
+    ground = cityscapes().lut("ground").astype(bool)[scene.labels]
+    H = scene.labels.shape[0]
+    # Row where each pixel's run of its own label ends (first row below with another label).
+    change = np.ones(scene.labels.shape, dtype=bool)
+    change[:-1] = scene.labels[1:] != scene.labels[:-1]
+    rows = np.where(change, np.arange(H)[:, None], H)
+    end = np.minimum.accumulate(rows[::-1], axis=0)[::-1]
+    below = np.minimum(end + 1, H - 1)
+    on_ground = ground[below, np.arange(scene.labels.shape[1])[None, :]] & (end < H - 1)
+    contact = at_far & ~ground & on_ground
+    n = max(int(valid.sum()), 1)
+    return at_far.sum() / n, contact.sum() / n
 
 
 def variant_scene(W: int, H: int, seed: int, variant: str):
@@ -64,29 +93,38 @@ def class_abs_rel(depth: np.ndarray, scene) -> dict[str, float]:
     return out
 
 
-def variants_table(sizes: list[tuple[int, int]], seed: int, repeat: int, variants: list[str]) -> list[dict]:
-    """Print (and return) the before/after table of the pop-up prior on the street variants."""
+def variants_table(sizes: list[tuple[int, int]], seeds: list[int], repeat: int, variants: list[str],
+                   priors: list[str] = ("flat", "default")) -> list[dict]:
+    """Print (and return) the pop-up prior's table on the street variants (see the module docstring)."""
     from npsim_core.geometry.popup import PopupParams, estimate_popup
 
     rows = []
-    print(f"pop-up prior on the street variants, seed {seed}; load {os.getloadavg()[0]:.2f} "
-          f"(1-min average, {os.cpu_count()} cores)")
+    print(f"pop-up prior on the street variants, seeds {','.join(map(str, seeds))}; load "
+          f"{os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
     names = [n for n, _ in VARIANT_CLASSES] + ["all"]
-    print("| size | variant | prior | " + " | ".join(names) + " | time s |")
-    print("|---|---|---|" + "---|" * len(names) + "---|")
+    print("| size | variant | seed | prior | " + " | ".join(names) + " | far | far\\|contact | conf | time s |")
+    print("|---|---|---|---|" + "---|" * len(names) + "---|---|---|---|")
     for W, H in sizes:
         for variant in variants:
-            scene = variant_scene(W, H, seed, variant)
-            for label, params in (("before", PopupParams(**BEFORE)), ("after", PopupParams())):
-                times, est = [], None
-                for _ in range(max(1, repeat)):
-                    t0 = time.perf_counter()
-                    est = estimate_popup(scene, params)
-                    times.append(time.perf_counter() - t0)
-                err = class_abs_rel(est.depth, scene)
-                rows.append({"size": f"{W}x{H}", "variant": variant, "prior": label, **err, "seconds": min(times)})
-                print(f"| {W}x{H} | {variant} | {label} | " + " | ".join(f"{err[n]:.3f}" for n in names)
-                      + f" | {min(times):.2f} |")
+            for seed in seeds:
+                scene = variant_scene(W, H, seed, variant)
+                for label in priors:
+                    params = PopupParams(**PRIORS[label])
+                    times, est = [], None
+                    for _ in range(max(1, repeat)):
+                        t0 = time.perf_counter()
+                        est = estimate_popup(scene, params)
+                        times.append(time.perf_counter() - t0)
+                    err = class_abs_rel(est.depth, scene)
+                    far, far_contact = far_limit_shares(est.depth, scene, params.max_depth)
+                    conf = getattr(est, "confidence", None)
+                    mc = float(np.nanmean(conf[np.isfinite(scene.depth_gt)])) if conf is not None else float("nan")
+                    rows.append({"size": f"{W}x{H}", "variant": variant, "seed": seed, "prior": label, **err,
+                                 "far": far, "far_contact": far_contact, "confidence": mc, "seconds": min(times)})
+                    print(f"| {W}x{H} | {variant} | {seed} | {label} | "
+                          + " | ".join(f"{err[n]:.3f}" for n in names)
+                          + f" | {far:.4f} | {far_contact:.4f} | {mc:.2f} | {min(times):.2f} |", flush=True)
+    print(f"load after: {os.getloadavg()[0]:.2f}")
     return rows
 
 
@@ -99,12 +137,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variants", action="store_true",
                     help="the pop-up prior before/after on the hard street variants, AbsRel per class")
     ap.add_argument("--sizes", default="512x256,2048x1024", help="WxH list for --variants")
-    ap.add_argument("--which", default="default,receding,occluded_base,corner,clutter,hard",
-                    help="street variants for --variants")
+    ap.add_argument("--seeds", help="seed list for --variants (default: --seed)")
+    ap.add_argument("--which", default=ALL_VARIANTS, help="street variants for --variants")
+    ap.add_argument("--priors", default="flat,default", help="prior settings for --variants: flat, segment (crowns as one segment), default")
     args = ap.parse_args(argv)
     if args.variants:
         sizes = [tuple(int(x) for x in sz.lower().split("x")) for sz in args.sizes.split(",")]
-        variants_table(sizes, args.seed, args.repeat, args.which.split(","))
+        seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else [args.seed]
+        variants_table(sizes, seeds, args.repeat, args.which.split(","), args.priors.split(","))
         return 0
     W, H = (int(x) for x in args.size.lower().split("x"))
 

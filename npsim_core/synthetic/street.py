@@ -64,6 +64,10 @@ class _Hard:
     clutter: bool = False        # poles, bollards, signs and trees in front of the facades
     busy: bool = False           # people and riders on bicycles on the sidewalks and the road, a truck or a
     #                              bus, the ego vehicle's hood and the Cityscapes frame-border labels
+    canopy: bool = False         # street trees whose crowns overhang the sidewalk, trunks hidden behind people,
+    #                              bus shelters, vans and sign boards
+    square: bool = False         # the street opens onto a square / crossing; buildings 40-150 m away across it
+    shopfront: bool = False      # glazed ground floors, awnings and crowds along the near facades
     lights: bool = False         # light-proposal test bed (docs/proposals.md): stepped gables and dormers, shop
     #                              fronts with awnings and signs, glass office floors, varied windows and balconies,
     #                              plates on every car, cars driving ahead and oncoming, signals showing a state
@@ -78,6 +82,11 @@ VARIANTS = {
     "clutter": _Hard(clutter=True),
     "hard": _Hard(receding=True, occluded_base=True, corner=True, clutter=True),
     "busy": _Hard(busy=True),
+    "canopy": _Hard(canopy=True),
+    "square": _Hard(square=True),
+    "shopfront": _Hard(shopfront=True),
+    "hard2": _Hard(receding=True, occluded_base=True, corner=True, clutter=True, canopy=True, square=True,
+                   shopfront=True),
     "lights": _Hard(occluded_base=True, lights=True),
 }
 _VARIANT_CODE = {name: k for k, name in enumerate(VARIANTS)}
@@ -141,6 +150,13 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
         for side, (lo, hi) in ((1, (18.0, 26.0)), (-1, (30.0, 42.0))):
             z0 = float(xr.uniform(lo, hi))
             cross[side] = (z0, z0 + float(xr.uniform(13.0, 17.0)))
+    # Square variant: the street (blocks, road, sidewalks, parked cars) ends at square_z, past the cross streets.
+    square_z = None
+    if hard.square:
+        square_z = float(xr.uniform(28.0, 45.0))
+        if cross:
+            square_z = max(square_z, max(b for _, b in cross.values()) + 6.0)
+        far_z = square_z
 
     # --- ground: road, markings, sidewalks (the sidewalk's inner face is the kerb)
     P.box((ROAD_X[0], -0.3, STREET_Z0), (ROAD_X[1], 0.0, far_z), ROAD, _jitter(rng, (0.13, 0.13, 0.14), 0.03))
@@ -206,9 +222,10 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
                 corner = True
     # Low enough that sky shows above it (the image top is only ~11 deg above the horizon).
     far_h = float(rng.uniform(9.0, 15.0))
-    P.box((-45.0, 0.0, far_z), (45.0, far_h, far_z + 15.0), BUILDING,
-          _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
-    _facade_windows(P, rng, ids, groups, axis=2, plane=far_z, out=-1, along=(-25.0, 25.0), height=far_h,
+    PF = P if square_z is None else PrimitiveList.new()  # (square: no far building; same draws)
+    PF.box((-45.0, 0.0, far_z), (45.0, far_h, far_z + 15.0), BUILDING,
+           _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
+    _facade_windows(PF, rng, ids, groups, axis=2, plane=far_z, out=-1, along=(-25.0, 25.0), height=far_h,
                     ground_shop=True)
 
     # --- advertisement panels above the shop windows: one on a right-hand facade (often hidden by
@@ -220,7 +237,7 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
     P.rect(0, fx, (2.95, az), (3.75, az + 3.2), BUILDING, (0.7, 0.15, 0.1), "lamp",
            light=ids.new(ADVERTISEMENT), out=-1)
     ax = float(rng.uniform(-4.0, 1.0))
-    P.rect(2, far_z, (ax, 3.0), (ax + 4.0, 3.9), BUILDING, (0.85, 0.75, 0.2), "lamp",
+    PF.rect(2, far_z, (ax, 3.0), (ax + 4.0, 3.9), BUILDING, (0.85, 0.75, 0.2), "lamp",
            light=ids.new(ADVERTISEMENT), out=-1)
 
     # --- parked cars in the parking strips
@@ -286,6 +303,13 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
         busy.update(_light_extras(P, xr, ids, groups, pole_zs, tl_z, tl_state))
         busy["traffic_light_states"] = {str(g): tl_state for g, m in groups.items() if g // 1000 == TRAFFIC_LIGHT_GROUP}
         busy["light_kinds"] = {str(k): v for k, v in sorted(kinds.items())}
+    if hard.shopfront:
+        busy["shop_people"] = _shopfront(P, xr, facades, far_z, cross)
+    if hard.canopy:
+        busy["canopy_trees"] = _canopy(P, xr, far_z, cross)
+    if hard.square:
+        busy["square_z"] = round(square_z, 2)
+        busy["square_buildings"] = _square(P, xr, ids, groups, square_z)
     info = {"cars": n_cars, "far_z": round(far_z, 2), "primitives": len(P.lo),
             "sun_azimuth_deg": round(sun[0], 1), "sun_elevation_deg": round(sun[1], 1)}
     if variant != "default":
@@ -390,6 +414,163 @@ def _clutter(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: f
                     P.box((x - r, 2.0, z - r), (x + r, 2.0 + float(rng.uniform(2.0, 3.5)), z + r), VEGETATION,
                           _jitter(rng, (0.07, 0.16, 0.04), 0.25), "foliage")
             z += float(rng.uniform(4.0, 9.0))
+
+
+def _shopfront(P: PrimitiveList, rng: np.random.Generator, facades: dict, far_z: float, cross: dict) -> int:
+    """Shopfront variant: glazed ground floors (0.2-3.0 m), awnings 1.2-2.2 m deep at 2.6-2.9 m and crowds
+    (1-2 rows of people 0.3-2.6 m in front) along every facade block that starts before z = 60 m.
+
+    The glazing is a glass rectangle on the facade (labelled building, as Cityscapes labels shop windows);
+    awnings are building-labelled slabs with a front valance. Returns the number of people.
+    """
+    n = 0
+    glass = GLASS_BUILDING[0]
+    for side in (-1, 1):
+        for z0, z1, fx in facades[side]:
+            if z0 >= 60.0:
+                continue
+            a0, a1 = z0 + 0.4, min(z1, 80.0) - 0.4
+            if a1 - a0 < 2.0:
+                continue
+            P.rect(0, fx, (0.2, a0), (3.0, a1), BUILDING, glass, "glass", out=-side)
+            za = a0
+            while za < a1 - 1.5:                                   # awnings over stretches of 4-12 m
+                zb = min(a1, za + float(rng.uniform(4.0, 12.0)))
+                if rng.random() < 0.75:
+                    dep = float(rng.uniform(1.2, 2.2))
+                    y0 = float(rng.uniform(2.6, 2.9))
+                    col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))], 0.3)
+                    xo = fx - side * dep
+                    P.box((min(fx, xo), y0, za), (max(fx, xo), y0 + 0.12, zb), BUILDING, col)
+                    P.box((min(xo, xo + side * 0.05), y0 - 0.3, za), (max(xo, xo + side * 0.05), y0 + 0.12, zb),
+                          BUILDING, col)
+                za = zb + float(rng.uniform(0.3, 2.0))
+            z = a0 + float(rng.uniform(0.0, 1.0))
+            while z < min(a1, 60.0):                               # the crowd: 1-2 rows along the base
+                if not _in_mouth(cross, side, z - 0.5, z + 0.5):
+                    for row in range(int(rng.integers(1, 3))):
+                        x = fx - side * (float(rng.uniform(0.3, 1.2)) + 1.1 * row)
+                        _person(P, rng, x, z + float(rng.uniform(-0.3, 0.3)), KERB)
+                        n += 1
+                z += float(rng.uniform(0.6, 2.0))
+    return n
+
+
+def _canopy(P: PrimitiveList, rng: np.random.Generator, far_z: float, cross: dict) -> int:
+    """Canopy variant: large street trees every 9-15 m on both sidewalks (up to z = 75 m), trunks 1.0-1.6 m
+    from the kerb, crowns 4.4-6.4 m wide from 2.1-2.5 m up (over the sidewalk and the parking strip), each
+    trunk hidden from the camera by a group of people, a bus shelter (labelled building, as Cityscapes
+    does), a van in the parking strip (labelled car) or a sign board. Returns the number of trees."""
+    n = 0
+    for side in (-1, 1):
+        kerb = ROAD_X[0] if side < 0 else ROAD_X[1]
+        z = float(rng.uniform(7.0, 12.0))
+        while z < min(far_z - 10.0, 75.0):
+            if _in_mouth(cross, side, z - 3.5, z + 3.5):
+                z += float(rng.uniform(9.0, 15.0))
+                continue
+            xt = kerb + side * float(rng.uniform(1.0, 1.6))
+            rt = float(rng.uniform(0.15, 0.2))
+            yb = float(rng.uniform(2.1, 2.5))
+            top = yb + float(rng.uniform(3.5, 5.5))
+            rc = float(rng.uniform(2.2, 3.2))
+            green = _jitter(rng, (0.06, 0.15, 0.04), 0.25)
+            P.box((xt - rt, KERB, z - rt), (xt + rt, yb + 0.2, z + rt), VEGETATION, (0.12, 0.08, 0.05), "foliage")
+            P.box((xt - rc, yb, z - rc), (xt + rc, top - 1.0, z + rc), VEGETATION, green, "foliage")
+            P.box((xt - 0.7 * rc, top - 1.0, z - 0.7 * rc), (xt + 0.7 * rc, top, z + 0.7 * rc), VEGETATION,
+                  green * 0.9, "foliage")
+            n += 1
+
+            def on_ray(zq):  # the x at which the camera's ray to the trunk passes z = zq
+                return xt * zq / z
+
+            kind = int(rng.integers(4))
+            if kind == 0:      # people in front of the trunk, on its ray
+                zp = z - float(rng.uniform(0.8, 1.5))
+                for dx in (0.0, -0.45, 0.45)[:int(rng.integers(2, 4))]:
+                    _person(P, rng, on_ray(zp) + dx, zp + float(rng.uniform(-0.2, 0.2)), KERB)
+            elif kind == 1:    # a bus shelter: roof, end panels (glass), back panel, trunk behind it
+                L = float(rng.uniform(3.5, 4.5))
+                za, zb = z - 0.5 - L, z - 0.5
+                xc = on_ray(0.5 * (za + zb))
+                x0, x1 = xc - 0.9, xc + 0.9
+                col = (0.30, 0.32, 0.33)
+                P.box((x0, 2.45, za), (x1, 2.6, zb), BUILDING, col, "metal")
+                for zz in (za, zb):
+                    P.box((x0, KERB + 0.1, zz), (x1, 2.45, zz + 0.04), BUILDING, (0.10, 0.12, 0.13), "glass")
+                xb = x1 if side > 0 else x0
+                P.box((xb - 0.02, KERB + 0.1, za), (xb + 0.02, 2.45, zb), BUILDING, (0.10, 0.12, 0.13), "glass")
+            elif kind == 2:    # a van in the parking strip, where the trunk's ray crosses it
+                xa, xb = (2.45, 4.25) if side > 0 else (-5.75, -3.95)
+                zc = z * 0.5 * (xa + xb) / xt
+                L = float(rng.uniform(4.8, 5.6))
+                tall = float(rng.uniform(2.1, 2.5))
+                paint = _jitter(rng, CAR_COLORS[int(rng.integers(len(CAR_COLORS)))], 0.04)
+                P.box((xa, 0.3, zc - L / 2), (xb, tall, zc + L / 2), CAR, paint, "paint")
+                for wz in (zc - L / 2 + 0.8, zc + L / 2 - 0.8):
+                    for wx0, wx1 in ((xa - 0.02, xa + 0.22), (xb - 0.22, xb + 0.02)):
+                        P.box((wx0, 0.0, wz - 0.33), (wx1, 0.64, wz + 0.33), CAR, (0.02, 0.02, 0.02))
+            else:              # a sign board on two legs, 0.8 m in front of the trunk
+                zs_ = z - 0.8
+                xc = on_ray(zs_)
+                for dx in (-0.4, 0.4):
+                    P.box((xc + dx - 0.03, KERB, zs_ - 0.03), (xc + dx + 0.03, 0.4, zs_ + 0.03), POLE,
+                          (0.35, 0.36, 0.37), "metal")
+                col = [(0.02, 0.10, 0.45), (0.65, 0.50, 0.02), (0.9, 0.9, 0.88)][int(rng.integers(3))]
+                P.box((xc - 0.5, 0.4, zs_ - 0.02), (xc + 0.5, 2.5, zs_ + 0.02), TRAFFIC_SIGN, col, "metal")
+            z += float(rng.uniform(9.0, 15.0))
+    return n
+
+
+def _square(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, z0: float) -> int:
+    """Square variant: beyond z0 a 12 m cross road, then a paved square (sidewalk, kerb high) with the main
+    road running on through it; across it a row of blocks whose fronts stand 40-150 m from the camera
+    (12-32 m tall, windows on the nearer ones), blocks along the square's sides at |x| 28-45 m, a closing
+    wall at z 200 m, and people, trees and lamp posts on the square. Returns the number of blocks."""
+    road = _jitter(rng, (0.13, 0.13, 0.14), 0.03)
+    paving = (0.42, 0.40, 0.38)
+    zc1 = z0 + 12.0
+    P.box((-250.0, -0.3, z0), (250.0, 0.0, zc1), ROAD, road)                 # the cross road
+    P.box((ROAD_X[0], -0.3, zc1), (ROAD_X[1], 0.0, 260.0), ROAD, road)       # the main road runs on
+    P.box((-250.0, -0.3, zc1), (ROAD_X[0], KERB, 260.0), SIDEWALK, paving)
+    P.box((ROAD_X[1], -0.3, zc1), (250.0, KERB, 260.0), SIDEWALK, paving)
+    n = 0
+    x = -200.0
+    while x < 200.0:                                                         # blocks across the square
+        w = float(rng.uniform(15.0, 35.0))
+        zf = float(rng.uniform(max(40.0, z0 + 20.0), 150.0))
+        h = float(rng.uniform(12.0, 32.0))
+        col = _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))])
+        P.box((x, KERB, zf), (x + w, h, zf + 20.0), BUILDING, col)
+        if zf < 100.0 and abs(x + w / 2) < 60.0:
+            _facade_windows(P, rng, ids, groups, axis=2, plane=zf, out=-1, along=(x, x + w), height=h,
+                            ground_shop=True)
+        n += 1
+        x += w
+    for side in (-1, 1):                                                     # the square's sides
+        xs = side * float(rng.uniform(28.0, 45.0))
+        z = zc1 + 2.0
+        while z < 150.0:
+            L = float(rng.uniform(15.0, 30.0))
+            h = float(rng.uniform(12.0, 25.0))
+            P.box((min(xs, xs + side * 15.0), KERB, z), (max(xs, xs + side * 15.0), h, z + L), BUILDING,
+                  _jitter(rng, FACADE_COLORS[int(rng.integers(len(FACADE_COLORS)))]))
+            n += 1
+            z += L
+    P.box((-400.0, KERB, 200.0), (400.0, 30.0, 215.0), BUILDING, (0.5, 0.5, 0.52))   # closes every ray
+    for _ in range(int(rng.integers(4, 9))):                                  # people on the square
+        side = 1 if rng.random() < 0.5 else -1
+        _person(P, rng, side * float(rng.uniform(6.0, 25.0)), float(rng.uniform(zc1 + 2.0, z0 + 45.0)), KERB)
+    for _ in range(int(rng.integers(2, 5))):                                  # trees on the square
+        side = 1 if rng.random() < 0.5 else -1
+        _tree(P, rng, side * float(rng.uniform(7.0, 25.0)), float(rng.uniform(zc1 + 4.0, z0 + 40.0)))
+    for side in (-1, 1):                                                      # lamp posts along the main road
+        z = zc1 + float(rng.uniform(3.0, 8.0))
+        while z < 120.0:
+            px = (ROAD_X[0] - 0.5) if side < 0 else (ROAD_X[1] + 0.5)
+            P.box((px - 0.08, KERB, z - 0.08), (px + 0.08, 6.0, z + 0.08), POLE, (0.32, 0.33, 0.34), "metal")
+            z += float(rng.uniform(20.0, 30.0))
+    return n
 
 
 SKIN = [(0.45, 0.30, 0.22), (0.30, 0.20, 0.14), (0.55, 0.42, 0.34)]
