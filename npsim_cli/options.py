@@ -83,15 +83,18 @@ def add_param_options(p: argparse.ArgumentParser, *, nights: int | None = 1) -> 
 
 
 def params_from_args(args: argparse.Namespace) -> "ChainParams":  # noqa: F821 (imported here: start-up time)
-    from npsim_core.chain.params import ChainParams
+    from npsim_core.chain.params import ChainParams, changed_fields, set_fields
     from npsim_core.io import read_json
 
     params = ChainParams()
+    touched: list[tuple[str, str, str]] = []  # (section, field, where it was set)
     if args.params:
         doc = read_json(args.params)
         if isinstance(doc, dict) and "params" in doc:
             doc = doc["params"]
         params = ChainParams.from_json(doc, args.params)
+        touched += [(sec, name, f"--params {args.params}") for sec, name in changed_fields(params)]
+    touched += [(sec, name, f"--set {sec}.{name}") for sec, name in set_fields(args.set)]
     if args.preset:
         params = params.with_preset(args.preset)
     params = params.with_sets(args.set)
@@ -129,4 +132,20 @@ def params_from_args(args: argparse.Namespace) -> "ChainParams":  # noqa: F821 (
         params = params.with_value("lights", "min_confidence", float(args.min_confidence))
     if getattr(args, "nights", 0) is not None and getattr(args, "nights", 0) < 0:
         raise NpsimInputError(f"--nights must be >= 0, got {args.nights}")
+    warn_unread(getattr(args, "command", None) or "npsim", params, touched)
     return params
+
+
+def warn_unread(cmd: str, params, touched: list[tuple[str, str, str]]) -> list[str]:
+    """Log a warning for every field set (``touched``: section, field, where) that the chosen
+    optimiser, denoiser, source or mode does not read (:func:`npsim_core.chain.params.unread_fields`);
+    returns the warnings. Nothing set is ever silently ignored (issue #28)."""
+    from npsim_core.chain.params import unread_fields
+
+    unread = unread_fields(params)
+    out = []
+    for sec, name, where in dict.fromkeys(touched):
+        if (sec, name) in unread:
+            out.append(f"WARNING: {where} changes nothing: {unread[(sec, name)]}")
+            log(cmd, out[-1])
+    return out

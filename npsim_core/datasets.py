@@ -183,9 +183,9 @@ def default_intrinsics(width: int, height: int) -> tuple[Intrinsics, str]:
 
 
 def _shape_wh(path: Path) -> tuple[int, int]:
-    import cv2
+    from .io import imread
 
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = imread(path)
     if img is None:
         raise NpsimInputError(f"{path}: not a readable image")
     return int(img.shape[1]), int(img.shape[0])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zlib
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
@@ -119,6 +120,44 @@ def _existing(path: PathLike) -> Path:
     return path
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _damage(data: bytes) -> str | None:
+    """Why the bytes of a PNG or JPEG cannot be a whole image (truncated, a chunk's CRC wrong), or None.
+
+    Checked before decoding, so the program names the file itself instead of libpng/libjpeg printing
+    "libpng error: Read Error" on stderr (or OpenCV returning a half-decoded JPEG; issue #28)."""
+    if data.startswith(_PNG_SIGNATURE):
+        pos, n = 8, len(data)
+        while pos + 12 <= n:
+            length = int.from_bytes(data[pos:pos + 4], "big")
+            kind = data[pos + 4:pos + 8]
+            end = pos + 12 + length
+            if end > n:
+                return f"truncated PNG (its {kind.decode('latin-1')} chunk ends after the file's {n} bytes)"
+            if zlib.crc32(data[pos + 4:end - 4]) != int.from_bytes(data[end - 4:end], "big"):
+                return f"corrupt PNG (checksum of its {kind.decode('latin-1')} chunk at byte {pos} is wrong)"
+            if kind == b"IEND":
+                return None
+            pos = end
+        return f"truncated PNG (no end chunk in its {n} bytes)"
+    if data.startswith(b"\xff\xd8") and not data.rstrip(b"\0")[-2:] == b"\xff\xd9":
+        return "truncated JPEG (no end marker)"
+    return None
+
+
+def imread(path: PathLike, flags: int = cv2.IMREAD_UNCHANGED) -> np.ndarray | None:
+    """``cv2.imread`` that names a truncated or corrupt PNG/JPEG itself (:class:`NpsimInputError`)
+    instead of letting the codec print to stderr; None for other undecodable files, like OpenCV."""
+    path = _existing(path)
+    data = path.read_bytes()
+    why = _damage(data)
+    if why:
+        raise NpsimInputError(f"{path}: {why}; the file is damaged -- copy it again from its source")
+    return cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+
+
 def read_image(path: PathLike, *, color: bool = True) -> np.ndarray:
     """Read an image: ``color=True`` -> HxWx3 uint8 RGB; ``False`` -> the raw single channel.
 
@@ -126,7 +165,7 @@ def read_image(path: PathLike, *, color: bool = True) -> np.ndarray:
     """
     path = _existing(path)
     flag = cv2.IMREAD_COLOR if color else cv2.IMREAD_UNCHANGED
-    img = cv2.imread(str(path), flag)
+    img = imread(path, flag)
     if img is None:
         raise NpsimInputError(f"{path}: not a readable image (corrupt, or an unsupported format)")
     if color:
@@ -141,7 +180,7 @@ def read_label_image(path: PathLike, *, trainids: bool = False) -> np.ndarray:
     from .labels import cityscapes
 
     path = _existing(path)
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = imread(path, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise NpsimInputError(f"{path}: not a readable label image")
     if img.ndim == 3:
@@ -224,7 +263,7 @@ def read_depth(path: PathLike, *, disparity_baseline: float | None = None,
         if d.ndim == 3:
             d = d[..., 0]
     elif suffix == ".png":
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        raw = imread(path, cv2.IMREAD_UNCHANGED)
         if raw is None:
             raise NpsimInputError(f"{path}: not a readable PNG")
         if raw.dtype != np.uint16 or raw.ndim != 2:
@@ -274,7 +313,7 @@ def read_normals(path: PathLike) -> np.ndarray:
     if suffix == ".npy":
         n = read_array(path).astype(np.float32)
     elif suffix == ".png":
-        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        raw = imread(path, cv2.IMREAD_UNCHANGED)
         if raw is None or raw.ndim != 3 or raw.shape[2] < 3:
             raise NpsimInputError(f"{path}: normal PNG must be 3-channel RGB (8 or 16 bit)")
         raw = cv2.cvtColor(raw[..., :3], cv2.COLOR_BGR2RGB)

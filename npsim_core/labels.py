@@ -108,6 +108,12 @@ class LabelTable:
         """
         if labels.size < 64 or int(labels.max()) > 18:
             return
+        if int(labels.max()) <= 3:  # nothing but unlabeled/ego/border/out of ROI: not trainIds, no labels
+            ids = sorted(int(i) for i in np.unique(labels))
+            raise NpsimInputError(
+                f"{source}: an unlabelled frame -- every pixel is {', '.join(self.by_id(i).name for i in ids)} "
+                f"(labelId{'s' if len(ids) > 1 else ''} {', '.join(map(str, ids))}), so there is no scene to "
+                "reconstruct; give the frame's labelIds file (or label it)")
         frac = float(np.isin(labels, (0, 1, 2, 3)).mean())
         if frac >= 1 / 3:
             raise NpsimInputError(

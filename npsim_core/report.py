@@ -32,15 +32,17 @@ def _f(x, fmt: str = "{:.3f}") -> str:
 
 def light_statistics(frame_folders: list[Path]) -> dict[str, dict[str, int]]:
     """Instances and pixels per light class over the ``*_lights_instanceIds.png`` of the folders."""
-    import cv2
-
+    from .io import imread
     from .labels import light_class
 
     inst: dict[int, int] = {}
     pix: dict[int, int] = {}
     for folder in frame_folders:
         for p in folder.glob("*_lights_instanceIds.png"):
-            ids = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            try:
+                ids = imread(p)
+            except NpsimInputError:  # a damaged file: the frame's verification reports it
+                ids = None
             if ids is None:
                 continue
             ids = ids.astype(np.int64)

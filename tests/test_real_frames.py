@@ -29,15 +29,17 @@ def test_auto_takes_the_stereo_and_fills_its_holes(dataset):
     root, stems = dataset
     frame = iter_frames(root)[0].load()
     assert frame.depth is None and frame.depth_gt is None and frame.depth_stereo is not None
-    res = Chain(frame).compute(ChainParams().with_value("refine", "steps", 5), until="geometry")
+    res = Chain(frame).compute(ChainParams().with_value("depth", "stereo_surfaces", False), until="geometry")
     assert res.depth_source.startswith("stereo:")
-    truth = street_scene(W, H, fixture_seed(0, 0))
     holes = ~np.isfinite(frame.depth_stereo) & ~np.isin(frame.labels, (1, 23))
     assert holes.any() and np.isfinite(res.depth_in[holes]).mean() > 0.9  # filled from the aligned prior
     assert np.isnan(res.depth_in[np.isin(frame.labels, (1, 23))]).all()    # sky and ego hood stay invalid
-    ok = np.isfinite(res.depth_in) & np.isfinite(truth.depth_gt) & (frame.labels != 1)
-    rel = np.abs(res.depth_in[ok] - truth.depth_gt[ok]) / truth.depth_gt[ok]
-    assert np.median(rel) < 0.03  # stereo-level accuracy, not the prior's
+    # The input is the stereo where it has one (the SGM fixture's stereo is 10 % off the truth at
+    # 128x64, the prior 1 %: closeness to the truth no longer tells them apart).
+    st = frame.depth_stereo
+    ok = np.isfinite(res.depth_in) & np.isfinite(st) & (st < 80) & (frame.labels != 1)
+    rel = np.abs(res.depth_in[ok] - st[ok]) / st[ok]
+    assert np.median(rel) < 1e-6
 
 
 def test_depth_sources_are_chosen_or_refused_by_name(dataset):
@@ -92,7 +94,7 @@ def test_batch_reports_the_corrupt_frame_and_finishes_the_others(dataset, tmp_pa
     assert main(["batch", str(root), "-o", str(out), "--nights", "0"] + FAST) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err
-    assert f"failed: {stems[2]}" in err and "not a readable image" in err
+    assert f"failed: {stems[2]}" in err and (("not a readable image" in err or "truncated PNG" in err) or "truncated PNG" in err)
     assert "2 frames done" in err and "2 frames vs stereo" in err  # the dataset summary
     for stem in stems[:2]:
         assert verify_frame(out / stem) is None

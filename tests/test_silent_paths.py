@@ -128,3 +128,50 @@ def test_a_file_scene_json_names_but_lost_is_said_in_log_and_manifest(street, tm
     assert f"WARNING: {folder / 'scene.json'} names {gone}, which is missing" in err and said in err
     man = json.loads(next(out.glob("*_export.json")).read_text())
     assert any(gone in w and said in w for w in man["warnings"])
+
+
+@pytest.mark.parametrize("cut", ["truncate", "crc"])
+def test_a_damaged_png_is_named_by_the_program_not_by_libpng(scene_dir, tmp_path, cut):
+    """'libpng error: Read Error' reached stderr (from the C library, before the program's own line)."""
+    import shutil
+
+    folder = Path(shutil.copytree(scene_dir, tmp_path / "s"))
+    png = next(folder.glob("*_rgb.png"))
+    data = bytearray(png.read_bytes())
+    if cut == "truncate":
+        data = data[: len(data) // 2]
+    else:
+        data[60] ^= 0xFF  # inside the first data chunk
+    png.write_bytes(bytes(data))
+    code = f"from npsim_cli.main import main; raise SystemExit(main(['info', {str(folder)!r}]))"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert "libpng" not in r.stderr and ("truncated PNG" in r.stderr or "corrupt PNG" in r.stderr), r.stderr
+    assert r.stderr.count("\n") == 1  # one line
+
+
+def test_an_all_zero_label_file_is_called_unlabelled_not_trainids(tmp_path):
+    from npsim_core.io import read_label_image, write_image
+
+    write_image(tmp_path / "x_labelIds.png", np.zeros((32, 64), np.uint8))
+    with pytest.raises(NpsimInputError) as exc:
+        read_label_image(tmp_path / "x_labelIds.png")
+    assert "unlabelled frame" in str(exc.value) and "trainIds" not in str(exc.value)
+
+
+# 2 ------------------------------------------------------------------------------------------------------
+def test_a_parameter_the_chosen_method_does_not_read_is_named(scene_dir, tmp_path, capsys):
+    """``--set refine.lr=10`` with the default Gauss-Newton solver changed nothing and said nothing."""
+    args = ["mesh", str(scene_dir), "-o", str(tmp_path / "m"), "--format", "ply", "--set", "refine.steps=2"]
+    assert main(args + ["--set", "refine.lr=10", "--set", "denoise.sigma_depth=0.1"]) == 0
+    err = capsys.readouterr().err
+    assert "--set refine.lr changes nothing: refine.lr is read only by the lbfgs and adam_faithful" in err
+    assert "refine.optimizer is 'fast'" in err
+    assert "--set denoise.sigma_depth changes nothing: denoise.sigma_depth is read only by the guided" in err
+    assert main(args + ["--set", "refine.optimizer=adam_faithful", "--set", "refine.lr=1e-4"]) == 0
+    assert "changes nothing" not in capsys.readouterr().err
+    doc = ChainParams().with_value("refine", "cg_iters", 3).with_value("refine", "optimizer", "lbfgs").to_json()
+    (tmp_path / "p.json").write_text(json.dumps(doc))
+    assert main(args + ["--params", str(tmp_path / "p.json")]) == 0
+    assert f"--params {tmp_path / 'p.json'} changes nothing: refine.cg_iters is read only by the fast" \
+        in capsys.readouterr().err

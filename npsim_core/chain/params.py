@@ -16,13 +16,14 @@ from typing import Any
 from ..errors import NpsimInputError
 from ..mesh.postprocess import PostprocessParams
 from ..refine.bilateral import FilterParams
-from ..refine.params import PRESETS, RefineParams
+from ..refine.params import OPTIMIZER_FIELDS, PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DENOISERS, DenoiseParams
 from .names import DEPTH_SOURCES, LIGHT_SOURCES
 
 __all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "LightsParams",
-           "LIGHT_SOURCES", "MESH_DEPTHS", "DEPTH_SOURCES", "parse_value"]
+           "LIGHT_SOURCES", "MESH_DEPTHS", "DEPTH_SOURCES", "parse_value", "unread_fields", "changed_fields",
+           "set_fields"]
 
 #: The only fields where infinity means something (keep every visible vertex's depth).
 INFINITE_OK = {("postprocess", "keep_consistent")}
@@ -394,3 +395,73 @@ def parse_value(raw: str) -> Any:
         return float(text)  # inf, nan, 1e-3
     except ValueError:
         return text
+
+
+#: The ``denoise`` fields each denoiser reads (docs/relight.md; :func:`npsim_core.render.denoise.denoise_night`).
+DENOISER_FIELDS: dict[str, tuple[str, ...]] = {
+    "guided": ("iterations", "sigma_depth", "sigma_normal", "sigma_luminance", "min_albedo", "firefly_ratio",
+               "firefly_floor"),
+    "oidn": ("oidn_quality", "oidn_max_memory_mb"),
+    "none": ("firefly_ratio", "firefly_floor"),
+}
+
+
+def unread_fields(params: ChainParams) -> dict[tuple[str, str], str]:
+    """The fields the chosen optimiser, denoiser, source or mode of ``params`` does not read:
+    (section, field) -> a sentence naming what reads it and the choice that would (issue #28: a
+    ``--set refine.lr=10`` with the default Gauss-Newton solver changed nothing and said nothing)."""
+    out: dict[tuple[str, str], str] = {}
+    opt = params.refine.optimizer
+    for name, readers in OPTIMIZER_FIELDS.items():
+        if opt not in readers:
+            out[("refine", name)] = (f"refine.{name} is read only by the {' and '.join(readers)} optimizer"
+                                     f"{'s' if len(readers) > 1 else ''}, and refine.optimizer is {opt!r} "
+                                     f"(--set refine.optimizer={readers[0]})")
+    used = params.night.denoiser_used
+    for name in (f.name for f in fields(DenoiseParams)):
+        if name not in DENOISER_FIELDS[used]:
+            readers = [d for d, names in DENOISER_FIELDS.items() if name in names]
+            why = "night.denoise is off" if not params.night.denoise else f"night.denoiser is {used!r}"
+            out[("denoise", name)] = (f"denoise.{name} is read only by the {' and '.join(readers)} denoiser"
+                                      f"{'s' if len(readers) > 1 else ''}, and {why} (--denoiser {readers[0]})")
+    if params.night.exposure_mode == "manual":
+        for name in ("exposure_target", "exposure_min", "exposure_max"):
+            out[("night", name)] = (f"night.{name} is read only by the automatic exposure, and "
+                                    "night.exposure_mode is 'manual' (--exposure-mode auto)")
+    src = params.depth.source
+    if src not in ("auto", "network"):
+        out[("depth", "checkpoint")] = (f"depth.checkpoint is read only by the network depth source, and "
+                                        f"depth.source is {src!r} (--depth network or auto)")
+    if src not in ("auto", "stereo"):
+        out[("depth", "stereo_max_m")] = (f"depth.stereo_max_m is read only by the stereo depth source (and "
+                                          f"scoring against stereo), and depth.source is {src!r}")
+    ls = params.lights.source
+    if ls != "file":
+        out[("lights", "file")] = f"lights.file is read only by lights.source 'file', and it is {ls!r} (--lights FILE)"
+    if ls not in ("auto", "proposed"):
+        out[("lights", "min_confidence")] = (f"lights.min_confidence is read only for proposed lights, and "
+                                             f"lights.source is {ls!r} (--lights auto or proposed)")
+    if params.export.mesh not in ("reduced", "both"):
+        out[("export", "mesh_tolerance")] = (f"export.mesh_tolerance is read only for a reduced mesh export, and "
+                                             f"export.mesh is {params.export.mesh!r}")
+    if params.mesh.render_tolerance and (params.mesh.face_budget or not params.mesh.postprocess):
+        out[("mesh", "render_tolerance")] = ("mesh.render_tolerance is not applied when mesh.face_budget already "
+                                             "reduced the mesh or without post-processing (mesh.postprocess)")
+    return out
+
+
+def set_fields(items: list[str]) -> list[tuple[str, str]]:
+    """(section, field) of ``--set SECTION.FIELD=VALUE`` strings (malformed ones are left out)."""
+    out = []
+    for item in items:
+        key = item.split("=", 1)[0].strip()
+        if "=" in item and "." in key:
+            section, name = key.split(".", 1)
+            out.append((section.strip(), name.strip()))
+    return out
+
+
+def changed_fields(params: ChainParams, base: ChainParams | None = None) -> list[tuple[str, str]]:
+    """(section, field) whose value in ``params`` differs from ``base`` (default: the defaults)."""
+    a, b = params.to_json(), (base or ChainParams()).to_json()
+    return [(sec, name) for sec, vals in a.items() for name, v in vals.items() if v != b[sec].get(name)]

@@ -155,3 +155,19 @@ class RefineParams:
     @property
     def learning_rate(self) -> float:
         return float(self.lr) if self.lr is not None else _DEFAULT_LR[self.optimizer]
+
+
+#: The fields only some optimisers read (every other field is read by all): field -> optimisers
+#: that read it. A field set for an optimiser that does not read it is reported (issue #28,
+#: :func:`npsim_core.chain.params.unread_fields`).
+OPTIMIZER_FIELDS: dict[str, tuple[str, ...]] = {
+    "lr": ("lbfgs", "adam_faithful"),
+    "tol": ("fast", "lbfgs"),
+    "history_size": ("lbfgs",),
+    "coarse_factor": ("lbfgs",),
+    "coarse_steps": ("lbfgs",),
+    "cg_iters": ("fast",),
+    "cg_rtol": ("fast",),
+    "damping": ("fast",),
+    "max_rel_change": ("fast",),
+}
