@@ -106,7 +106,7 @@ def test_car_with_red_rear_lamps_yields_a_rear_pair_in_one_car_group():
     img, lab, depth, intr, inst, truth = _car_frame()
     props = propose_lights(img, lab, depth, intr, inst, params=FLAT)
     ann, lamps = _lights(props, (3, 4, 5, 6))
-    assert len(lamps) == 2 and all(class_of(i) == 4 for i in lamps)     # red by day: rear lamps
+    assert len(lamps) == 2 and all(class_of(i) == 6 for i in lamps)     # red by day: rear lamps; in the lane: moving
     masks = sorted((ann.mask(i) for i in lamps), key=lambda m: np.nonzero(m)[1].mean())
     assert _iou(masks[0], truth[0]) >= 0.5 and _iou(masks[1], truth[1]) >= 0.5
     gid = ann.group_of(lamps[0])
@@ -118,7 +118,7 @@ def test_car_with_red_rear_lamps_yields_a_rear_pair_in_one_car_group():
 def test_white_lamps_are_front_lamps():
     img, lab, depth, intr, inst, _ = _car_frame(rear_color=(240, 240, 230))
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
-    assert len(lamps) == 2 and all(class_of(i) == 3 for i in lamps)
+    assert len(lamps) == 2 and all(class_of(i) == 5 for i in lamps)
 
 
 def test_facade_grid_of_dark_windows_yields_windows_grouped_per_floor():
@@ -308,3 +308,34 @@ def test_a_proposed_signal_head_lights_one_lamp_the_one_the_day_photo_shows():
         assert act.lights[members[2]].chromaticity == pytest.approx(table.traffic_light["colours"]["green"])
     img[52:58, 92:98] = (20, 60, 40)                                # nothing lit by day: no state, the seed picks
     assert "traffic_light_states" not in propose_lights(img, lab).above(0.5).meta
+
+
+def test_a_car_seen_from_behind_gives_two_symmetric_rear_lamps_and_none_on_its_plate():
+    img, lab, depth, intr, inst, truth = _car_frame(paint=(150, 150, 155))
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    img[row(0.56):row(0.43), 87:113] = (235, 235, 225)              # a white plate, centred, below the lamps
+    img[row(0.84):row(0.69), 55 + 19:55 + 23] = (200, 20, 20)       # the right-hand lamp's red runs on asymmetrically
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2 and len({class_of(i) for i in lamps}) == 1 and class_of(lamps[0]) in (4, 6)
+    plate = np.zeros(lab.shape, bool)
+    plate[row(0.56):row(0.43), 87:113] = True
+    masks = sorted((ann.mask(i) for i in lamps), key=lambda m: np.nonzero(m)[1].mean())
+    for mk in masks:
+        assert not (mk & plate).any()                                 # plates are never lamps
+    (ya, xa), (yb, xb) = (np.nonzero(mk) for mk in masks)
+    assert (ya.min(), ya.max()) == (yb.min(), yb.max())               # same rows
+    axis = (55 + 145 - 1) / 2.0                                       # the car's vertical axis
+    assert abs((axis - xa.min()) - (xb.max() - axis)) <= 1 and abs((axis - xa.max()) - (xb.min() - axis)) <= 1
+    assert _iou(masks[0], truth[0]) >= 0.5 and _iou(masks[1], truth[1]) >= 0.5
+
+
+def test_a_car_at_the_kerb_is_parked_a_car_in_the_lane_is_driving():
+    img, lab, depth, intr, inst, _ = _car_frame()
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    lab[row(0.6):, 145:160] = 8                                      # sidewalk 0.3 m right of the car
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2 and all(class_of(i) == 4 for i in lamps)  # parked_rear
+    img, lab, depth, intr, inst, _ = _car_frame()
+    side = Intrinsics(fx=500.0, fy=500.0, cx=99.5 + 160, cy=59.5, width=200, height=120)   # 3.2 m to the left
+    ann, lamps = _lights(propose_lights(img, lab, depth, side, inst, params=FLAT), (3, 4, 5, 6))
+    assert lamps and all(class_of(i) == 4 for i in lamps)            # beside the driving lanes: parked

@@ -67,6 +67,14 @@ class ProposalParams:
     #: The same in metres, with depth.
     vehicle_lamp_rows_m: tuple[float, float] = (0.06, 0.23)
     vehicle_lamp_cols_m: tuple[float, float] = (0.07, 0.40)
+    #: Plate zone (no lamp): this far either side of the end face's axis, in metres with depth, as a
+    #: fraction of the face width without (a 0.52 m plate plus margin).
+    vehicle_plate_half_m: float = 0.3
+    vehicle_plate_half_frac: float = 0.17
+    #: A vehicle is driving (moving_* lamps) when it is at most this far (m) sideways from the camera ...
+    vehicle_lane_max_m: float = 2.9
+    #: ... and no kerb-side label (sidewalk, parking, building...) lies within this distance (m) of it.
+    vehicle_kerb_m: float = 1.0
     #: Share of a lamp box that must be on the vehicle's silhouette (else hidden: not proposed).
     vehicle_lamp_min_visible: float = 0.6
     #: Plausible height (m above the ground) of a vehicle body's top edge.

@@ -11,7 +11,9 @@ from .core import Context, Group, Light, components
 
 #: Cityscapes vehicle labelId -> group class (car_group, truck_group, bus_group).
 VEHICLE_GROUP = {26: 14, 27: 15, 28: 16}
-WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, WINDOW_TRANSPORT = 2, 3, 4, 7
+WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, MOVING_FRONT, MOVING_REAR, WINDOW_TRANSPORT = 2, 3, 4, 5, 6, 7
+#: Labels beside a parked vehicle's kerb side: sidewalk, parking, terrain, building, wall, fence, vegetation.
+KERBSIDE = (8, 9, 22, 11, 12, 13, 21)
 
 
 def _vehicles(ctx: Context):
@@ -246,6 +248,125 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     return r0, r1, c0, c1, z
 
 
+def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, paint: np.ndarray,
+               face: tuple[int, int, int, int], z: float | None) -> tuple[list[np.ndarray], int]:
+    """The two lamps of an end face (local masks; fewer when hidden or beyond the frame) and how many
+    were snapped to pixels that differ from the paint.
+
+    A lamp box sits ``vehicle_lamp_rows_m`` below the body top and ``vehicle_lamp_cols_m`` in from
+    each side of the face (fractions without depth). Each box is snapped to the pixels within a
+    window around it that differ from the paint, never in the plate zone (``vehicle_plate_half_m``
+    either side of the face's axis: plates are never lamps). The pair is then made symmetric about
+    the vehicle's vertical axis: the face's centre (the point between the two snapped lamps when
+    that is more than 10 % of the face width away: a misplaced face), both lamps taking the mean rows and the mean distances from the axis; a
+    lamp mostly off the silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is
+    dropped. Empty boxes are never returned.
+    """
+    p = ctx.params
+    h, w = m.shape
+    r0, r1, c0, c1 = face
+    fh, fw = r1 - r0 + 1, c1 - c0 + 1
+    cc0, cc1 = max(c0, 0), min(c1, w - 1)
+    if z is not None:
+        ppm = float(ctx.intrinsics.fy) / z
+        lr0 = r0 + int(np.floor(p.vehicle_lamp_rows_m[0] * ppm))
+        lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows_m[1] * ppm)) - 1)
+        a = int(np.floor(p.vehicle_lamp_cols_m[0] * ppm))
+        b = max(a, int(np.ceil(p.vehicle_lamp_cols_m[1] * ppm)) - 1)
+        plate = p.vehicle_plate_half_m * ppm
+    else:
+        lr0 = r0 + int(np.floor(p.vehicle_lamp_rows[0] * fh))
+        lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows[1] * fh)) - 1)
+        a = int(np.floor(p.vehicle_lamp_cols[0] * fw))
+        b = max(a, int(np.ceil(p.vehicle_lamp_cols[1] * fw)) - 1)
+        plate = p.vehicle_plate_half_frac * fw
+    axis = (c0 + c1) / 2.0
+    cols = np.arange(w)
+    off_plate = np.abs(cols + 0.5 - (axis + 0.5)) > plate            # columns clear of the plate zone
+    diff = np.abs(img - paint).max(-1) > 40.0
+    boxes: list[tuple[int, int, int, int, bool] | None] = []          # rows, cols (face coords), snapped?
+    for side in (0, 1):
+        bc0, bc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
+        br0, br1 = lr0, lr1
+        win = np.zeros_like(m)
+        pad_r, pad_c = max(1, (br1 - br0 + 1) // 2), max(1, (bc1 - bc0 + 1) // 2)
+        wr0, wr1 = max(r0, br0 - pad_r, 0), min(r1, br1 + pad_r, h - 1)
+        wc0, wc1 = max(cc0, bc0 - pad_c, 0), min(cc1, bc1 + pad_c, w - 1)
+        snapped = False
+        if wr1 >= wr0 and wc1 >= wc0:
+            win[wr0:wr1 + 1, wc0:wc1 + 1] = True
+            win &= m & off_plate[None, :]
+            if side == 0:  # keep to this lamp's half of the face
+                win[:, int(np.ceil(axis)):] = False
+            else:
+                win[:, :int(np.floor(axis)) + 1] = False
+            cand = win & diff
+            full = max(1, (min(br1, h - 1) - max(br0, 0) + 1) * (min(bc1, w - 1) - max(bc0, 0) + 1))
+            n = int(cand.sum())
+            if n >= max(1, full // 3) and n <= 3 * full:
+                ys, xs = np.nonzero(cand)
+                br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
+                snapped = True
+        boxes.append((br0, br1, bc0, bc1, snapped))
+    if boxes[0][4] and boxes[1][4]:  # the face's centre, unless the two lamps say it is misplaced
+        between = ((boxes[0][2] + boxes[0][3]) / 2.0 + (boxes[1][2] + boxes[1][3]) / 2.0) / 2.0
+        if abs(between - axis) > 0.1 * fw:
+            axis = between
+    src = [bx for bx in boxes if bx[4]] or boxes
+    rr0 = int(round(np.mean([bx[0] for bx in src])))
+    rr1 = max(rr0, int(round(np.mean([bx[1] for bx in src]))))
+    # distances of the outer and inner lamp edges from the axis, mean over the lamps that stand out
+    d_out = float(np.mean([axis - bx[2] if k == 0 else bx[3] - axis for k, bx in enumerate(boxes) if bx in src]))
+    d_in = float(np.mean([axis - bx[3] if k == 0 else bx[2] - axis for k, bx in enumerate(boxes) if bx in src]))
+    d_in = max(d_in, 0.5)
+    lamps: list[np.ndarray] = []
+    n_snapped = 0
+    for side in (0, 1):
+        lo_c = int(round(axis - d_out)) if side == 0 else int(round(axis + d_in))
+        hi_c = int(round(axis - d_in)) if side == 0 else int(round(axis + d_out))
+        full = (rr1 - rr0 + 1) * max(0, hi_c - lo_c + 1)
+        box = np.zeros_like(m)
+        y_a, y_b, x_a, x_b = max(rr0, 0), min(rr1, h - 1), max(lo_c, 0), min(hi_c, w - 1)
+        if full == 0 or y_b < y_a or x_b < x_a:
+            continue  # that lamp is beyond the image border
+        box[y_a:y_b + 1, x_a:x_b + 1] = True
+        box &= m & off_plate[None, :]
+        if box.sum() < max(1.0, p.vehicle_lamp_min_visible * full):
+            continue  # mostly hidden (by the vehicle in front, or the box left the silhouette)
+        lamps.append(box)
+        n_snapped += int(boxes[side][4])
+    return lamps, n_snapped
+
+
+def _in_traffic(ctx: Context, y0: int, x0: int, m: np.ndarray, face: tuple[int, int, int, int],
+                z: float | None) -> bool:
+    """Whether a vehicle is driving rather than parked: nothing of the kerb side (sidewalk, parking,
+    terrain, building...) within ``vehicle_kerb_m`` of either side of its silhouette along its
+    lowest rows, and its lateral offset from the camera at most ``vehicle_lane_max_m`` (the ego
+    lane and the lanes beside it). Without depth: parked (a still frame cannot tell)."""
+    if z is None or ctx.depth is None:
+        return False
+    p = ctx.params
+    H, W = ctx.shape
+    h, w = m.shape
+    r0, r1, c0, c1 = face
+    ppm = float(ctx.intrinsics.fx) / z
+    centre = x0 + (c0 + c1) / 2.0
+    if abs((centre - ctx.intrinsics.cx) / ppm) > p.vehicle_lane_max_m:
+        return False
+    rows = np.flatnonzero(m.any(1))
+    if rows.size == 0:
+        return False
+    reach = max(2, int(round(p.vehicle_kerb_m * ppm)))
+    for r in rows[-max(1, rows.size // 6):]:  # the lowest sixth: wheels on the ground
+        xs = np.flatnonzero(m[r])
+        lo, hi = x0 + int(xs.min()), x0 + int(xs.max())
+        band = np.r_[ctx.labels[y0 + r, max(0, lo - reach):lo], ctx.labels[y0 + r, hi + 1:min(W, hi + 1 + reach)]]
+        if np.isin(band, KERBSIDE).any():
+            return False
+    return True
+
+
 def propose(ctx: Context) -> list[Group]:
     """Per car/truck/bus: two lamps on the visible end face and the dark window panes above its body.
 
@@ -278,49 +399,17 @@ def propose(ctx: Context) -> list[Group]:
         conf = 0.75 if z is not None else 0.55
         if z is not None and fw * z / fy < 1.0:
             conf -= 0.3
-        lamps: list[np.ndarray] = []
-        distinct = 0
-        if z is not None:  # lamp box in metres below the body top and in from the face's sides
-            ppm = fy / z
-            lr0 = r0 + int(np.floor(p.vehicle_lamp_rows_m[0] * ppm))
-            lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows_m[1] * ppm)) - 1)
-            a = int(np.floor(p.vehicle_lamp_cols_m[0] * ppm))
-            b = max(a, int(np.ceil(p.vehicle_lamp_cols_m[1] * ppm)) - 1)
-        else:
-            lr0 = r0 + int(np.floor(p.vehicle_lamp_rows[0] * fh))
-            lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows[1] * fh)) - 1)
-            a = int(np.floor(p.vehicle_lamp_cols[0] * fw))
-            b = max(a, int(np.ceil(p.vehicle_lamp_cols[1] * fw)) - 1)
-        for side in (0, 1):
-            lc0, lc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
-            lr0, lr1 = max(lr0, 0), min(lr1, h - 1)
-            lc0, lc1 = max(lc0, 0), min(lc1, w - 1)
-            if lc1 < lc0:
-                continue  # that lamp is beyond the image border or behind the occluder
-            box = np.zeros_like(m)
-            box[lr0:lr1 + 1, lc0:lc1 + 1] = True
-            full = int(box.sum())
-            box &= m
-            if box.sum() < p.vehicle_lamp_min_visible * full:
-                continue  # mostly hidden (by the vehicle in front, or the box left the silhouette)
-            # Snap to pixels that differ from the paint within a window around the box.
-            win = np.zeros_like(m)
-            pad_r, pad_c = max(1, (lr1 - lr0 + 1) // 2), max(1, (lc1 - lc0 + 1) // 2)
-            win[max(r0, lr0 - pad_r):min(r1, lr1 + pad_r) + 1, max(cc0, lc0 - pad_c):min(cc1, lc1 + pad_c) + 1] = True
-            win &= m
-            diff = np.abs(img - paint).max(-1) > 40.0
-            cand = win & diff
-            if cand.sum() >= max(1, box.sum() // 3) and cand.sum() <= 3 * box.sum():
-                box = cand
-                distinct += 1
-            lamps.append(box)
+        lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z)
         if distinct == len(lamps) == 2:
             conf += 0.15
         conf = float(np.clip(conf, 0, 1))
         members: list[Light] = []
         if lamps:  # (none when the face is hidden: the panes may still show)
-            r, g, bl = np.concatenate([img[b] for b in lamps]).mean(0)
-            lamp_cls = PARKED_REAR if r > 1.5 * max(g, bl) and r > 50 else PARKED_FRONT
+            lamp_px = np.concatenate([img[b] for b in lamps])
+            r, g, bl = lamp_px.mean(0) if lamp_px.size else (0.0, 0.0, 0.0)
+            rear = r > 1.5 * max(g, bl) and r > 50
+            moving = _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
+            lamp_cls = (MOVING_REAR if rear else MOVING_FRONT) if moving else (PARKED_REAR if rear else PARKED_FRONT)
             members = [Light(lamp_cls, y0, x0, b, conf) for b in lamps]
         # Window panes: the cabin band above the body face, darker than the paint.
         cab = m.copy()
