@@ -7,6 +7,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from npsim_core.annotation import class_of, load_annotation
 from npsim_core.camera import Intrinsics
@@ -339,3 +341,67 @@ def test_a_car_at_the_kerb_is_parked_a_car_in_the_lane_is_driving():
     side = Intrinsics(fx=500.0, fy=500.0, cx=99.5 + 160, cy=59.5, width=200, height=120)   # 3.2 m to the left
     ann, lamps = _lights(propose_lights(img, lab, depth, side, inst, params=FLAT), (3, 4, 5, 6))
     assert lamps and all(class_of(i) == 4 for i in lamps)            # beside the driving lanes: parked
+
+
+LAYOUT_CLASSES = (SKY, ROAD, 8, BUILDING, POLE, TRAFFIC_LIGHT, CAR, 27, 28, 21, 24)
+
+
+@st.composite
+def _label_layouts(draw):
+    """A random street-like frame: rectangles of random classes, colours and depths, some depth
+    missing or invalid, instance ids on some vehicles (others crowd)."""
+    H, W = draw(st.sampled_from([(24, 48), (40, 64), (64, 128)]))
+    rng = np.random.default_rng(draw(st.integers(0, 2**31 - 1)))
+    lab = np.full((H, W), SKY, np.uint8)
+    img = rng.integers(0, 256, (H, W, 3)).astype(np.uint8) if draw(st.booleans()) else \
+        np.full((H, W, 3), draw(st.integers(0, 255)), np.uint8)
+    depth = np.full((H, W), np.nan, np.float32)
+    inst = np.zeros((H, W), np.int32)
+    for k in range(draw(st.integers(0, 12))):
+        c = LAYOUT_CLASSES[int(rng.integers(len(LAYOUT_CLASSES)))]
+        y0, x0 = int(rng.integers(0, H)), int(rng.integers(0, W))
+        y1, x1 = min(H, y0 + int(rng.integers(1, H))), min(W, x0 + int(rng.integers(1, W)))
+        lab[y0:y1, x0:x1] = c
+        img[y0:y1, x0:x1] = rng.integers(0, 256, 3)
+        depth[y0:y1, x0:x1] = float(rng.choice([np.nan, np.inf, -1.0, 0.0, rng.uniform(0.5, 200.0)]))
+        if c in (CAR, 27, 28) and rng.random() < 0.7:
+            inst[y0:y1, x0:x1] = c * 1000 + k
+    inst = np.where(inst > 0, inst, lab).astype(np.int32)
+    return img, lab, depth if draw(st.booleans()) else None, inst if draw(st.booleans()) else None
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_label_layouts())
+def test_random_label_layouts_give_no_warning_no_nan_and_a_valid_annotation(case):
+    """Empty sets (no lamp pixel, a face beyond the frame, all-invalid depth) are handled where they arise."""
+    import warnings
+
+    from npsim_core.render.lights import activate_lights, load_light_table
+
+    img, lab, depth, inst = case
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                      # numpy's "Mean of empty slice" included
+        props = propose_lights(img, lab, depth, None, inst)
+        ann = props.above(0.0)
+        act = activate_lights(ann, load_light_table(), 0, image=img)
+    ann.validate()
+    areas = ann.areas()
+    assert all(areas.get(i, 0) > 0 for i in ann.instance_ids())        # no empty light
+    assert all(np.isfinite(v) and 0.0 <= v <= 1.0 for v in props.confidence.values())
+    assert all(np.isfinite(s.radiance).all() for s in act.lights.values())
+    for gid, g in ann.groups.items():
+        if g.class_id == 20 and len(g.members) == 3:
+            assert sum(act.lights[m].on for m in g.members) == 1
+
+
+def test_a_vehicle_whose_lamp_rows_fall_below_it_gives_no_empty_slice_warning():
+    """A squat, near vehicle: its lamp rows lie below its silhouette, so no lamp pixel is left (the old
+    code averaged that empty set: numpy's 'Mean of empty slice' and a NaN colour)."""
+    import warnings
+
+    img, lab = _canvas(H=60, W=120, color=(120, 120, 120))
+    lab[50:53, 20:70] = CAR
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        props = propose_lights(img, lab, np.full(lab.shape, 1.5, np.float32))
+    assert not [i for i in props.annotation.instance_ids() if class_of(i) in (3, 4, 5, 6)]

@@ -168,6 +168,9 @@ def _check_inputs(image, labels, depth, intrinsics, instances) -> Context:
             raise NpsimInputError(f"depth must be an HxW float array in metres matching the image ({H}x{W}), got "
                                   f"{getattr(depth, 'shape', type(depth).__name__)} {getattr(depth, 'dtype', '')}")
         depth = depth.astype(np.float32, copy=False)
+        bad = ~(np.isfinite(depth) & (depth > 0))  # invalid depth (docs: <= 0, inf) is masked once, here
+        if bad.any():
+            depth = np.where(bad, np.float32(np.nan), depth)
         if not np.isfinite(depth).any():
             depth = None  # nothing usable: behave as without depth
     if intrinsics is None:
