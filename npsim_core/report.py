@@ -78,15 +78,81 @@ def _bars_svg(stats: dict[str, dict[str, int]]) -> str:
     return "".join(out)
 
 
+def frame_check(folder: Path) -> tuple[str, str, dict]:
+    """Verify one frame's output folder as ``npsim batch --skip-existing`` does (manifest, every file
+    it lists, checksums; :func:`npsim_core.chain.export.verify_frame`): (status, reason, manifest).
+    Status is ``done`` (complete), ``missing`` (no folder or no manifest) or ``corrupt`` (a listed
+    file gone or changed)."""
+    from .chain.export import verify_frame
+
+    if not folder.is_dir():
+        return "missing", "the frame's folder is gone", {}
+    why = verify_frame(folder)
+    man: dict = {}
+    for p in sorted(folder.glob("*_export.json"))[:1]:
+        try:
+            man = json.loads(p.read_text())
+        except (OSError, ValueError):
+            man = {}
+    if why is None:
+        return "done", "", man
+    return ("missing" if why == "no manifest" else "corrupt"), why, man
+
+
+def lit_by(manifest: dict) -> str:
+    """What lit a frame's nights, from its export manifest: proposals, hand annotation, a file or none."""
+    lights = manifest.get("lights") or {}
+    src, n = lights.get("source"), lights.get("count", 0)
+    names = {"proposed": "proposals", "annotation": "hand annotation", "file": "annotation file"}
+    if src in names:
+        return f"{names[src]} ({n} light{'s' if n != 1 else ''})"
+    if src == "none":
+        return "none (ego headlights and sky)"
+    return "–"
+
+
+def realism_table(manifests: dict[str, dict]) -> list[str]:
+    """HTML rows of night 0's realism per frame (structure ratio, global statistics; docs/relight.md
+    "Realism"), with real night photos' statistics for comparison; [] when no manifest has them."""
+    from .realism import CLASSES, REAL_NIGHT
+
+    rows = []
+    for name, man in manifests.items():
+        r = ((man.get("nights") or [{}])[0] or {}).get("realism") or {}
+        if not r:
+            continue
+        st, sr = r.get("stats") or {}, r.get("structure") or {}
+        cls = sr.get("classes") or {}
+        rows.append(f"<tr><td class=l>{html.escape(name)}</td><td>{_f(sr.get('whole'), '{:.2f}')}</td>"
+                    + "".join(f"<td>{_f(cls.get(c), '{:.2f}')}</td>" for c in CLASSES)
+                    + "".join(f"<td>{_f(st.get(k), '{:.2f}')}</td>" for k in REAL_NIGHT) + "</tr>")
+    if not rows:
+        return []
+    head = ("<h2>Realism of night 0</h2><p>Structure ratio: mid-frequency structure of the night over the day's "
+            "(published day-to-night methods 0.75-1.45; streaks and speckle raise it). Global statistics: grey "
+            "levels at 1024 px wide; real night photos in the last row.</p><table><tr><th>frame</th><th>whole</th>"
+            + "".join(f"<th>{html.escape(c)}</th>" for c in CLASSES)
+            + "<th>mean</th><th>median</th><th>p99</th><th>% &gt; 240</th><th>R/B lit</th></tr>")
+    real = ("<tr><td class=l>real night photos</td>" + "<td></td>" * (1 + len(CLASSES))
+            + "".join(f"<td>{v:.2f}</td>" for v in REAL_NIGHT.values()) + "</tr>")
+    return [head] + rows + [real, "</table>"]
+
+
 def _batch_page(folder: Path, doc: dict) -> str:
     frames = doc.get("frames", {})
-    done = [k for k, v in frames.items() if v.get("status") == "done"]
+    checks = {k: frame_check(folder / k) for k, v in frames.items() if v.get("status") in ("done", "skipped")}
+    done = [k for k, c in checks.items() if c[0] == "done"]
+    lost = {k: c for k, c in checks.items() if c[0] != "done"}
     failed = {k: v for k, v in frames.items() if v.get("status") == "failed"}
+    lit = {k: lit_by(c[2]) for k, c in checks.items() if c[0] == "done"}
     parts = [f"<h1>NPSim batch: {html.escape(str(doc.get('inputs', {}).get('dataset', folder)))}</h1>",
-             f"<p>{len(frames)} frames recorded: {len(done)} done, {len(failed)} failed; {doc.get('nights')} "
+             f"<p>{len(frames)} frames recorded: {len(done)} done (files and checksums verified), "
+             f"{sum(c[0] == 'missing' for c in lost.values())} missing, "
+             f"{sum(c[0] == 'corrupt' for c in lost.values())} corrupt, {len(failed)} failed; {doc.get('nights')} "
              f"night(s) each; {doc.get('workers')} worker(s){' on Ray ' + html.escape(doc['ray']) if doc.get('ray') else ''};"
              f" updated {html.escape(str(doc.get('updated', '')))}.</p>",
-             "<h2>Frames</h2><table><tr><th>frame</th><th>status</th><th>s</th><th>depth source</th><th>reference</th>"
+             "<h2>Frames</h2><table><tr><th>frame</th><th>status</th><th>s</th><th>depth source</th><th>lit by</th>"
+             "<th>reference</th>"
              "<th>AbsRel in</th><th>AbsRel refined</th><th>δ1</th><th>normal RMSE °</th><th>nights</th>"
              "<th>night 0</th><th>refined depth</th></tr>"]
     for name, f in frames.items():
@@ -96,18 +162,26 @@ def _batch_page(folder: Path, doc: dict) -> str:
         night = next(iter(sorted(sub.glob("*_night_0.png"))), None) if sub.is_dir() else None
         depth = next(iter(sorted(sub.glob("*_depth_refined_vis.png"))), None) if sub.is_dir() else None
         img = lambda p: f'<img class="t" src="{html.escape(str(p.relative_to(folder)))}">' if p else ""  # noqa: E731
-        cls = ' class="failed"' if f.get("status") == "failed" else ""
-        parts.append(f"<tr{cls}><td class=l>{html.escape(name)}</td><td>{html.escape(f.get('status', ''))}</td>"
+        status = lost[name][0] if name in lost else f.get("status", "")
+        cls = ' class="failed"' if status in ("failed", "missing", "corrupt") else ""
+        parts.append(f"<tr{cls}><td class=l>{html.escape(name)}</td><td>{html.escape(status)}</td>"
                      f"<td>{_f(f.get('seconds'), '{:.1f}')}</td><td class=l>{html.escape(f.get('depth_source', ''))}</td>"
+                     f"<td class=l>{html.escape(lit.get(name, '–'))}</td>"
                      f"<td class=l>{html.escape(ref)}</td><td>{_f(inp.get('abs_rel'), '{:.4f}')}</td>"
                      f"<td>{_f(refd.get('abs_rel'), '{:.4f}')}</td><td>{_f(refd.get('delta1'))}</td>"
                      f"<td>{_f(refd.get('normal_rmse_deg'), '{:.1f}')}</td><td>{len(f.get('nights', []))}</td>"
                      f"<td>{img(night)}</td><td>{img(depth)}</td></tr>")
     parts.append("</table>")
+    parts += realism_table({k: c[2] for k, c in checks.items() if c[0] == "done"})  # issue 25
     if failed:
         parts.append("<h2>Failed frames</h2><ul>" + "".join(
             f"<li class=failed><b>{html.escape(k)}</b>: {html.escape(v.get('error', ''))}</li>"
             for k, v in failed.items()) + "</ul>")
+    if lost:
+        parts.append("<h2>Missing or corrupt frames</h2><p>Recorded as done, but their outputs do not verify "
+                     "(rerun the batch: these frames are recomputed).</p><ul>" + "".join(
+                         f"<li class=failed><b>{html.escape(k)}</b>: {c[0]}: {html.escape(c[1])}</li>"
+                         for k, c in lost.items()) + "</ul>")
     times = [v.get("seconds", 0.0) for k, v in frames.items() if k in done]
     if times:
         parts.append(f"<p>Time per frame: mean {np.mean(times):.1f} s, min {min(times):.1f} s, max {max(times):.1f} s."
@@ -119,9 +193,19 @@ def _batch_page(folder: Path, doc: dict) -> str:
         parts.append("<table><tr><th>class</th><th>instances</th><th>pixels</th></tr>" + "".join(
             f"<tr><td class=l>{html.escape(k)}</td><td>{v['instances']}</td><td>{v['pixels']}</td></tr>"
             for k, v in stats.items()) + "</table>")
-    else:
-        parts.append("<p>No light annotation in these frames (the nights are lit by the ego headlights and the sky "
-                     "only).</p>")
+    kinds: dict[str, int] = {}
+    for v in lit.values():
+        kinds[v.split(" (")[0]] = kinds.get(v.split(" (")[0], 0) + 1
+    said = ", ".join(f"{n} frame{'s' if n != 1 else ''} by {k}" for k, n in sorted(kinds.items()))
+    if not stats:
+        if set(kinds) <= {"none"}:
+            parts.append("<p>No light sources in these frames: the nights are lit by the ego headlights and the sky "
+                         "only.</p>")
+        else:  # proposals are not written as annotation files: the statistics above cover only those
+            parts.append(f"<p>No light annotation files in these frames; the nights were lit by: {html.escape(said)}."
+                         "</p>")
+    elif said:
+        parts.append(f"<p>Lit by: {html.escape(said)}.</p>")
     return "".join(parts)
 
 

@@ -175,3 +175,29 @@ def test_a_parameter_the_chosen_method_does_not_read_is_named(scene_dir, tmp_pat
     assert main(args + ["--params", str(tmp_path / "p.json")]) == 0
     assert f"--params {tmp_path / 'p.json'} changes nothing: refine.cg_iters is read only by the fast" \
         in capsys.readouterr().err
+
+
+# 3 ------------------------------------------------------------------------------------------------------
+def test_report_verifies_each_frame_and_says_what_lit_it(street, tmp_path, capsys):
+    root = tmp_path / "ds"
+    save_scene(street.with_(lights=None), root / "a")
+    save_scene(street, root / "b")
+    save_scene(street.with_(lights=None), root / "c")
+    save_scene(street.with_(lights=None), root / "d")
+    out = tmp_path / "out"
+    assert main(["batch", str(root), "-o", str(out), "--nights", "0", "--workers", "1"] + FAST) == 0
+    import shutil
+
+    shutil.rmtree(out / "c")                                   # the whole frame folder lost
+    next((out / "d").glob("*_export.json")).unlink()            # its manifest lost
+    png = next((out / "b").glob("*_depth_refined_vis.png"))
+    png.write_bytes(png.read_bytes()[:-7])                      # a file changed
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "4 frames: 1 corrupt, 1 done, 2 missing" in said
+    assert "c: missing: the frame's folder is gone" in said and "d: missing: no manifest" in said
+    assert "b: corrupt:" in said and "checksum" in said
+    page = (out / "report.html").read_text()
+    assert "1 done (files and checksums verified), 2 missing, 1 corrupt" in page
+    assert "proposals (" in page and "lit by the ego headlights and the sky only" not in page
