@@ -129,8 +129,15 @@ class RenderPanel(QWidget):
         self.status.setText(status)
         self._refresh()
 
-    def set_night(self, rgb: np.ndarray, status: str = "") -> None:
+    def set_night(self, rgb: np.ndarray, status: str = "", realism: dict | None = None) -> None:
+        """Show a night; ``realism`` (``NightFrame.realism``) is added to the status line and its tool tip."""
         self.night = rgb
+        if realism:
+            from npsim_core.realism import format_realism
+
+            text = format_realism(realism)
+            status = f"{status} · {text.splitlines()[0]}" if status else text.splitlines()[0]
+            self.status.setToolTip(text)
         if status:
             self.status.setText(status)
         self._refresh()

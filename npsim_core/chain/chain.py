@@ -111,6 +111,9 @@ class NightFrame:
     exposure: dict = field(default_factory=dict)
     #: The light annotation the night used (:meth:`Chain.lights`; None = no light sources).
     annotation: Any = None
+    #: Realism measures against the day photo (:func:`npsim_core.realism.night_realism`: structure
+    #: ratio overall and per class, global statistics); final nights and a preview's last pass.
+    realism: dict = field(default_factory=dict)
 
 
 class Chain:
@@ -314,8 +317,9 @@ class Chain:
         for frame in render_preview(built, pp, cancel=cancel):
             info: dict = {}
             srgb, tm = self.finish(frame.image, params, guides, mats, info=info)
+            real = self.realism(srgb, tm) if frame.spp >= int(n.spp) else {}
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm,
-                             n.denoiser_used, built.n_faces, info, self.lights(params).annotation)
+                             n.denoiser_used, built.n_faces, info, self.lights(params).annotation, real)
 
     def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
                     cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
@@ -337,8 +341,20 @@ class Chain:
         info: dict = {}
         srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
+        real = self.realism(srgb, timings)
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings,
-                          n.denoiser_used, built.n_faces, info, self.lights(params).annotation)
+                          n.denoiser_used, built.n_faces, info, self.lights(params).annotation, real)
+
+    def realism(self, night: np.ndarray, timings: dict | None = None) -> dict:
+        """Realism of an sRGB ``night`` of this frame against its day photo (docs/relight.md
+        "Realism"); its time goes to ``timings["realism"]``."""
+        from ..realism import night_realism
+
+        t0 = time.perf_counter()
+        out = night_realism(self.scene.image, self.scene.labels, night)
+        if timings is not None:
+            timings["realism"] = time.perf_counter() - t0
+        return out
 
 
 def _resize_nearest(a: np.ndarray, hw: tuple[int, int]) -> np.ndarray:

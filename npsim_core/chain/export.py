@@ -294,7 +294,8 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                                               round(v, 6) if isinstance(v, float) else v)
                                          for k2, v in frame.exposure.items()},
                             "seconds": round(frame.elapsed, 3),
-                            "timings": {k2: round(v, 3) for k2, v in frame.timings.items()}})
+                            "timings": {k2: round(v, 3) for k2, v in frame.timings.items()},
+                            "realism": frame.realism})  # structure ratio + global stats (npsim_core.realism)
     # The night stages' times when they ran (their results are cached in the chain).
     timings = dict(res.timings)
     if n_nights:

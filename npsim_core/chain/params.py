@@ -158,9 +158,10 @@ class NightParams:
         ``CameraParams.bloom``, docs/relight.md says why it is off).
     light_table : a user light table JSON merged over the default ('' = the default).
     variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
-    delight : without albedo maps, the day's sun and sky are estimated from the photo and the
-        normals and divided out of the photo (:func:`npsim_core.render.materials.delit_albedo`,
-        docs/relight.md); off = the per-class prior fallback.
+    delight : without albedo maps, estimate the day's sun and sky from the photo and the
+        reconstructed geometry and divide them out of the photo
+        (:func:`npsim_core.render.materials.delit_albedo`); off (default) = the per-class prior
+        fallback, which is closer to the true albedo on SGM stereo geometry (docs/relight.md).
     """
 
     seed: int = 0
@@ -185,7 +186,7 @@ class NightParams:
     bloom: float = 0.0
     light_table: str = ""
     variant: str = ""
-    delight: bool = True
+    delight: bool = False
 
     def __post_init__(self) -> None:
         for name in ("final_max_depth", "preview_max_depth"):

@@ -342,7 +342,13 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
 
     s, ann = inputs["frame"], inputs["lights"].annotation
     light_cls = ann.class_map() if ann is not None else np.zeros(s.labels.shape, np.uint8)
-    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness, light_classes=light_cls)
+    # De-lit textures (night.delight): the day's light divided out with the reconstructed normals.
+    geo = inputs.get("geometry")
+    normals = geo.scene.normals if (params and geo is not None and s.albedo is None) else None
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness, light_classes=light_cls,
+                              normals=normals, pitch=float(s.camera_pitch or 0.0), instances=s.instances,
+                              depth=geo.scene.depth if normals is not None else None,
+                              intrinsics=geo.scene.intrinsics)
     return MaterialsResult(mats, light_cls)
 
 
@@ -439,7 +445,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
     Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),
           lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=4),
-    Stage("materials", materials_stage, ("frame", "lights"), version=2),
+    Stage("materials", materials_stage, ("frame", "lights", "geometry"), lambda p: bool(p.night.delight), version=3),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance), float(p.mesh.far_limit)),
           version=4, incremental=True),

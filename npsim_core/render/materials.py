@@ -49,10 +49,13 @@ class MaterialParams:
 
     contrast : exponent applied to within-class relative luminance (1 = keep day contrast).
     albedo_prior : optional overrides ``{class name: albedo}``.
+    delit_per_class : the de-lit albedo's level per class is the prior (its median), as in the
+        fallback; off = one global scale (relative class albedos from the photo).
     """
 
     contrast: float = 0.7
     albedo_prior: dict = field(default_factory=dict)
+    delit_per_class: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,7 +85,9 @@ def kind_lut() -> np.ndarray:
 
 def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndarray | None = None,
                        roughness: np.ndarray | None = None, light_classes: np.ndarray | None = None,
-                       params: MaterialParams = MaterialParams()) -> Materials:
+                       params: MaterialParams = MaterialParams(), normals: np.ndarray | None = None,
+                       pitch: float = 0.038, instances: np.ndarray | None = None,
+                       depth: np.ndarray | None = None, intrinsics=None) -> Materials:
     """Albedo, roughness and BSDF kinds for a scene.
 
     Parameters
@@ -91,11 +96,19 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
     labels : (H, W) uint8 labelIds.
     albedo, roughness : maps from the scene (used as given when not None).
     light_classes : (H, W) light class per pixel (0 = none); window classes get glass roughness.
+    normals, depth, intrinsics : the reconstructed geometry (camera-frame normals, z-depth m);
+        when given (and no albedo map), the day's light is divided out (:func:`delit_albedo`, camera ``pitch`` rad),
+        else the per-class prior fallback is used. ``instances``: Cityscapes instanceIds (one
+        surface per instance) or None.
     """
     kl = kind_lut()
     H, W = labels.shape
     source = "scene" if albedo is not None else "fallback"
-    if albedo is None:
+    if albedo is None and normals is not None and depth is not None and intrinsics is not None:
+        albedo, day = delit_albedo(image, labels, normals, depth, intrinsics, pitch, params, instances=instances)
+        source = (f"de-lit (sun {', '.join(f'{v:.2f}' for v in day.sun)}, sun/sky {day.ratio:g}, "
+                  f"{100 * day.shadow_fraction:.0f} % of sun-facing pixels in shadow)")
+    elif albedo is None:
         albedo = fallback_albedo(image, labels, params)
     if roughness is None:
         rough_of_kind = np.array([_ROUGHNESS[k] for k in KINDS], dtype=np.float32)
@@ -127,3 +140,206 @@ def fallback_albedo(image: np.ndarray, labels: np.ndarray, params: MaterialParam
     dark = lum < eps
     albedo[dark] = prior[labels][dark][:, None]
     return np.clip(albedo, 0.01, 0.9).astype(np.float32)
+
+
+def photo_albedo(image: np.ndarray) -> np.ndarray:
+    """The linearised day photo as albedo (the reference "photo as albedo" of docs/relight.md)."""
+    return srgb_to_linear(np.asarray(image, np.float32) / 255.0).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class DayLight:
+    """The day's illumination estimated by :func:`estimate_daylight` (camera frame, OpenCV axes).
+
+    sun : unit vector toward the sun; ratio : sun irradiance on a surface facing it over the sky
+    light on an upward-facing surface (both in the same units); score : mean robust residual
+    (log albedo) of the best hypothesis; shadow_fraction : share of sun-facing pixels found in
+    cast shadow.
+    """
+
+    sun: tuple[float, float, float]
+    ratio: float
+    score: float
+    shadow_fraction: float
+
+
+#: Ground bounce relative to the sky light (a downward surface sees the street, ~1/3 as bright).
+_GROUND_BOUNCE = 0.3
+#: Classes whose pixels estimate the light (large, matte, well-labelled surfaces).
+_DAYLIGHT_CLASSES = (7, 8, 9, 11, 12, 13, 22, 26, 27, 28)
+
+
+def _up_vector(pitch: float) -> np.ndarray:
+    """World up in the OpenCV camera frame of a camera pitched down by ``pitch`` rad."""
+    return np.array([0.0, -np.cos(pitch), -np.sin(pitch)])
+
+
+def _shading(n: np.ndarray, sun: np.ndarray, ratio: float, up: np.ndarray, lit: np.ndarray | float) -> np.ndarray:
+    """Day shading of unit normals ``n`` (..., 3): ``ratio·max(0, n·sun)·lit + sky(n) + ground(n)``."""
+    cu = n @ up
+    amb = 0.5 * (1 + cu) + _GROUND_BOUNCE * 0.5 * (1 - cu)
+    return ratio * np.maximum(n @ sun, 0.0) * lit + amb
+
+
+def _log_lum(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    lin = srgb_to_linear(np.asarray(image, np.float32) / 255.0)
+    lum = lin @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    return lin, np.log(np.maximum(lum, 1e-4))
+
+
+def _surface_segments(labels: np.ndarray, instances: np.ndarray | None) -> np.ndarray:
+    """Connected components of the instance (or label) map: one surface material each (0 = none)."""
+    from ..geometry.surfaces import _segments
+
+    return _segments(labels, instances)[0]
+
+
+#: Log-luminance penalty of explaining a sun-facing pixel as cast shadow (most of them are lit).
+_SHADOW_PENALTY = 0.15
+
+
+def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *,
+                   steps: int = 24, max_dist: float = 40.0, thickness: float = 4.0) -> np.ndarray:
+    """1 where camera-frame ``points`` (N, 3) see the sun along ``sun`` over the depth map, else 0.
+
+    Screen-space shadow rays: ``steps`` points from 0.15 m to ``max_dist`` m (geometric) toward
+    the sun are projected into the image; a point up to ``thickness`` m behind the visible
+    surface there is inside an object (the visible surface occludes it).
+    """
+    H, W = depth.shape
+    t = np.geomspace(0.15, max_dist, steps)
+    q = points[:, None, :] + t[None, :, None] * sun[None, None, :]
+    z = q[..., 2]
+    front = z > 0.1
+    u = np.rint(intrinsics.fx * q[..., 0] / np.where(front, z, 1) + intrinsics.cx).astype(np.int64)
+    v = np.rint(intrinsics.fy * q[..., 1] / np.where(front, z, 1) + intrinsics.cy).astype(np.int64)
+    inside = front & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    d = np.where(inside, depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)], np.nan)
+    with np.errstate(invalid="ignore"):
+        hit = inside & np.isfinite(d) & (z > d * 1.02 + 0.05) & (z < d + thickness)
+    return (~hit.any(axis=1)).astype(np.float32)
+
+
+def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, depth: np.ndarray, intrinsics,
+                      pitch: float = 0.038, *, instances: np.ndarray | None = None, samples: int = 3000,
+                      seed: int = 0) -> DayLight:
+    """Sun direction and sun/sky ratio of a day photo from its reconstructed geometry
+    (docs/relight.md "De-lit textures").
+
+    Model: linear luminance ``Y = ρ · (k·max(0, n·s)·V + sky(n))`` with ``sky(n) = (1+n·up)/2 +
+    0.3·(1−n·up)/2``, ``V`` the sun's visibility from the depth map (:func:`sun_visibility`:
+    cast shadows follow from the geometry, so they cannot be chosen freely) and ``ρ`` constant
+    per surface (a connected component of one instance or label). A grid of sun directions
+    (elevation 10–80° every 10°, azimuth every 15°) times ratios ``k`` is scored on a sample of
+    pixels of large matte classes: mean |log Y − log shading − median over the surface|.
+    """
+    from ..camera import backproject
+
+    _, ly = _log_lum(image)
+    ok = (np.isfinite(normals).all(-1) & np.isin(labels, _DAYLIGHT_CLASSES) & np.isfinite(depth))
+    idx = np.flatnonzero(ok.ravel())
+    up = _up_vector(pitch)
+    if idx.size < 200:
+        return DayLight((0.0, -1.0, 0.0), 0.0, float("nan"), 0.0)
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(idx, size=min(samples, idx.size), replace=False)
+    n = normals.reshape(-1, 3)[idx].astype(np.float64)
+    y = ly.ravel()[idx].astype(np.float64)
+    pts = backproject(np.where(np.isfinite(depth), depth, 0), intrinsics).reshape(-1, 3)[idx].astype(np.float64)
+    pts = pts + 0.03 * n  # off the surface, so it does not shadow itself
+    seg = _surface_segments(labels, instances).ravel()[idx].astype(np.int64)
+    _, seg = np.unique(seg, return_inverse=True)
+    counts = np.bincount(seg)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    q50 = starts + (0.5 * (counts - 1)).astype(np.int64)
+    cu = n @ up
+    amb = 0.5 * (1 + cu) + _GROUND_BOUNCE * 0.5 * (1 - cu)
+    R_cw = np.array([[1.0, 0.0, 0.0], [0.0, -np.cos(pitch), -np.sin(pitch)], [0.0, -np.sin(pitch), np.cos(pitch)]])
+    dmap = np.asarray(depth, np.float64)
+    best = (np.inf, None, 0.0, 0.0)
+    for el in np.radians(np.arange(10, 81, 10)):
+        for az in np.radians(np.arange(0, 360, 15)):
+            s = R_cw @ np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+            cs = np.maximum(n @ s, 0.0)
+            vis = sun_visibility(pts[cs > 0], s, dmap, intrinsics)
+            lit = cs.copy()
+            lit[cs > 0] *= vis
+            for k in (1.0, 2.0, 3.0, 4.5):
+                r = y - np.log(k * lit + amb)
+                order = np.lexsort((r, seg))
+                sc = float(np.abs(r - r[order][q50][seg]).mean())
+                if sc < best[0]:
+                    best = (sc, s, k, float(((cs > 0.2) & (lit == 0)).mean() / max((cs > 0.2).mean(), 1e-6)))
+    score, s, k, shadow = best
+    return DayLight(tuple(float(v) for v in s), float(k), score, shadow)
+
+
+def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, depth: np.ndarray, intrinsics,
+                 pitch: float = 0.038, params: MaterialParams = MaterialParams(), light: DayLight | None = None,
+                 instances: np.ndarray | None = None) -> tuple[np.ndarray, DayLight]:
+    """Albedo of a day photo with the day's light divided out (docs/relight.md "De-lit textures").
+
+    1. :func:`estimate_daylight` gives the sun direction and the sun/sky ratio.
+    2. Cast shadows: the sun's visibility of every pixel from the depth map
+       (:func:`sun_visibility`, at 512 px wide, softened over 3x3 for penumbra and antialiasing).
+    3. ``albedo = photo / shading`` per pixel (chroma kept), then one global scale so that the
+       frame's pixels match the per-class albedo priors in the median (a single photo does not
+       give the absolute level; relative albedos between and within classes come from the photo).
+    4. Clamped where the estimate is unreliable: pixels without normals or depth, sky and
+       labelIds 0-3 get the prior fallback (:func:`fallback_albedo`); albedo is limited to
+       [0.01, 0.9] and to 4x its label's median (saturated or specular day pixels).
+    """
+    import cv2
+
+    from ..camera import backproject
+
+    H, W = labels.shape
+    lin, _ = _log_lum(image)
+    fb = fallback_albedo(image, labels, params)
+    light = light or estimate_daylight(image, labels, normals, depth, intrinsics, pitch, instances=instances)
+    if not np.isfinite(light.score):
+        return fb, light
+    valid = np.isfinite(normals).all(-1) & np.isfinite(depth) & (labels != 23) & (labels > 3)
+    n = np.where(valid[..., None], normals, 0.0).astype(np.float64)
+    up = _up_vector(pitch)
+    s = np.asarray(light.sun)
+    # Visibility at <= 512 px wide (a shadow edge a few pixels soft is what the photo shows too).
+    f = max(1, int(round(W / 512)))
+    dz = np.where(np.isfinite(depth), depth, np.nan).astype(np.float32)
+    small = dz[f // 2::f, f // 2::f]
+    pts = backproject(np.nan_to_num(depth), intrinsics)[f // 2::f, f // 2::f].reshape(-1, 3).astype(np.float64)
+    ns = n[f // 2::f, f // 2::f].reshape(-1, 3)
+    vis = np.ones(len(pts), np.float32)
+    sel = np.flatnonzero((ns @ s > 0) & np.isfinite(small.ravel()))
+    for i in range(0, len(sel), 20000):
+        j = sel[i:i + 20000]
+        vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, np.asarray(depth, np.float64), intrinsics)
+    vis = cv2.blur(vis.reshape(small.shape), (3, 3))
+    vis = cv2.resize(vis, (W, H), interpolation=cv2.INTER_LINEAR) if f > 1 else vis
+    shading = _shading(n, s, light.ratio, up, vis[:H, :W])
+    alb = lin / np.maximum(shading, 1e-3)[..., None].astype(np.float32)
+    lum = alb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    use = valid & np.isin(labels, _DAYLIGHT_CLASSES) & (lum > 1e-4)
+    if use.sum() < 100:
+        return fb, light
+    prior = np.full(256, 0.2)
+    for c in cityscapes().classes:
+        prior[c.id] = params.albedo_prior.get(c.name, _ALBEDO_PRIOR.get(c.name, 0.2))
+    lab = labels.astype(np.intp)
+    if params.delit_per_class:  # each class's median on its prior; the de-lit texture within it
+        cnt = np.bincount(lab[valid], minlength=256)
+        med = np.ones(256)
+        for c in np.flatnonzero(cnt):
+            med[c] = np.median(lum[valid & (lab == c)])
+        g = np.where(valid, prior[lab] / np.maximum(med[lab], 1e-6), 1.0)
+        alb, lum = alb * g[..., None], lum * g
+    else:
+        g = float(np.median(prior[labels[use]] / lum[use]))
+        alb, lum = alb * g, lum * g
+    cnt = np.bincount(lab[valid], minlength=256)
+    med = np.ones(256)
+    for c in np.flatnonzero(cnt):
+        med[c] = np.median(lum[valid & (lab == c)])
+    alb = alb * np.minimum(1.0, 4 * med[lab] / np.maximum(lum, 1e-6))[..., None]
+    alb = np.where(valid[..., None], alb, fb)
+    return np.clip(alb, 0.01, 0.9).astype(np.float32), light
