@@ -118,3 +118,36 @@ def test_compressed_glb_round_trip_within_its_error(exported, tmp_path):
     assert "_LABEL" in g.geometry[want[0].name].vertex_attributes
     # and the plain GLB reads back through the same reader
     assert read_glb(plain).n_faces == small.n_faces
+
+
+def test_ply_is_streamed_in_blocks(tmp_path, monkeypatch):
+    """The PLY is written block by block (4000x3000 `npsim mesh`: 28 M faces): any block size
+    gives the same bytes, and the records in memory at once stay within a block."""
+    import tracemalloc
+
+    import npsim_core.mesh.export as mesh_export
+    from npsim_core.camera import Intrinsics
+    from npsim_core.mesh.export import export_ply
+    from npsim_core.mesh.grid import grid_mesh
+
+    W, H = 256, 128
+    intr = Intrinsics.from_fov(W, H, 90)
+    d = np.full((H, W), 10.0, np.float32) + np.linspace(0, 1, W, dtype=np.float32)
+    lab = np.full((H, W), 11, np.uint8)  # building
+    lab[:, W // 2:] = 7  # road
+    lights = np.zeros((H, W), np.int32)
+    lights[10:20, 10:30] = 4001
+    m = grid_mesh(d, intr, lab, lights)
+    whole = export_ply(m, tmp_path / "whole.ply").read_bytes()
+    monkeypatch.setattr(mesh_export, "PLY_BLOCK", 1000)
+    tracemalloc.start()
+    export_ply(m, tmp_path / "blocks.ply")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert (tmp_path / "blocks.ply").read_bytes() == whole
+    records = m.n_faces * 22 + m.n_vertices * 29  # the face and vertex records of the whole mesh
+    assert peak < records / 4
+    t = trimesh.load(tmp_path / "blocks.ply", process=False)
+    assert len(t.faces) == m.n_faces
+    face = t.metadata["_ply_raw"]["face"]["data"]
+    np.testing.assert_array_equal(np.asarray(face["light_id"]).ravel(), m.parts[0].face_light_id())

@@ -36,6 +36,7 @@ Empty parts are skipped everywhere.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,10 @@ def _parts(mesh: SceneMesh) -> list[tuple[int, MeshPart]]:
 
 
 def export_ply(mesh: SceneMesh, path: str | Path) -> Path:
-    """Write the whole scene as one binary PLY (see module doc for the properties)."""
+    """Write the whole scene as one binary PLY (see module doc for the properties), streamed:
+    the header from the counts, then the vertices and the faces part by part in blocks of
+    :data:`PLY_BLOCK` rows, so memory stays at one block (a 28 M-face mesh needed 1 GB of
+    records at once)."""
     path = Path(path)
     parts = _parts(mesh)
     nv = sum(p.n_vertices for _, p in parts)
@@ -75,25 +79,10 @@ def export_ply(mesh: SceneMesh, path: str | Path) -> Path:
     vdt = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("s", "<f4"), ("t", "<f4"), ("label", "u1"),
                     ("light_id", "<i4"), ("part", "<i4")])
     fdt = np.dtype([("n", "u1"), ("v", "<i4", (3,)), ("label", "u1"), ("light_id", "<i4"), ("part", "<i4")])
-    va = np.empty(nv, dtype=vdt)
-    fa = np.empty(nf, dtype=fdt)
-    vo = fo = 0
     header = ["ply", "format binary_little_endian 1.0",
               "comment NPSim scene mesh, OpenCV camera frame (x right, y down, z forward), metres",
               f"comment image {mesh.width} {mesh.height}"]
-    for i, p in parts:
-        header.append(f"comment part {i} {p.name} {int(p.foreground)}")
-        n, m = p.n_vertices, p.n_faces
-        sl = slice(vo, vo + n)
-        va["x"][sl], va["y"][sl], va["z"][sl] = p.vertices[:, 0], p.vertices[:, 1], p.vertices[:, 2]
-        va["s"][sl], va["t"][sl] = p.uv[:, 0], p.uv[:, 1]
-        va["label"][sl], va["light_id"][sl], va["part"][sl] = p.label, p.light_id, i
-        fl = slice(fo, fo + m)
-        fa["n"][fl] = 3
-        fa["v"][fl] = p.faces + vo
-        fa["label"][fl], fa["light_id"][fl], fa["part"][fl] = p.face_label(), p.face_light_id(), i
-        vo += n
-        fo += m
+    header += [f"comment part {i} {p.name} {int(p.foreground)}" for i, p in parts]
     header += [f"element vertex {nv}", "property float x", "property float y", "property float z",
                "property float s", "property float t", "property uchar label", "property int light_id",
                "property int part", f"element face {nf}", "property list uchar int vertex_indices",
@@ -101,9 +90,32 @@ def export_ply(mesh: SceneMesh, path: str | Path) -> Path:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(("\n".join(header) + "\n").encode("ascii"))
-            fh.write(va.tobytes())
-            fh.write(fa.tobytes())
+            for i, p in parts:
+                for k in range(0, p.n_vertices, PLY_BLOCK):
+                    sl = slice(k, k + PLY_BLOCK)
+                    va = np.empty(len(p.vertices[sl]), dtype=vdt)
+                    va["x"], va["y"], va["z"] = p.vertices[sl, 0], p.vertices[sl, 1], p.vertices[sl, 2]
+                    va["s"], va["t"] = p.uv[sl, 0], p.uv[sl, 1]
+                    va["label"], va["light_id"], va["part"] = p.label[sl], p.light_id[sl], i
+                    fh.write(va.tobytes())
+            vo = 0
+            for i, p in parts:
+                for k in range(0, p.n_faces, PLY_BLOCK):
+                    sl = slice(k, k + PLY_BLOCK)
+                    f = p.faces[sl]
+                    fa = np.empty(len(f), dtype=fdt)
+                    fa["n"] = 3
+                    fa["v"] = f + vo
+                    block = replace(p, faces=f)  # the same vertices: face labels of this block only
+                    fa["label"], fa["light_id"] = block.face_label(), block.face_light_id()
+                    fa["part"] = i
+                    fh.write(fa.tobytes())
+                vo += p.n_vertices
     return path
+
+
+#: Rows of vertices or faces a streamed PLY writes at a time (:func:`export_ply`).
+PLY_BLOCK = 1 << 20
 
 
 #: Rows of vertices or faces formatted at a time by :func:`export_obj`.
