@@ -71,6 +71,7 @@ class MainWindow(QMainWindow):
         self._connect()
         self._fit_screen()
         self._restore_layout()
+        self._show_params()  # the defaults, never the sliders' minimums, before a frame is open
         if scene is not None:
             self.set_scene(scene)
 
@@ -188,6 +189,9 @@ class MainWindow(QMainWindow):
         self.render_panel.renderRequested.connect(lambda: self.request_render(force=True))
         self.render_dock.visibilityChanged.connect(self._on_render_dock_visible)
         self.editor.escapeUnused.connect(self.cancel_jobs)
+        self.editor.night_lights_row.show()
+        self.editor.night_lights_combo.activated.connect(
+            lambda _i: self.on_param_changed("lights", "source", self.editor.night_lights_combo.currentData()))
         self.editor.proposal_source = self._proposal_job
         for ch in (self.pipeline_jobs, self.render_jobs, self.export_jobs, self.view_jobs):
             ch.busy.connect(self._update_cancel)
@@ -294,6 +298,8 @@ class MainWindow(QMainWindow):
                           f"{scene.width}x{scene.height}; not used", "")
             ann, dirty = scene.lights, False
         self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=stem, dirty=dirty)
+        self._rule_had_lights = bool(self.editor.session.existing_ids())
+        self._show_night_rule()
         if ann is not scene.lights:
             self.chain.set_annotation(ann)
         self._ann_version = self._ann_applied = 0
@@ -316,6 +322,28 @@ class MainWindow(QMainWindow):
             values[("camera", "hfov_deg")] = self.chain.scene.intrinsics.hfov_deg
         self.params_panel.set_values(values)
         self.render_panel.set_denoiser(self.params.night.denoiser)
+        self._show_night_rule()
+
+    def _show_night_rule(self) -> None:
+        """The Proposals box says which lights the night uses now, by the rule chosen (lights.source)."""
+        lp = self.params.lights
+        combo = self.editor.night_lights_combo
+        k = combo.findData(lp.source)
+        if k >= 0 and combo.currentIndex() != k:
+            combo.setCurrentIndex(k)
+        n = len(self.editor.session.existing_ids())
+        thr = f"≥ {lp.min_confidence:.2f}"
+        text = {"auto": (f"now: the {n} annotated lights (proposals are used only while no light is annotated)"
+                         if n else f"now: every proposal {thr} (until a light is annotated or accepted)"),
+                "annotation": f"now: the {n} annotated lights" + ("" if n else " — no light sources"),
+                "proposed": f"now: every proposal {thr}, the annotation ignored",
+                "none": "now: no light sources (ego headlights and sky only)",
+                "file": f"now: the annotation in {lp.file}"}.get(lp.source, lp.source)
+        self.editor.night_lights_label.setText(text)
+        if lp.source == "auto" and n and not getattr(self, "_rule_had_lights", False):
+            self.statusBar().showMessage(f"the night now uses only the {n} annotated lights, not every proposal: "
+                                         "'Night uses' in the Proposals box chooses", 8000)
+        self._rule_had_lights = bool(n)
 
     def _update_title(self, *_a) -> None:
         name = self.chain.scene.name if self.chain else "no scene"
@@ -330,6 +358,8 @@ class MainWindow(QMainWindow):
             self.on_error(str(exc), "")
             return
         self._t_change = time.perf_counter()
+        if section == "lights":
+            self._show_params()  # the panel's and the Proposals box's choices agree
         self.recompute()
 
     def on_preset(self, name: str) -> None:
@@ -349,6 +379,7 @@ class MainWindow(QMainWindow):
         """An edit only changes the lights: the depth, normal and 3D views stay as they are (the mesh is
         never rebuilt for it); the night scene updates the shapes of the lights it touched when the
         night preview is shown (else when it is shown next)."""
+        self._show_night_rule()
         if self.chain is not None:
             # never chain.set_annotation here: it waits for the chain's lock, which a running job holds
             # (seconds on a large frame); the next job applies a snapshot (_annotation_for_job)
@@ -539,7 +570,8 @@ class MainWindow(QMainWindow):
     def on_render_progress(self, frame) -> None:
         if frame is None:
             return
-        self.render_panel.set_night(frame.image, f"{frame.spp} spp · {frame.elapsed:.2f} s · {frame.variant}")
+        self.render_panel.set_night(frame.image, f"{frame.spp} spp · {frame.elapsed:.2f} s · {frame.variant}",
+                                    realism=getattr(frame, "realism", None))
         if frame.active is not None and self.light_override is None:
             self._fill_lights(frame)
 

@@ -24,7 +24,7 @@ from npsim_core.superpixels import METHODS
 from .canvas import EditorCanvas
 from .overlays import boundary_rgba, class_color, labels_rgba, lights_region, lit_box
 from .palette import ClassPalette, InstanceList
-from .proposals import ProposalBook, proposal_rgba
+from .proposals import ProposalBook
 from .session import EditorSession, join_group
 from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutDialog
 from ..workers import JobChannel
@@ -32,6 +32,9 @@ from .tools import Tool, ToolController, ToolOptions
 
 TOOL_KEYS = {Tool.SUPERPIXEL: "S", Tool.BRUSH: "B", Tool.ERASER: "E", Tool.FILL: "F", Tool.SELECT: "V",
              Tool.GROUP: "G"}
+#: The night's choice of lights (``lights.source``) as the Proposals box offers it.
+NIGHT_LIGHT_RULES = (("auto", "annotated lights, else proposals"), ("annotation", "annotated lights only"),
+                     ("proposed", "all proposals"), ("none", "no lights"))
 TOOL_TITLES = {Tool.SUPERPIXEL: "Superpixel", Tool.BRUSH: "Brush", Tool.ERASER: "Eraser", Tool.FILL: "Fill",
                Tool.SELECT: "Select", Tool.GROUP: "Group"}
 
@@ -724,6 +727,26 @@ class AnnotationEditor(QWidget):
         self.proposal_status = QLabel("no proposals yet")
         self.proposal_status.setWordWrap(True)
         lay.addWidget(self.proposal_status)
+        # Which lights the night uses (the main window fills and shows this row; hidden in the stand-alone
+        # editor): accepting a few proposals otherwise silently replaced all of them in the night.
+        self.night_lights_row = QWidget()
+        nl = QVBoxLayout(self.night_lights_row)
+        nl.setContentsMargins(0, 2, 0, 0)
+        nl.setSpacing(1)
+        self.night_lights_combo = QComboBox()
+        for key, text in NIGHT_LIGHT_RULES:
+            self.night_lights_combo.addItem(text, key)
+        self.night_lights_combo.setToolTip("which lights the night preview and the export switch on "
+                                           "(parameter lights.source)")
+        self.night_lights_label = QLabel("")
+        self.night_lights_label.setWordWrap(True)
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Night uses"))
+        row.addWidget(self.night_lights_combo, 1)
+        nl.addLayout(row)
+        nl.addWidget(self.night_lights_label)
+        self.night_lights_row.hide()
+        lay.addWidget(self.night_lights_row)
         return box
 
     def propose_lights(self) -> None:
@@ -747,26 +770,31 @@ class AnnotationEditor(QWidget):
                 return propose_lights(image, labels)
         generation = id(s.ann)
         self.proposal_status.setText("proposing…")
-        self.proposal_jobs.submit(lambda cancel, progress: (fn(), generation))
+        # the book (pixel lists and the overlay: full-frame passes) is built in the worker too
+        self.proposal_jobs.submit(lambda cancel, progress: (ProposalBook(fn()), generation))
 
     def _on_proposal_busy(self, busy: bool) -> None:
         self.propose_cancel.setEnabled(busy)
         self.propose_btn.setEnabled(not busy)
-        if not busy and self.proposal_status.text() == "proposing…":
+        if busy:
+            self.proposal_status.setText("proposing…")  # also when a new request replaced a cancelled one
+        elif self.proposal_status.text() == "proposing…":
             self.proposal_status.setText("cancelled" if self.proposal_book is None else self._proposal_summary())
 
     def _proposal_failed(self, message: str) -> None:
         self.proposal_status.setText(f"proposals failed: {message}")
 
     def _on_proposals(self, payload) -> None:
-        proposals, _generation = payload
-        if proposals.annotation.shape != self.session.ann.shape:
+        book, _generation = payload
+        if book.proposals.annotation.shape != self.session.ann.shape:
             return  # proposals of an image that is no longer open
-        self.set_proposals(proposals)
+        self.set_proposals(book)
 
     def set_proposals(self, proposals) -> None:
-        """Show ``proposals`` (``npsim_core.proposals.LightProposals`` of this image) as the proposal layer."""
-        self.proposal_book = ProposalBook(proposals)
+        """Show ``proposals`` (``npsim_core.proposals.LightProposals`` of this image, or a
+        :class:`ProposalBook` of them) as the proposal layer."""
+        self.proposal_book = proposals if isinstance(proposals, ProposalBook) else ProposalBook(proposals)
+        self._proposal_layer_set = False
         self.refresh_proposals()
 
     def clear_proposals(self) -> None:
@@ -779,27 +807,36 @@ class AnnotationEditor(QWidget):
             self.proposal_status.setText("no proposals yet")
 
     def _existing_ids(self) -> set[int]:
-        return set(self.session.ann.instance_ids())
+        return self.session.existing_ids()
 
     def pending_proposals(self) -> list[int]:
         """Proposal light ids still to decide on."""
         book = self.proposal_book
         return book.pending(self._existing_ids()) if book is not None else []
 
-    def _proposal_summary(self) -> str:
+    def _proposal_summary(self, existing: set[int] | None = None) -> str:
         book = self.proposal_book
+        existing = self._existing_ids() if existing is None else existing
         n = len(book.light_ids)
-        pend = len(self.pending_proposals())
-        acc = sum(1 for p in book.light_ids if book.accepted.get(p) in self._existing_ids())
+        pend = len(book.pending(existing))
+        acc = sum(1 for p in book.light_ids if book.accepted.get(p) in existing)
         return f"{pend} of {n} proposals pending · {acc} accepted · {len(book.rejected)} rejected"
 
     def refresh_proposals(self) -> None:
-        """Redraw the proposal layer and list (after proposals, an accept/reject, or an undo)."""
+        """Redraw the proposal layer and list (after proposals, an accept/reject, or an undo): only the
+        pixels of the proposals whose state changed are redrawn (:meth:`ProposalBook.sync_overlay`)."""
         book = self.proposal_book
         if book is None:
             return
-        pending = self.pending_proposals()
-        self.canvas.set_layer("proposals", proposal_rgba(book.proposals.annotation.instance_map, pending))
+        existing = self._existing_ids()
+        pending = book.pending(existing)
+        rect = book.sync_overlay(pending)
+        layer = self.canvas.layers["proposals"]
+        if not getattr(self, "_proposal_layer_set", False) or layer.array is not book.overlay:
+            self.canvas.set_layer("proposals", book.overlay)
+            self._proposal_layer_set = True
+        elif rect is not None:
+            layer.update_rect(rect)
         self.canvas.set_layer_visible("proposals", self.proposal_box.isChecked() and bool(pending))
         tree = self.proposal_tree
         tree.clear()
@@ -823,7 +860,7 @@ class AnnotationEditor(QWidget):
                 it = QTreeWidgetItem([f"{light_class(class_of(m)).name} {m}", f"{book.confidence(m):.2f}"])
                 it.setData(0, role, ("light", m))
                 tree.addTopLevelItem(it)
-        self.proposal_status.setText(self._proposal_summary())
+        self.proposal_status.setText(self._proposal_summary(existing))
 
     def _proposal_targets(self) -> tuple[list[int], list[int]]:
         """(lights, groups): the rows selected in the proposal list, else the proposal under the mouse

@@ -146,6 +146,8 @@ class EditorSession(QObject):
         #: Counts every edit, undo and redo: a background save marks the session clean only when
         #: nothing changed while it wrote.
         self.edit_serial = 0
+        self._ids: set[int] = set()
+        self._ids_at: tuple[int, int] | None = None
         self.pool = QThreadPool.globalInstance()
         # Jobs stop (and never emit) once the session is destroyed or the application quits.
         self._closed = threading.Event()
@@ -290,9 +292,17 @@ class EditorSession(QObject):
         if ch is not None:
             self._after_edit(ch)
 
+    def existing_ids(self) -> set[int]:
+        """Ids of the lights that exist (with pixels or registered), computed once per edit (a pass over
+        the map: 3-10 ms at 2048x1024). Do not modify the returned set."""
+        if self._ids_at != (self.edit_serial, id(self.ann)):
+            self._ids = set(self.ann.instance_ids())
+            self._ids_at = (self.edit_serial, id(self.ann))
+        return self._ids
+
     def _after_edit(self, ch: Change) -> None:
         self.edit_serial += 1
-        existing = set(self.ann.instance_ids()) | set(self.ann.groups) if ch.structure else None
+        existing = self.existing_ids() | set(self.ann.groups) if ch.structure else None
         if existing is not None:
             if self.current_id is not None and self.current_id not in existing:
                 self.current_id = None
@@ -304,6 +314,9 @@ class EditorSession(QObject):
                 self.selection &= existing
                 self.selectionChanged.emit()
         self.changed.emit(ch)
+        self._emit_dirty()
+
+    def _emit_dirty(self) -> None:
         if self.is_dirty != self._was_dirty:
             self._was_dirty = self.is_dirty
             self.dirtyChanged.emit(self.is_dirty)
@@ -480,8 +493,7 @@ class EditorSession(QObject):
             self.stack.mark_clean()
             self._meta_dirty = False
             self._writer.submit(lambda f=self.folder, s=self.stem: discard_recovery(f, s))
-            self._after_edit(Change())
-            self.edit_serial = serial  # the clean marker itself is no edit
+            self._emit_dirty()  # the clean marker itself is no edit (edit_serial stays)
         self.saved.emit(result, "")
 
     def autosave(self) -> Path | None:
