@@ -51,11 +51,16 @@ class MaterialParams:
     albedo_prior : optional overrides ``{class name: albedo}``.
     delit_per_class : the de-lit albedo's level per class is the prior (its median), as in the
         fallback; off = one global scale (relative class albedos from the photo).
+    vehicle_cap : on vehicles, albedo luminance is limited to this multiple of the median of
+        its vehicle (instance): number plates, chrome and sky reflections in the day photo are
+        small bright details that the headlights would otherwise turn into glowing white
+        rectangles (SPEC §10: plates do not glow). 0 = off.
     """
 
     contrast: float = 0.7
     albedo_prior: dict = field(default_factory=dict)
     delit_per_class: bool = False
+    vehicle_cap: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +115,8 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
                   f"{100 * day.shadow_fraction:.0f} % of sun-facing pixels in shadow)")
     elif albedo is None:
         albedo = fallback_albedo(image, labels, params)
+    if source != "scene":
+        albedo = cap_vehicle_details(albedo, labels, instances, params.vehicle_cap)
     if roughness is None:
         rough_of_kind = np.array([_ROUGHNESS[k] for k in KINDS], dtype=np.float32)
         roughness = rough_of_kind[kl[labels]]
@@ -343,3 +350,30 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     alb = alb * np.minimum(1.0, 4 * med[lab] / np.maximum(lum, 1e-6))[..., None]
     alb = np.where(valid[..., None], alb, fb)
     return np.clip(alb, 0.01, 0.9).astype(np.float32), light
+
+
+def cap_vehicle_details(albedo: np.ndarray, labels: np.ndarray, instances: np.ndarray | None,
+                        factor: float = 2.0) -> np.ndarray:
+    """``albedo`` with each vehicle's pixels limited to ``factor`` x its median luminance (chroma
+    kept; per instance when ``instances`` are given, else per connected component of the class).
+    See :class:`MaterialParams` ``vehicle_cap``."""
+    if not factor:
+        return albedo
+    from ..geometry.surfaces import VEHICLE_CLASSES, _segments
+
+    veh = np.isin(labels, VEHICLE_CLASSES)
+    if not veh.any():
+        return albedo
+    seg = np.where(veh, _segments(labels, instances)[0], 0)
+    lum = albedo @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    sv = seg[veh].astype(np.int64)
+    lv = lum[veh].astype(np.float64)
+    order = np.lexsort((lv, sv))
+    cnt = np.bincount(sv)
+    start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    med = np.zeros(len(cnt))
+    has = cnt > 0
+    med[has] = lv[order][start[has] + (cnt[has] - 1) // 2]
+    cap = factor * med[seg]
+    scale = np.where(veh & (lum > cap), cap / np.maximum(lum, 1e-6), 1.0).astype(np.float32)
+    return (albedo * scale[..., None]).astype(np.float32)
