@@ -26,7 +26,7 @@ NOISE = 0.02
 @pytest.fixture(scope="module")
 def fixture_root(tmp_path_factory) -> tuple[Path, list[str]]:
     root = tmp_path_factory.mktemp("cs") / "cityscapes"
-    stems = write_cityscapes_fixture(root, frames=3, size=(W, H), seed=SEED, corrupt=1, noise=NOISE)
+    stems = write_cityscapes_fixture(root, frames=3, size=(W, H), seed=SEED, corrupt=1, noise=NOISE, stereo="noise")
     return root, stems
 
 
@@ -140,7 +140,7 @@ def test_corrupt_frame_is_a_clear_input_error(fixture_root):
     root, stems = fixture_root
     bad = open_dataset(root)[-1]
     assert bad.name == stems[-1]
-    with pytest.raises(NpsimInputError, match="not a readable image"):
+    with pytest.raises(NpsimInputError, match="not a readable image|truncated PNG"):
         bad.load()
     data = bad.image_path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"                                    # looks like a PNG, is cut short
@@ -153,7 +153,7 @@ def test_corrupt_frame_is_a_clear_input_error(fixture_root):
 def test_same_arguments_same_bytes(fixture_root, tmp_path):
     root, _ = fixture_root
     again = tmp_path / "again"
-    write_cityscapes_fixture(again, frames=3, size=(W, H), seed=SEED, corrupt=1, noise=NOISE)
+    write_cityscapes_fixture(again, frames=3, size=(W, H), seed=SEED, corrupt=1, noise=NOISE, stereo="noise")
     assert _files(again) == _files(root)
     other = tmp_path / "other"
     write_cityscapes_fixture(other, frames=1, size=(W, H), seed=SEED + 7, corrupt=0, color=False,
@@ -215,3 +215,40 @@ def test_bad_arguments_are_input_errors(tmp_path, kwargs):
     with pytest.raises(NpsimInputError):
         write_cityscapes_fixture(tmp_path / "x", **kwargs)
     assert not (tmp_path / "x").exists()
+
+
+def test_sgm_stereo_is_the_default_and_has_structured_errors(tmp_path):
+    """``--stereo sgm`` (default): disparity from OpenCV semi-global matching on a rendered right view,
+    Cityscapes-encoded, with the exact depth written only outside the dataset (``--truth``)."""
+    root, truth = tmp_path / "ds", tmp_path / "truth"
+    stem = write_cityscapes_fixture(root, frames=1, size=(256, 128), seed=0, corrupt=0, truth=truth)[0]
+    assert not list(root.rglob("*_depth.npy"))
+    depth = np.load(truth / f"{stem}_depth.npy")
+    p = cv2.imread(str(root / "disparity" / "val" / "synthcity" / f"{stem}_disparity.png"), cv2.IMREAD_UNCHANGED)
+    assert p.dtype == np.uint16
+    ok = p > 0
+    assert 0.6 < ok.mean() < 0.9                          # Cityscapes: 75-85 % valid
+    assert not ok[:, :16].any()                           # no match left of the search range
+    d = (p[ok].astype(np.float64) - 1) / 256
+    assert np.allclose(d * 16, np.rint(d * 16))           # SGBM's 1/16 px sub-pixel steps
+    fx = Intrinsics.cityscapes(256, 128).fx
+    rel = np.abs(BASELINE * fx / d - depth[ok]) / depth[ok]
+    assert 0.01 < np.median(rel) < 0.1                    # errs like stereo, not exact ...
+    assert (rel > 0.2).mean() > 0.02                      # ... with gross outliers (streaks, fattening)
+    with pytest.raises(NpsimInputError, match="outside"):
+        write_cityscapes_fixture(root, frames=1, size=(256, 128), corrupt=0, truth=root / "truth")
+
+
+def test_sample_command_offers_the_street_variants(tmp_path):
+    import argparse
+
+    from npsim_cli.commands import sample
+    from npsim_core.synthetic.street import VARIANTS
+
+    ap = argparse.ArgumentParser()
+    sample.register(ap.add_subparsers())
+    args = ap.parse_args(["sample", "-o", "x", "--variant", "busy"])
+    assert args.variant == "busy" and "busy" in VARIANTS
+    bad = ap.parse_args(["sample", "-o", str(tmp_path / "x"), "--variant", "nonesuch"])
+    with pytest.raises(NpsimInputError, match="busy"):  # the error lists the variants
+        bad.func(bad)
