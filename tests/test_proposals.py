@@ -405,3 +405,78 @@ def test_a_vehicle_whose_lamp_rows_fall_below_it_gives_no_empty_slice_warning():
         warnings.simplefilter("error")
         props = propose_lights(img, lab, np.full(lab.shape, 1.5, np.float32))
     assert not [i for i in props.annotation.instance_ids() if class_of(i) in (3, 4, 5, 6)]
+
+
+def _facade(H=160, W=240, wall=(170, 150, 120)):
+    """A facade at 20 m, 10 px per metre, seen straight on."""
+    img, lab = _canvas(H=H, W=W)
+    lab[20:150, 20:220] = BUILDING
+    img[20:150, 20:220] = wall
+    lab[150:, :] = ROAD
+    depth = np.full(lab.shape, 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=119.5, cy=79.5, width=W, height=H)
+    return img, lab, depth, intr
+
+
+def test_a_facade_grid_gives_one_window_per_cell_and_none_across_cells():
+    img, lab, depth, intr = _facade()
+    cells = {}
+    for r in range(3):
+        for c in range(5):
+            y, x = 35 + 35 * r, 35 + 38 * c
+            img[y:y + 15, x:x + 12] = (30, 35, 45)                    # 1.2 x 1.5 m panes
+            cells[(r, c)] = (y, y + 15, x, x + 12)
+    img[40:46, 47:111] = (30, 35, 45)     # a shadow band joining three panes of the top floor (bays 0-2)
+    img[84:106, 149:153] = (35, 38, 46)   # a dark downpipe joining two floors of bay 3
+    props = propose_lights(img, lab, depth, intr, params=FLAT)
+    ann, wins = _lights(props, (1,))
+    owner = {}
+    for i in wins:
+        ys, xs = np.nonzero(ann.mask(i))
+        hit = [k for k, (y0, y1, x0, x1) in cells.items()
+               if ys.min() < y1 + 3 and ys.max() >= y0 - 3 and xs.min() < x1 + 3 and xs.max() >= x0 - 3]
+        assert len(hit) == 1, (i, hit)                                 # no window across cells
+        owner.setdefault(hit[0], []).append(i)
+    assert sorted(owner) == sorted(cells) and all(len(v) == 1 for v in owner.values())   # one per cell
+    for k, (i,) in owner.items():
+        y0, y1, x0, x1 = cells[k]
+        m = np.zeros(lab.shape, bool)
+        m[y0:y1, x0:x1] = True
+        assert _iou(ann.mask(i), m) >= 0.6
+
+
+def test_a_gable_with_six_windows_gives_six():
+    img, lab, depth, intr = _facade(H=200)
+    lab[:, :] = SKY
+    img[:] = (150, 170, 200)
+    lab[150:, :] = ROAD
+    img[150:] = (70, 70, 75)
+    wall, brick = (170, 150, 120), (120, 80, 60)
+    lab[100:150, 40:200] = BUILDING                                   # the top storey...
+    img[100:150, 40:200] = wall
+    for k, (x0, x1) in enumerate(((50, 190), (75, 165), (100, 140))):  # ...and a stepped gable of darker brick
+        y = 100 - 20 * (k + 1)
+        lab[y:y + 20, x0:x1] = BUILDING
+        img[y:y + 20, x0:x1] = brick
+    truth = []
+    for k, n in enumerate((3, 2, 1)):
+        x0, x1 = ((50, 190), (75, 165), (100, 140))[k]
+        y = 100 - 20 * (k + 1) + 4
+        for j in range(n):
+            xc = x0 + (j + 0.5) * (x1 - x0) / n
+            xa = int(round(xc - 4))
+            img[y:y + 12, xa:xa + 8] = (25, 30, 40)
+            m = np.zeros(lab.shape, bool)
+            m[y:y + 12, xa:xa + 8] = True
+            truth.append(m)
+    for c in range(4):                                                # the storey below: 4 windows
+        img[112:127, 55 + 38 * c:67 + 38 * c] = (30, 35, 45)
+    depth = np.full(lab.shape, 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=119.5, cy=99.5, width=240, height=200)
+    props = propose_lights(img, lab, depth, intr, params=FLAT)
+    ann, wins = _lights(props, (1,))
+    gable = [i for i in wins if np.nonzero(ann.mask(i))[0].max() < 100]
+    assert len(gable) == 6
+    for m in truth:
+        assert max(_iou(ann.mask(i), m) for i in gable) >= 0.6
+    assert len(wins) == 10

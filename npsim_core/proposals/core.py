@@ -41,7 +41,7 @@ class LightProposals:
             if members:
                 groups[gid] = GroupInstance(gid, members)
         meta = dict(ann.meta)
-        for key in ("lamp_colours", "traffic_light_states", "traffic_light_direction"):  # only kept ids
+        for key in ("lamp_colours", "traffic_light_states", "traffic_light_direction", "light_kinds"):  # kept ids
             if key in meta:
                 meta[key] = {k: v for k, v in meta[key].items() if int(k) in keep_set or int(k) in groups}
         return LightAnnotation(new_map, groups, {i for i in ann.extra_ids if i in keep_set}, meta)
@@ -80,6 +80,9 @@ class Light:
     confidence: float
     #: Signal lamps: the lamp's colour ("red", "amber", "green"), saved as ``meta.lamp_colours``.
     colour: str | None = None
+    #: Windows: ``window``, ``shop`` (a shop front) or ``office_band`` (a glass floor band), saved as
+    #: ``meta.light_kinds``.
+    kind: str | None = None
 
 
 @dataclass
@@ -197,6 +200,7 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
     groups: dict[int, GroupInstance] = {}
     colours: dict[str, str] = {}
     states: dict[str, str] = {}
+    kinds: dict[str, str] = {}
 
     def new_id(cls: int) -> int | None:
         k = counters.get(cls, 0) + 1
@@ -223,6 +227,8 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
         conf[lid] = float(np.clip(li.confidence, 0.0, 1.0))
         if li.colour:
             colours[str(lid)] = li.colour
+        if li.kind:
+            kinds[str(lid)] = li.kind
         return lid
 
     for it in items:
@@ -239,7 +245,8 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
         conf[gid] = float(np.clip(it.confidence, 0.0, 1.0))
         if it.state:
             states[str(gid)] = it.state
-    meta = {k: v for k, v in (("lamp_colours", colours), ("traffic_light_states", states)) if v}
+    meta = {k: v for k, v in (("lamp_colours", colours), ("traffic_light_states", states), ("light_kinds", kinds))
+            if v}
     return LightProposals(LightAnnotation(m, groups, meta=meta), conf)
 
 

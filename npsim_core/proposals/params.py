@@ -113,6 +113,23 @@ class ProposalParams:
     window_split_steps: int = 2
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
+    #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
+    window_ring_px: int = 2
+    #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).
+    window_shop_max_sill_m: float = 1.0
+    window_shop_min_h_m: float = 1.6
+    #: Office floor bands: glazing at least this many times wider than tall (m).
+    window_band_min_aspect: float = 3.5
+    #: An empty facade-grid cell is a window when this share of its pixels differs from the wall by
+    #: half the window thresholds.
+    window_cell_min_share: float = 0.5
+    #: Windows cover at most this share of their building region (the least confident beyond it are dropped).
+    window_max_lit_share: float = 0.4
+    #: A floor's windows belong to another facade (another windows_group) where the wall around them
+    #: changes by this much (log luminance; Lab chroma, 8-bit units) or their height by this fraction.
+    window_block_lum: float = 0.3
+    window_block_chroma: float = 8
+    window_block_height: float = 0.5
     #: Box of the fine local wall estimate, as a fraction of the image width (the coarse box is 4x).
     window_wall_kernel_frac: float = 0.02
 

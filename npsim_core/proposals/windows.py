@@ -74,6 +74,297 @@ def _features(ctx: Context) -> np.ndarray:
     return np.dstack([np.log(np.maximum(ctx.lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
 
+def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, p) -> bool:
+    """Whether a blob differs from the building pixels in a ring ``window_ring_px`` wide around it by
+    at least half the window thresholds (log luminance or Lab chroma). The wall reference is a
+    smoothed estimate; at the edge between two wall colours (a gable of other brick, a plinth) it
+    calls a strip of plain wall different, but the ring around that strip is the same wall."""
+    H, W = B.shape
+    r = p.window_ring_px
+    h, w = sub.shape
+    ya, yb, xa, xb = max(0, y - r), min(H, y + h + r), max(0, x - r), min(W, x + w + r)
+    blob = np.zeros((yb - ya, xb - xa), np.uint8)
+    blob[y - ya:y - ya + h, x - xa:x - xa + w] = sub
+    ring = (cv2.dilate(blob, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) & (blob == 0) & B[ya:yb, xa:xb]
+    if ring.sum() < 3:
+        return True
+    f = feat[ya:yb, xa:xb]
+    inner, outer = np.median(f[blob > 0], axis=0), np.median(f[ring], axis=0)
+    t = -np.log(p.window_dark_ratio)
+    return bool(abs(float(inner[0] - outer[0])) > 0.5 * t
+                or float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) > 0.5 * p.window_chroma_delta)
+
+
+def _kind(ctx: Context, li: Light) -> str:
+    """``shop`` (glazing from near the ground, at least ``window_shop_min_h_m`` tall: a shop front),
+    ``office_band`` (at least ``window_band_min_aspect`` times wider than tall in metres: a glass
+    floor band) or ``window``."""
+    p = ctx.params
+    h, w = li.mask.shape
+    if ctx.depth is None:
+        return "window"
+    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return "window"
+    z = float(np.median(d))
+    h_m, w_m = h * z / float(ctx.intrinsics.fy), w * z / float(ctx.intrinsics.fx)
+    bottom = float(ctx.height_above_ground(li.y0 + h - 0.5, z))
+    if bottom <= p.window_shop_max_sill_m and h_m >= p.window_shop_min_h_m:
+        return "shop"
+    if w_m >= p.window_band_min_aspect * h_m and h_m >= p.window_height_m[0]:
+        return "office_band"
+    return "window"
+
+
+def _fit_line(x: np.ndarray, y: np.ndarray):
+    """y = a + b x by least squares (a constant for fewer than two distinct x)."""
+    if x.size >= 2 and np.ptp(x) > 1e-6:
+        b, a = np.polyfit(x, y, 1)
+        return lambda q: a + b * q
+    m = float(np.mean(y))
+    return lambda q: m + 0.0 * q
+
+
+def _columns(boxes: list[tuple[int, int, int, int]]) -> list[tuple[float, float, int]]:
+    """Bays of a facade from window boxes (y0, y1, x0, x1 inclusive): windows whose column ranges
+    overlap by at least half the narrower form one bay; returns (median x0, median x1, count)."""
+    cols: list[list[tuple[int, int]]] = []
+    for _, _, x0, x1 in sorted(boxes, key=lambda b: (b[2] + b[3])):
+        for c in cols:
+            a0, a1 = np.median([q[0] for q in c]), np.median([q[1] for q in c])
+            ov = min(a1, x1) - max(a0, x0) + 1
+            if ov >= 0.5 * min(a1 - a0 + 1, x1 - x0 + 1):
+                c.append((x0, x1))
+                break
+        else:
+            cols.append([(x0, x1)])
+    return [(float(np.median([q[0] for q in c])), float(np.median([q[1] for q in c])), len(c)) for c in cols]
+
+
+def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray, B: np.ndarray,
+               bld: np.ndarray, rejects: list | None = None) -> list:
+    """Windows as a facade grid, per building region (docs/proposals.md "Building windows").
+
+    Each window gets a kind (:func:`_kind`: shop front, office floor band or window). The windows
+    of a region form floors (centre heights within ``window_floor_tol_m``; the top and bottom rows
+    of a floor are lines across the facade, which recedes) and bays (column ranges seen on at least
+    two floors). Then:
+
+    * a window spanning two or more cells (bays x floors), and a blob rejected as too large or too
+      ragged for one window (``rejects``: (y0, x0, mask)) that spans them, is cut into one window per
+      cell (a piece filling ``window_min_fill`` of its cell); a window
+      taller than 1.5x the median window height of its facade, or wider than 1.5x the width of the
+      windows beside it, without cells to cut it along, is dropped (a gable, a roof or an awning
+      taken for a window);
+    * every cell of a floor with at least three windows and a bay that holds no window and looks
+      faintly like one (``window_cell_min_share`` of its pixels beyond half the window thresholds,
+      mostly building pixels) is proposed (confidence 0.55);
+    * the windows of a region cover at most ``window_max_lit_share`` of it: the least confident
+      beyond that are dropped (a lit facade is lit per room, not as a whole).
+
+    ``found``: [building id, level, level tolerance, Light] per window; returns the new list.
+    """
+    p = ctx.params
+    t = -np.log(p.window_dark_ratio)
+    H, W = ctx.shape
+    out = []
+    for f in found:
+        f[3].kind = _kind(ctx, f[3])
+    regions: dict[int, list] = {}
+    for f in found:
+        regions.setdefault(f[0], []).append(f)
+    rejected: dict[int, list] = {}
+    for y0, x0, m in rejects or []:
+        ids_ = bld[y0:y0 + m.shape[0], x0:x0 + m.shape[1]][m]
+        if ids_.size:
+            rejected.setdefault(int(np.bincount(ids_).argmax()), []).append((y0, x0, m))
+    for b_id, fs in regions.items():
+        wins = [f for f in fs if f[3].kind == "window"]
+        other = [f for f in fs if f[3].kind != "window"]
+        if len(wins) < 3:
+            out.extend(fs)
+            continue
+        box = {id(f): (f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
+               for f in wins}
+        heights = np.array([box[id(f)][1] - box[id(f)][0] + 1 for f in wins], float)
+        # metric heights where depth is known (pixel heights on one plane otherwise)
+        levels = sorted(wins, key=lambda f: f[1])
+        floors: list[list] = []
+        for f in levels:
+            if floors and f[1] - floors[-1][-1][1] <= f[2]:
+                floors[-1].append(f)
+            else:
+                floors.append([f])
+        hm = []
+        for f in wins:
+            y0, y1, x0, x1 = box[id(f)]
+            z = ctx.metres_per_px(y0, y1 + 1, x0, x1 + 1, f[3].mask)
+            hm.append((y1 - y0 + 1) * z if z is not None else float(y1 - y0 + 1))
+        hm = np.array(hm)
+        med_h = float(np.median(hm))
+        all_cols = _columns(list(box.values()))
+        cols = [c for c in all_cols if c[2] >= 2]  # bays seen on two floors at least
+        lines = []  # per floor: (top(x), bottom(x), members)
+        for fl in floors:
+            xs = np.array([(box[id(f)][2] + box[id(f)][3]) / 2.0 for f in fl])
+            lines.append((_fit_line(xs, np.array([box[id(f)][0] for f in fl], float)),
+                          _fit_line(xs, np.array([box[id(f)][1] for f in fl], float)), fl))
+        centres = np.array([(box[id(f)][2] + box[id(f)][3]) / 2.0 for f in wins])
+        widths = np.array([box[id(f)][3] - box[id(f)][2] + 1 for f in wins], float)
+        kept = []
+        taken = list(box.values())
+        for y0, x0, m in rejected.get(b_id, []):
+            y1, x1 = y0 + m.shape[0] - 1, x0 + m.shape[1] - 1
+            xc = (x0 + x1) / 2.0
+            cs = [c for c in all_cols if min(c[1], x1) - max(c[0], x0) + 1 >= 0.5 * (c[1] - c[0] + 1)]
+            rs = [(top(xc), bot(xc)) for top, bot, fl in lines if len(fl) >= 2
+                  and min(bot(xc), y1) - max(top(xc), y0) + 1 >= 0.5 * (bot(xc) - top(xc) + 1)]
+            if len(cs) * len(rs) < 2:
+                continue
+            for c0, c1, _ in cs:
+                for r0, r1 in rs:
+                    a0, a1 = int(round(max(r0, y0))) - y0, int(round(min(r1, y1))) - y0
+                    b0, b1 = int(round(max(c0, x0))) - x0, int(round(min(c1, x1))) - x0
+                    if a1 < a0 or b1 < b0 or any(min(x0 + b1, q[3]) >= max(x0 + b0, q[2]) and
+                                                 min(y0 + a1, q[1]) >= max(y0 + a0, q[0]) for q in taken):
+                        continue  # a window holds that cell already
+                    piece = np.zeros(m.shape, bool)
+                    piece[a0:a1 + 1, b0:b1 + 1] = m[a0:a1 + 1, b0:b1 + 1]
+                    cell_area = (int(round(r1)) - int(round(r0)) + 1) * (int(round(c1)) - int(round(c0)) + 1)
+                    if piece.sum() < max(p.window_min_area_px, p.window_min_fill * cell_area):
+                        continue
+                    ys, xs = np.nonzero(piece)
+                    sub = piece[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+                    nl = Light(WINDOW_BUILDING, y0 + int(ys.min()), x0 + int(xs.min()), sub, 0.6)
+                    nl.kind = "window"
+                    taken.append((nl.y0, nl.y0 + sub.shape[0] - 1, nl.x0, nl.x0 + sub.shape[1] - 1))
+                    kept.append([b_id, fl_level(ctx, nl), p.window_floor_tol_m if ctx.depth is not None
+                                 else max(2.0, sub.shape[0] / 2.0), nl])
+        for k, f in enumerate(wins):
+            y0, y1, x0, x1 = box[id(f)]
+            near = np.argsort(np.abs(centres - centres[k]))[1:5]
+            local_w = float(np.median(widths[near])) if near.size else widths[k]
+            tall = hm[k] > 1.5 * med_h
+            wide = widths[k] > 1.5 * max(local_w, 1.0)
+            if not (tall or wide):
+                kept.append(f)
+                continue
+            # cut along the cells it spans
+            span_cols = [c for c in cols if min(c[1], x1) - max(c[0], x0) + 1 >= 0.5 * (c[1] - c[0] + 1)]
+            xc = (x0 + x1) / 2.0
+            span_rows = [(top(xc), bot(xc)) for top, bot, _ in lines
+                         if min(bot(xc), y1) - max(top(xc), y0) + 1 >= 0.5 * (bot(xc) - top(xc) + 1)]
+            if wide and len(span_cols) < 2 or tall and len(span_rows) < 2:
+                continue  # larger than a window and no cells to cut it along: not a window
+            li = f[3]
+            for c0, c1, _ in (span_cols if wide else [(x0, x1, 0)]):
+                for r0, r1 in (span_rows if tall else [(y0, y1)]):
+                    cell = np.zeros(li.mask.shape, bool)
+                    a0, a1 = int(round(max(r0, y0))) - y0, int(round(min(r1, y1))) - y0
+                    b0, b1 = int(round(max(c0, x0))) - x0, int(round(min(c1, x1))) - x0
+                    if a1 < a0 or b1 < b0:
+                        continue
+                    cell[a0:a1 + 1, b0:b1 + 1] = True
+                    piece = cell & li.mask
+                    if piece.sum() < p.window_min_area_px:
+                        continue
+                    ys, xs = np.nonzero(piece)
+                    sub = piece[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+                    nl = Light(li.class_id, li.y0 + int(ys.min()), li.x0 + int(xs.min()), sub, li.confidence)
+                    nl.kind = "window"
+                    kept.append([b_id, fl_level(ctx, nl), f[2], nl])
+        # empty cells of regular floors that look faintly like a window
+        have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
+                for f in kept]
+        for top, bot, fl in lines:
+            if len(fl) < 3:
+                continue
+            for c0, c1, _ in cols:
+                xc = (c0 + c1) / 2.0
+                r0, r1 = int(round(top(xc))), int(round(bot(xc)))
+                a0, a1 = int(round(c0)), int(round(c1))
+                if r1 - r0 < 1 or a1 - a0 < 0 or r0 < 0 or a0 < 0 or r1 >= H or a1 >= W:
+                    continue
+                if any(min(a1, q[3]) >= max(a0, q[2]) and min(r1, q[1]) >= max(r0, q[0]) for q in have):
+                    continue
+                inside = (bld[r0:r1 + 1, a0:a1 + 1] == b_id) & B[r0:r1 + 1, a0:a1 + 1]
+                if inside.mean() < 0.8:
+                    continue  # hidden (a tree, a pole) or off the facade
+                odd = (np.abs(ratio[r0:r1 + 1, a0:a1 + 1]) > 0.5 * t) | \
+                    (chroma[r0:r1 + 1, a0:a1 + 1] > 0.5 * p.window_chroma_delta)
+                if (odd & inside).sum() < p.window_cell_min_share * inside.sum():
+                    continue
+                nl = Light(WINDOW_BUILDING, r0, a0, inside, 0.55)
+                nl.kind = "window"
+                kept.append([b_id, fl[0][1], fl[0][2], nl])
+                have.append((r0, r1, a0, a1))
+        # a lit facade is lit per room: at most window_max_lit_share of the region
+        area = float((bld == b_id).sum())
+        kept.sort(key=lambda f: -f[3].confidence)
+        total, final = 0.0, []
+        for f in kept:
+            a = float(f[3].mask.sum())
+            if total + a <= p.window_max_lit_share * area:
+                final.append(f)
+                total += a
+        out.extend(final + other)
+    return out
+
+
+def _split_blocks(ctx: Context, row: list, ref: np.ndarray) -> list[list]:
+    """Split one floor of a building region into the facades it crosses (one windows_group each, as
+    an annotator groups them): walking along the row, a new facade starts where the wall around the
+    windows changes (log luminance by more than ``window_block_lum``, or chroma by more than
+    ``window_block_chroma``), where the window kind or height changes (by more than
+    ``window_block_height`` relative, against the last window and the median of the last three: each
+    building has its own windows, while heights along one receding facade shrink smoothly)."""
+    p = ctx.params
+    if len(row) < 2:
+        return [row]
+
+    def desc(f):
+        li = f[3]
+        h, w = li.mask.shape
+        wall = ref[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask].mean(0)
+        return wall, h, li.x0 + w / 2.0, getattr(li, "kind", None) or "window"
+
+    row = sorted(row, key=lambda f: f[3].x0)
+    info = [desc(f) for f in row]
+    out = [[row[0]]]
+    for k in range(1, len(row)):
+        (wa, ha, _, ka), (wb, hb, _, kb) = info[k - 1], info[k]
+        new = abs(float(wa[0] - wb[0])) > p.window_block_lum or \
+            float(np.hypot(wa[1] - wb[1], wa[2] - wb[2])) > p.window_block_chroma or ka != kb
+        if not new and ka == "window":
+            # heights of neighbours on one receding facade shrink smoothly; a new building's jump
+            prev = [info[j][1] for j in range(max(0, k - 3), k)]
+            new = abs(hb - ha) > p.window_block_height * max(ha, hb) and \
+                abs(hb - float(np.median(prev))) > p.window_block_height * max(hb, float(np.median(prev))) \
+                and max(ha, hb) >= 6
+        if new:
+            out.append([row[k]])
+        else:
+            out[-1].append(row[k])
+    return out
+
+
+def fl_level(ctx: Context, li: Light) -> float:
+    """A window's floor level: its centre's height above the ground (m) with depth, else its centre row."""
+    z = _median_depth(ctx, li)
+    cy = li.y0 + li.mask.shape[0] / 2.0
+    return float(ctx.height_above_ground(cy, z)) if z is not None else float(cy)
+
+
+def _median_depth(ctx: Context, li: Light) -> float | None:
+    if ctx.depth is None:
+        return None
+    h, w = li.mask.shape
+    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if d.size else None
+
+
 def propose(ctx: Context) -> list[Group]:
     """Window instances in one windows_group per floor of each building region.
 
@@ -155,6 +446,8 @@ def propose(ctx: Context) -> list[Group]:
             footed = below[has].mean() > 0.5 if has.any() else False
             if tint < p.window_shadow_chroma or (footed and tint < p.window_shadow_chroma_footed):
                 return "shadow"  # the wall's own colour, only darker: a cast shadow, not glass
+        if p.window_ring_px > 0 and not _stands_out(feat, B, y, x, sub, p):
+            return "flat"  # no different from the wall right around it: a wall-colour edge, not a pane
         ys, xs = np.nonzero(filled)
         cy_ = y + ys.mean()
         b_id = int(np.bincount(bld[y:y + h, x:x + w][filled]).argmax())
@@ -169,9 +462,12 @@ def propose(ctx: Context) -> list[Group]:
 
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     stack = [(y0, x0, m, 0) for y0, x0, m, _ in components(cand, p.window_min_area_px, connectivity=4)]
+    rejects = []  # blobs too large or too ragged for one window: the facade grid may cut them (regularise)
     while stack:
         y0, x0, m, depth_ = stack.pop()
         why = accept(y0, x0, m)
+        if why in ("fill", "size"):
+            rejects.append((y0, x0, m))
         if why in ("fill", "size") and depth_ < p.window_split_steps:
             # Panes joined by thin bridges (a shadow edge, 1-px gaps far away): erode, split, grow back.
             er = cv2.erode(m.astype(np.uint8), cross) > 0
@@ -184,14 +480,16 @@ def propose(ctx: Context) -> list[Group]:
                     ys, xs = np.nonzero(grown)
                     gy0, gx0 = ys.min(), xs.min()
                     stack.append((y0 + gy0, x0 + gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1], depth_ + 1))
+    found = regularise(ctx, found, ratio, chroma, B, bld, rejects)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
-    groups: list[list] = []
+    rows: list[list] = []
     for f in found:
-        if groups and groups[-1][-1][0] == f[0] and f[1] - groups[-1][-1][1] <= f[2]:
-            groups[-1].append(f)
+        if rows and rows[-1][-1][0] == f[0] and f[1] - rows[-1][-1][1] <= f[2]:
+            rows[-1].append(f)
         else:
-            groups.append([f])
+            rows.append([f])
+    groups = [g for row in rows for g in _split_blocks(ctx, row, ref)]
     out: list[Group] = []
     for g in groups:
         regular = len(g) >= 3
