@@ -67,7 +67,7 @@ def limit_depth(depth: np.ndarray, near_m: float = DEPTH_NEAR_M,
 
     NaN, inf and values <= 0 were invalid already (docs/method.md §1.1) and are not counted; the
     result is float32 (a copy only when something changed)."""
-    if not (np.isfinite(near_m) and np.isfinite(far_m) and 0 <= near_m < far_m):
+    if not (np.isfinite(near_m) and 0 <= near_m < far_m):  # far may be inf (no far limit)
         raise NpsimInputError(f"depth limits must satisfy 0 <= near < far (metres), got near {near_m}, far {far_m}")
     d = np.asarray(depth, np.float32)
     with np.errstate(invalid="ignore"):
@@ -94,12 +94,17 @@ class GeometryEstimate:
         ``"popup"``, ``"files"`` or ``"network"``.
     info : dict
         Method details (parameters, fitted values, timings, notes) for provenance.
+    confidence : (H, W) float32 or None
+        Per-pixel confidence in [0, 1] where the method gives one (the pop-up prior:
+        low on hidden contacts and far-limit placements, docs/geometry.md); NaN where
+        the depth is invalid.
     """
 
     depth: np.ndarray
     normals: np.ndarray
     method: str
     info: dict[str, Any] = field(default_factory=dict)
+    confidence: np.ndarray | None = None
 
     def apply(self, scene: Scene) -> Scene:
         """``scene`` with this estimate as its input depth/normals and a provenance entry."""
@@ -150,7 +155,10 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None,
     normals = est.normals
     if lim.dropped:
         normals = np.where(np.isfinite(depth)[..., None], normals, np.float32(np.nan)).astype(np.float32)
-    return GeometryEstimate(depth, normals, est.method, {**est.info, "depth_limits": lim.to_json()})
+    conf = est.confidence
+    if conf is not None and lim.dropped:
+        conf = np.where(np.isfinite(depth), conf, np.float32(np.nan)).astype(np.float32)
+    return GeometryEstimate(depth, normals, est.method, {**est.info, "depth_limits": lim.to_json()}, conf)
 
 
 def invalid_label_mask(labels: np.ndarray, invalid_ids: tuple[int, ...]) -> np.ndarray:

@@ -151,9 +151,25 @@ class PopupParams:
     hidden_setback : float
         Metres from the feet of what hides a facade's base (parked cars' street side, mostly)
         to the facade, assumed when neither side of the street shows a facade's foot.
+    walk_setback : float or None
+        Metres from the farthest feet of what hides a facade's base to the facade when most of
+        those feet stand on the sidewalk (crowds, shop fronts); ``None``: ``hidden_setback`` always.
     vanishing : str
         ``"auto"``: the street's vanishing column from the long receding contact lines (the
         principal point's column when fewer than two agree); ``"center"``: always ``cx``.
+    car_ids : tuple of int
+        labelIds placed after the facades on their own contact lines (``facades="contact"``), their
+        visible contacts replaced by the lower envelope over ``car_envelope`` x the width (wheels);
+        ``()`` keeps the earlier model for them.
+    crowns : str
+        ``"columns"`` (default): tree crowns resting on other segments get a depth per column
+        from what is below each column (docs/geometry.md, "Hidden contacts"); ``"segment"``:
+        one fronto-parallel depth per crown segment (the earlier prior).
+    crown_base : float
+        Metres above the ground of a crown's lower edge where no trunk is seen (street trees
+        clear pedestrians); a crown bottom seen against what is behind it is placed by it.
+    crown_radius : float
+        Metres from the far edge of a crown's underside (what ``crown_base`` places) to its front.
     """
 
     camera_height: float | None = None
@@ -174,7 +190,13 @@ class PopupParams:
     sidewalk_height: float = 0.12
     contact_tol: float = 1.5
     hidden_setback: float = 5.0
+    walk_setback: float | None = 1.0
     vanishing: str = "auto"
+    crowns: str = "columns"
+    car_ids: tuple[int, ...] = (26,)
+    car_envelope: float = 0.05
+    crown_base: float = 2.4
+    crown_radius: float = 2.5
 
     def __post_init__(self) -> None:
         if self.camera_height is not None and not (math.isfinite(self.camera_height) and self.camera_height > 0):
@@ -197,6 +219,12 @@ class PopupParams:
         if self.camera_height is not None and self.sidewalk_height >= self.camera_height:
             raise NpsimInputError(f"PopupParams.sidewalk_height ({self.sidewalk_height} m) must be below the "
                                   f"camera ({self.camera_height} m)")
+        if self.crowns not in ("columns", "segment"):
+            raise NpsimInputError(f"PopupParams.crowns must be 'columns' or 'segment', got {self.crowns!r}")
+        for name in ("crown_base", "crown_radius"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise NpsimInputError(f"PopupParams.{name} must be >= 0 metres, got {v}")
         if not (math.isfinite(self.contact_tol) and self.contact_tol > 0):
             raise NpsimInputError(f"PopupParams.contact_tol must be > 0 pixels, got {self.contact_tol}")
 
@@ -347,15 +375,23 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
 
     # --- facades on their contact line (piecewise planes per column), before everything else
     drawn = np.zeros(nseg + 1, dtype=bool)  # segments whose pixels already have their plane depth
+    fac_seen = np.zeros((H, W), dtype=np.int8)  # facade columns: 2 visible contact, 1 hidden foot
     fac_info: dict = {}
+    passes = []
     if p.facades == "contact" and nseg:
+        passes.append((p.contact_ids, 0.0, fac_info))
+        if p.car_ids:  # then cars, on their own lines: wheels, not the body's underside, touch the ground
+            fac_info["cars"] = {}
+            passes.append((p.car_ids, p.car_envelope, fac_info["cars"]))
+    for ids_, envelope, pinfo in passes:
         lut[:] = False
-        lut[list(p.contact_ids)] = True
-        is_contact = lut[seg_label]
+        lut[list(ids_)] = True
+        is_contact = lut[seg_label] & ~placed
         is_contact[0] = False
-        res = _place_facades(labels, seg, nseg, ground, invalid, is_contact, walk, intr, g, f, e, h, p, fac_info)
+        res = _place_facades(labels, seg, nseg, ground, invalid, is_contact, walk, intr, g, f, e, h, p, pinfo,
+                             envelope=envelope)
         if res is not None:
-            s_arr, u_arr, n_arr, c_arr, placed_ids = res
+            s_arr, u_arr, n_arr, c_arr, placed_ids, v_arr = res
             fidx = np.full(nseg + 1, -1, dtype=np.int64)
             fidx[placed_ids] = np.arange(placed_ids.size)
             tbl = np.full((placed_ids.size, W), -1, dtype=np.int64)
@@ -368,11 +404,12 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
                 z = np.where(nr < -1e-9, c_arr[j] / nr, p.max_depth)
             depth[pv, pu] = np.clip(z, p.min_depth, p.max_depth)
             normals[pv, pu] = n_arr[j]
+            fac_seen[pv, pu] = np.where(v_arr[j], 2, 1)
             placed[placed_ids] = True
             drawn[placed_ids] = True
             fitted[placed_ids] = True
             how[placed_ids] = 1
-            fac_info["on_contact_lines"] = int(placed_ids.size)
+            pinfo["on_contact_lines"] = int(placed_ids.size)
 
     # --- segments standing on the ground: mostly (any facing), or along a contact line long enough
     #     to give the facing by itself (a facade behind parked cars with a gap between them)
@@ -433,6 +470,17 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     depth[cur] = _plane_depth(rays, planes, seg, cur, p)
     normals[cur] = planes[seg[cur], :3]
 
+    # --- tree crowns resting on other segments: a depth per column from what is below it
+    crown_px = np.zeros((H, W), dtype=bool)
+    crown_kind = np.zeros((H, W), dtype=np.int8)
+    if p.crowns == "columns" and p.facades == "contact" and nseg:
+        crown_seg = np.isin(seg_label, p.thin_ids) & ~seg_fronto & ~seg_facade & (how == 2)
+        crown_seg[0] = False
+        if crown_seg.any():
+            crown_px, crown_kind = _place_crowns(seg, crown_seg, depth, ground, invalid, zc, hscale, intr, h,
+                                                 pitch, p)
+            normals[crown_px] = -f
+
     # --- whatever is still unplaced: nearest placed depth, fronto-parallel normal
     rest = vertical & ~placed[seg]
     known = np.isfinite(depth)
@@ -446,17 +494,35 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
             notes.append(f"no ground or placed segment: unplaced regions set to {p.fallback_depth} m")
         normals[rest] = -f
 
+    # --- confidence: how the pixel was placed, times the ground's depth resolution at its depth
+    conf_how = np.array([0.2, 0.8, 0.5])[how[seg]]  # unplaced (nearest fill), on the ground, on segments
+    conf_how = np.where(fac_seen == 2, 0.9, np.where(fac_seen == 1, 0.5, conf_how))
+    conf_how = np.where(crown_px, np.array([0.5, 0.7, 0.45, 0.35])[crown_kind], conf_how)
+    conf_how = np.where(rest, 0.2, np.where(ground, 1.0, conf_how))
+    with np.errstate(invalid="ignore"):
+        row_err = depth / (h * intr.fy)  # relative depth step of one image row at this depth (on the ground)
+        confidence = conf_how / (1.0 + row_err / 0.1)
+        at_limit = depth >= 0.999 * p.max_depth
+    confidence = np.where(at_limit, 0.05, confidence)
+    confidence[invalid] = np.nan
+    far_px = int(np.count_nonzero(at_limit & vertical))
+    if far_px:
+        notes.append(f"{far_px} non-ground pixels placed at the far limit ({p.max_depth:g} m): nothing in the "
+                     f"labels bounds them")
+
     seg_ids = np.arange(1, nseg + 1)
     info = {"params": asdict(p), "camera_height_m": h, "camera_pitch_rad": pitch,
             "horizon_row": float(intr.cy - intr.fy * math.tan(pitch)),
             "segments": int(nseg), "on_ground": int(np.sum(how[seg_ids] == 1)),
             "on_segments": int(np.sum(how[seg_ids] == 2)),
             "unplaced_pixels": int(rest.sum()), "line_fits": int(fitted[seg_ids].sum()), "rounds": int(rounds),
+            "far_limit_pixels": far_px, "crown_columns_pixels": int(crown_px.sum()),
+            "mean_confidence": round(float(np.nanmean(confidence)), 3) if np.isfinite(confidence).any() else None,
             "seconds": round(time.perf_counter() - t0, 4), **fac_info}
     if notes:
         info["notes"] = notes
     return GeometryEstimate(depth=depth.astype(np.float32), normals=normals.astype(np.float32), method="popup",
-                            info=info)
+                            info=info, confidence=confidence.astype(np.float32))
 
 
 def _fit_groups(seg_ids: np.ndarray, pts: np.ndarray, planes: np.ndarray, placed: np.ndarray, fitted: np.ndarray,
@@ -704,7 +770,8 @@ def _crossing(p: _Line, q: _Line) -> float | None:
     return float(x[0] / x[2])
 
 
-def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, intr, g, f, e, h, p, info):
+def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, intr, g, f, e, h, p, info,
+                   envelope: float = 0.0):
     """Per-(segment, column) vertical planes of the facade segments standing on their contact line.
 
     Returns ``(seg_ids, cols, normals (N, 3), offsets (N,))`` for every column of every facade
@@ -735,6 +802,15 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     rowidx = np.where(ground, np.arange(H)[:, None], H)
     next_ground = np.minimum.accumulate(rowidx[::-1], axis=0)[::-1]
     ng = next_ground[vbel, ku]
+    if envelope > 0:
+        # lower envelope of the visible contacts (a car's wheels; the body's underside is seen 0.3 m up,
+        # its contact row would be the ground behind it): running max of the rows per segment
+        win = max(3, int(round(envelope * W)) | 1)
+        segs_, st_ = np.unique(ks, return_index=True)
+        for i0, i1 in zip(st_, np.append(st_[1:], ks.size)):
+            vv = np.where(visible[i0:i1], vb[i0:i1], -1)
+            env = ndimage.maximum_filter1d(vv, size=win, mode="nearest")
+            vb[i0:i1] = np.where(visible[i0:i1], env, vb[i0:i1])
     lo = vb + 0.5
     hi = np.where(visible, lo, np.where(at_bottom | unknown | (ng >= H), np.inf, ng - 0.5))
     # Contact height: facades stand on the sidewalk when most visible contacts are sidewalk.
@@ -798,7 +874,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
 
     # --- snap pieces to the vanishing point where that fits (receding facades); keep free lines otherwise
     lines: dict[int, list[_Line]] = {}
-    side_X: dict[int, list[tuple[float, float]]] = {-1: [], 1: []}  # side -> [(offset m, sigma m)]
+    side_X: dict[int, list[tuple[float, float, int]]] = {-1: [], 1: []}  # side -> [(offset m, sigma m, columns)]
     for s_id, plist in pieces.items():
         out = []
         for uu, vv, s_, t_ in plist:
@@ -812,14 +888,15 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                 # no street line
                 r_vp = float(np.sqrt(np.mean((vv - (sv * uu + tv)) ** 2)))
                 r_level = float(np.sqrt(np.mean((vv - np.median(vv)) ** 2)))
-                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level:
+                # (a piece wholly beyond 60 m -- across a square -- is too coarse to tell: it stays free)
+                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level and vv.max() > v_near:
                     ln = make(_image_line(sv, tv), "vp", uu[0], uu[-1])
                     if ln is not None:
                         X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
                         # its precision: half a row at the nearest contact (+ 0.3 m of label noise)
                         j = int(np.argmax(vv))
                         dX = float(np.diff(lateral(uu[[j, j]], vv[[j, j]] + [0.0, 0.5]))[0])
-                        side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3)))
+                        side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3), uu.size))
                         ln.X = X
             if ln is None:
                 if uu.size < min_pts:
@@ -852,20 +929,30 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     feet_X = np.where(on_w, fa2 * d[1] - fb2 * d[0], fa * d[1] - fb * d[0])
     feet: dict[int, float] = {}
     evid: dict[int, tuple[float, float]] = {}
+    walk_feet: set[int] = set()
     for side in (-1, 1):
-        fx_ = feet_X[(np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)]
+        sel = (np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)
+        fx_ = feet_X[sel]
         if fx_.size >= 3:
             feet[side] = float(np.median(fx_))
-        ev = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
+            if p.walk_setback is not None and on_w[sel].mean() >= 0.5:
+                # hidden by people and things on the sidewalk: the facade stands just behind
+                # their feet, not behind parked cars
+                feet[side] = side * float(np.median(np.abs(fx_[on_w[sel]])))
+                walk_feet.add(side)
+        ev = [(x, sg) for x, sg, _ in side_X[side] if x * side > 0.3]
         if ev:
             evid[side] = (wmedian(*zip(*ev)), min(sg for _, sg in ev))
     side_line: dict[int, _Line] = {}
     setbacks = {}
     for side in (-1, 1):
-        cands = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
+        # (weighted by precision and length: a bus shelter's short foot does not outweigh the facade's)
+        cands = [(x, sg / math.sqrt(n / min_pts)) for x, sg, n in side_X[side] if x * side > 0.3]
         if side in feet:
             other = -side
-            if other in evid and evid[other][1] < 1.0 and other in feet:
+            if side in walk_feet:
+                setback = p.walk_setback
+            elif other in evid and evid[other][1] < 1.0 and other in feet and other not in walk_feet:
                 setback = float(np.clip(abs(evid[other][0]) - abs(feet[other]), 0.5, 15.0))
             else:
                 setback = p.hidden_setback
@@ -895,7 +982,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         return _Line(gm.image_line_of_plane(n3, -abs(Xs)), n3, -abs(Xs), "side")
 
     # --- contact row and line per column of every facade segment
-    out_s, out_u, out_n, out_c = [], [], [], []
+    out_s, out_u, out_n, out_c, out_v = [], [], [], [], []
     placed = []
     for s_id in segs:
         i0, i1 = starts[s_id], starts[s_id + 1]
@@ -1031,9 +1118,90 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         out_u.append(cols.astype(np.int64))
         out_n.append(nrm)
         out_c.append(c)
+        out_v.append(vis_s)
         placed.append(s_id)
     info["facade_lines"] = int(sum(len(v) for v in lines.values()))
     if not placed:
         return None
     return (np.concatenate(out_s), np.concatenate(out_u), np.concatenate(out_n), np.concatenate(out_c),
-            np.array(placed, dtype=np.int64))
+            np.array(placed, dtype=np.int64), np.concatenate(out_v))
+
+
+# --------------------------------------------------------------------------- crowns over hidden trunks
+def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, ground: np.ndarray,
+                  invalid: np.ndarray, zc: np.ndarray, hscale: np.ndarray, intr, h: float, pitch: float,
+                  p: PopupParams) -> tuple[np.ndarray, np.ndarray]:
+    """Depth per (segment, column) of tree crowns resting on other segments (docs/geometry.md, "Hidden contacts").
+
+    In each column the crown's lowest pixel says where it can stand: on visible ground below it, its
+    contact (a trunk); otherwise over what is below -- no farther than that (a crown above people on the
+    sidewalk stands over that sidewalk) and no farther than a lower edge ``crown_base`` metres up seen
+    at that row allows (minus ``crown_radius``, the underside's depth), whichever is nearer. A run of
+    columns whose lower edge stays level is one crown and takes the median of its columns; a segment
+    whose trunk shows anywhere keeps the depth the rounds gave it (at the trunk's contact). Writes
+    ``depth`` in place; returns the pixels written and, per pixel, where its column's depth came from:
+    1 a trunk contact, 2 what is below (an occluder), 3 the crown's lower edge.
+    """
+    H, W = seg.shape
+    px = crown_seg[seg]
+    seg_below = np.zeros_like(seg)
+    seg_below[:-1] = seg[1:]
+    bot = px & (seg_below != seg)
+    vs, us = np.nonzero(bot)
+    done = np.zeros((H, W), dtype=bool)
+    kind_px = np.zeros((H, W), dtype=np.int8)
+    if vs.size == 0:
+        return done, kind_px
+    key = seg[vs, us].astype(np.int64) * W + us
+    uniq, inv = np.unique(key, return_inverse=True)
+    vb = np.full(uniq.size, -1, dtype=np.int64)
+    np.maximum.at(vb, inv, vs)
+    ks, ku = uniq // W, (uniq % W).astype(np.int64)
+    vbel = np.minimum(vb + 1, H - 1)
+    at_bottom = vb >= H - 1
+    contact = at_bottom | ground[vbel, ku]
+    z_contact = zc[vb, ku] * hscale[vbel, ku]
+    d_below = np.where(~contact & ~invalid[vbel, ku], depth[vbel, ku], np.nan)
+    v_h = intr.cy - intr.fy * math.tan(pitch)
+    dv = v_h - (vb + 0.5)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_far = np.where((dv > 0.5) & (p.crown_base > h), (p.crown_base - h) * intr.fy / dv, np.nan)
+    z_h = z_far - p.crown_radius
+    z_h = np.where(z_h > p.min_depth, z_h, np.nan)
+    z = np.where(contact, z_contact, np.fmin(d_below, z_h))
+    src = np.where(contact, 1, np.where(np.isfinite(d_below) & ~(z_h < d_below), 2, 3))
+    # per segment: median over a window of columns (outliers: a pole or a far crown under a near one)
+    starts = np.searchsorted(ks, np.unique(ks))
+    stops = np.append(starts[1:], ks.size)
+    jump = max(2.0, 0.004 * W)
+    for i0, i1 in zip(starts, stops):
+        zz = z[i0:i1]
+        ok = np.isfinite(zz)
+        if not ok.any():
+            continue
+        if contact[i0:i1].any():
+            z[i0:i1] = np.nan  # a trunk shows: the segment keeps its depth at the trunk's contact
+            continue
+        # one crown per run of columns whose lower edge stays level (a jump = another crown)
+        br = np.nonzero((np.abs(np.diff(vb[i0:i1])) > jump) | (np.diff(ku[i0:i1]) > 1))[0] + 1
+        for a, b in zip(np.r_[0, br], np.r_[br, zz.size]):
+            zr = zz[a:b][ok[a:b]]
+            zz[a:b] = float(np.median(zr)) if zr.size else np.nan
+        ok = np.isfinite(zz)
+        if not ok.any():
+            continue
+        idx = np.nonzero(ok)[0]
+        near = idx[np.clip(np.searchsorted(idx, np.arange(zz.size)), 0, idx.size - 1)]
+        z[i0:i1] = zz[np.where(ok, np.arange(zz.size), near)]
+    ok = np.isfinite(z)
+    tbl = np.full(uniq.size, np.nan)
+    tbl[ok] = np.clip(z[ok], p.min_depth, p.max_depth)
+    pv, pu = np.nonzero(px)
+    j = np.searchsorted(uniq, seg[pv, pu].astype(np.int64) * W + pu)
+    j = np.minimum(j, uniq.size - 1)
+    hit = (uniq[j] == seg[pv, pu].astype(np.int64) * W + pu) & np.isfinite(tbl[j])
+    pv, pu, j = pv[hit], pu[hit], j[hit]
+    depth[pv, pu] = tbl[j]
+    done[pv, pu] = True
+    kind_px[pv, pu] = src[j]
+    return done, kind_px
