@@ -17,6 +17,15 @@ def log(cmd: str, msg: str) -> None:
     print(f"[npsim {cmd}] {msg}", file=sys.stderr, flush=True)
 
 
+def clean_leftovers(cmd: str, folder, depth: int = 0) -> None:
+    """Remove and report the staging folders a killed run left in the output ``folder``
+    (:func:`npsim_core.io.remove_stale_staging`)."""
+    from npsim_core.io import remove_stale_staging
+
+    for path, size in remove_stale_staging(folder, depth):
+        log(cmd, f"removed {path} ({size / 1e6:.1f} MB): the unfinished output of an interrupted run")
+
+
 def log_warnings(cmd: str, scene) -> None:
     """Log what loading ``scene`` noticed but did not refuse (:func:`npsim_core.scene.scene_warnings`)."""
     for w in scene.provenance.get("warnings", []):

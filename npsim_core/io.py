@@ -58,6 +58,55 @@ def atomic_path(path: PathLike, suffix: str | None = None) -> Iterator[Path]:
         raise
 
 
+def staging_prefix(name: str) -> str:
+    """Prefix of the staging folder an export of frame ``name`` writes into before it commits
+    (:mod:`npsim_core.chain.export`): ``.<name>.partial-<pid>-``, so a leftover can be told from a
+    staging folder in use (:func:`remove_stale_staging`)."""
+    return f".{name}.partial-{os.getpid()}-"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def remove_stale_staging(folder: PathLike, depth: int = 0) -> list[tuple[Path, int]]:
+    """Remove the export staging folders (``.*.partial-*``) a killed run left in ``folder`` (and its
+    sub-folders down to ``depth`` levels): those whose process (the pid in the name) is gone, and
+    those of older versions without a pid. Returns (path, bytes) of each removed folder, for the
+    caller to say so (issue #28: 1.5 GB left by a killed 'npsim mesh').
+
+    A staging folder of a live process on this machine is left alone; on a cluster whose nodes
+    share the folder a pid says nothing, so do not run two writers into one frame folder."""
+    import re
+    import shutil
+
+    folder = Path(folder)
+    out: list[tuple[Path, int]] = []
+    if not folder.is_dir():
+        return out
+    levels, current = [folder], [folder]
+    for _ in range(depth):
+        current = [p for lv in current for p in lv.iterdir() if p.is_dir() and not p.name.startswith(".")]
+        levels += current
+    for base in levels:
+        for p in base.glob(".*.partial-*"):
+            if not p.is_dir():
+                continue
+            m = re.search(r"\.partial-(\d+)-", p.name)
+            if m and _pid_alive(int(m.group(1))):
+                continue
+            size = sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+            shutil.rmtree(p, ignore_errors=True)
+            out.append((p, size))
+    return out
+
+
 def atomic_write_bytes(path: PathLike, data: bytes) -> None:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)

@@ -17,7 +17,7 @@ from .camera import Intrinsics, normals_from_depth
 from .metrics import depth_metrics, normal_metrics
 from .scene import Scene
 
-__all__ = ["SCORED_CLASSES", "Reference", "reference_of", "score_depth"]
+__all__ = ["SCORED_CLASSES", "Reference", "reference_of", "score_depth", "held_out"]
 
 #: Classes scored separately (Cityscapes labelIds).
 SCORED_CLASSES = {"road": 7, "sidewalk": 8, "building": 11, "vegetation": 21, "car": 26}
@@ -32,8 +32,24 @@ class Reference:
     kind: str
 
 
-def reference_of(scene: Scene, stereo_max_m: float = 80.0) -> Reference | None:
-    """Ground truth when the frame has it, else its stereo depth, else None."""
+def held_out(depth_source: str, provenance: dict, fraction: float) -> float:
+    """The fraction of the frame's stereo held out of its input depth: ``fraction`` when the chain
+    took the stereo (``depth_source`` 'stereo: ...'), a scene folder's depth's own record when
+    ``npsim estimate --method stereo`` made it (``provenance['geometry']``), else 0."""
+    if depth_source.startswith("stereo"):
+        return float(fraction)
+    geo = provenance.get("geometry") if isinstance(provenance, dict) else None
+    if depth_source.startswith("files") and isinstance(geo, dict) and geo.get("method") == "stereo":
+        return float(geo.get("holdout", 0.0) or 0.0)
+    return 0.0
+
+
+def reference_of(scene: Scene, stereo_max_m: float = 80.0, holdout: float = 0.0) -> Reference | None:
+    """Ground truth when the frame has it, else its stereo depth, else None.
+
+    ``holdout`` > 0: the input depth is this stereo with that fraction of its valid pixels held out
+    (:func:`npsim_core.geometry.stereo.holdout_mask`); the reference is those pixels alone, so the
+    score measures the chain, not the copy of its input (issue #28)."""
     if scene.depth_gt is not None:
         return Reference(scene.depth_gt, scene.normals_gt, "ground truth")
     if scene.depth_stereo is None:
@@ -48,7 +64,15 @@ def reference_of(scene: Scene, stereo_max_m: float = 80.0) -> Reference | None:
                       borderValue=0).astype(bool)
     normals = normals_from_depth(smoothed_depth(depth, max(1.0, scene.width / 1024)), scene.intrinsics)
     normals[~dense] = np.nan
-    return Reference(depth, normals, f"stereo (within {stereo_max_m:g} m)")
+    kind = f"stereo (within {stereo_max_m:g} m)"
+    if holdout:
+        from .geometry.stereo import holdout_mask
+
+        held = holdout_mask(scene, stereo_max_m, holdout)
+        depth = np.where(held, depth, np.float32(np.nan))
+        normals[~held] = np.nan
+        kind = f"stereo (within {stereo_max_m:g} m; the {100 * holdout:g} % of its pixels held out of the input)"
+    return Reference(depth, normals, kind)
 
 
 def score_depth(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarray, ref: Reference) -> dict:

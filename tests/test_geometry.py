@@ -261,7 +261,7 @@ def test_flat_facades_reproduce_the_earlier_prior():
     from npsim_core.synthetic import street_scene
 
     s = street_scene(256, 128)
-    est = estimate_geometry(s, "popup", FLAT)
+    est = estimate_geometry(s, "popup", FLAT, limits=(0.0, np.inf))  # as then: no depth limits (issue #28)
     # Measured with the prior before the contact-line model (commit 79dd0fd's popup.py) on the same
     # scene (street version 7, whose post-top lanterns changed the poles): AbsRel 0.1679, normals 36.18 deg.
     assert depth_metrics(est.depth, s.depth_gt).abs_rel == pytest.approx(0.1679, abs=0.003)
@@ -380,7 +380,8 @@ def test_files_estimator_reads_depth_and_derives_normals(tmp_path):
     est4 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "filled.npy"))
     assert np.isnan(est4.depth[s.labels == SKY]).all()
     est5 = estimate_geometry(s, "files", FilesParams(depth_path=tmp_path / "filled.npy", mask_invalid_labels=False))
-    assert (est5.depth[s.labels == SKY] == 1000.0).all()
+    assert np.isnan(est5.depth[s.labels == SKY]).all()  # beyond the far limit (300 m): invalid, and counted
+    assert est5.info["depth_limits"]["dropped_far"] == int((s.labels == SKY).sum())
 
 
 def test_files_estimator_rejects_bad_files(tmp_path):

@@ -201,3 +201,123 @@ def test_report_verifies_each_frame_and_says_what_lit_it(street, tmp_path, capsy
     page = (out / "report.html").read_text()
     assert "1 done (files and checksums verified), 2 missing, 1 corrupt" in page
     assert "proposals (" in page and "lit by the ego headlights and the sky only" not in page
+
+
+# 8 ------------------------------------------------------------------------------------------------------
+def test_a_stereo_input_is_scored_on_held_out_pixels_only(cityscapes_layout, tmp_path, capsys):
+    """'AbsRel 0.000 -> 0.027' compared the result with its own input when the input was the stereo."""
+    from npsim_core.chain import frame_errors, iter_frames
+    from npsim_core.geometry.stereo import holdout_mask, stereo_valid
+
+    root, _ = cityscapes_layout(frames=1, size=(128, 64), corrupt=0)
+    frame = iter_frames(root)[0].load()
+    params = ChainParams().with_value("refine", "steps", 3).with_value("depth", "stereo_surfaces", False)
+    chain = Chain(frame)
+    res = chain.compute(params, until="refine")
+    held = holdout_mask(frame, 80.0)
+    valid = stereo_valid(frame, 80.0)
+    assert abs(held.sum() - 0.1 * valid.sum()) <= 1 and np.array_equal(held, holdout_mask(frame, 80.0))
+    # none of the held-out stereo reached the input: there it is the prior's fill, not the stereo
+    assert not np.any(np.isclose(res.depth_in[held], frame.depth_stereo[held], rtol=1e-6))
+    assert "held out of the input" in res.depth_source
+    err = frame_errors(chain, res, 80.0, 0.1)
+    assert "held out of the input" in err["reference"]
+    assert err["input"]["pixels"] == int(held.sum())
+    assert err["input"]["abs_rel"] > 0.001  # the input is no copy of its reference any more
+    out = tmp_path / "out"
+    assert main(["run", str(next(root.rglob("*_leftImg8bit.png"))), "-o", str(out), "--nights", "0"] + FAST) == 0
+    assert "held out of the input" in capsys.readouterr().err
+    man = json.loads(next(out.glob("*_export.json")).read_text())
+    assert "held out of the input" in man["errors"]["reference"] and "held out" in man["depth_source"]
+
+
+# 10 -----------------------------------------------------------------------------------------------------
+def test_the_default_refinement_keeps_an_exact_input_depth():
+    """Fed the synthetic street's exact depth, the default refinement took AbsRel from 0 to 0.0053 and
+    the normal RMSE from 12.1 to 21.8 degrees."""
+    from npsim_core.chain import frame_errors
+
+    s = street_scene(128, 64)
+    exact = s.with_(depth=s.depth_gt, normals=None)  # as 'npsim estimate --method files --depth depth_gt.npy'
+    chain = Chain(exact)
+    res = chain.compute(ChainParams(), until="refine")
+    e = frame_errors(chain, res)
+    assert res.refine.kept_input and "kept the input depth" in res.refine.message
+    assert e["refined"]["abs_rel"] == 0.0
+    assert e["refined"]["normal_rmse_deg"] == pytest.approx(e["input"]["normal_rmse_deg"], abs=1e-6)
+    off = Chain(exact).compute(ChainParams().with_value("refine", "keep_input", False), until="refine")
+    assert not off.refine.kept_input and frame_errors(Chain(exact), off)["refined"]["abs_rel"] > 1e-3
+    pred = Chain(s).compute(ChainParams(), until="refine")  # a noisy prediction is still refined
+    assert not pred.refine.kept_input
+
+
+# 4 ------------------------------------------------------------------------------------------------------
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(x) for x in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] not in ("Z", "X")
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads worker pids from Linux /proc")
+def test_sigterm_to_batch_ends_its_workers_and_leaves_no_half_frame(street, tmp_path):
+    """Workers kept running after the parent exited; a killed export left its staging folder."""
+    import signal
+    import time
+
+    from npsim_core.chain import verify_frame
+
+    root = tmp_path / "ds"
+    for k in range(4):
+        save_scene(street, root / f"f{k}")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "npsim_cli", "batch", str(root), "-o", str(out), "--workers", "2", "--nights", "2",
+           "--spp", "4"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    workers: set[int] = set()
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 90 and proc.poll() is None:  # until a worker is inside an export
+        workers |= set(_children(proc.pid))
+        if list(out.glob("*/.*.partial-*")):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.stderr.read()[-2000:]
+    workers |= set(_children(proc.pid))
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130, err[-2000:]
+    assert "worker processes stopped" in err and "Traceback" not in err
+    time.sleep(0.5)
+    assert workers and not [p for p in workers if _alive(p)]
+    assert not list(out.rglob(".*.partial-*"))  # no staging folder left behind
+    for frame in out.iterdir():
+        if frame.is_dir():
+            assert verify_frame(frame) is None or not any(frame.iterdir())  # whole or nothing
+
+
+def test_leftover_staging_folders_are_removed_by_the_next_run_and_said(scene_dir, tmp_path, capsys):
+    out = tmp_path / "m"
+    junk = out / ".street.partial-999999999-abc"  # a pid that cannot be alive
+    junk.mkdir(parents=True)
+    (junk / "street_mesh.ply").write_bytes(b"x" * 1000)
+    old = out / ".street.partial-xyz"  # an older version's name, without a pid
+    old.mkdir()
+    live = out / f".street.partial-{__import__('os').getpid()}-abc"  # in use by a live process: kept
+    live.mkdir()
+    assert main(["mesh", str(scene_dir), "-o", str(out), "--format", "ply", "--set", "refine.steps=2"]) == 0
+    err = capsys.readouterr().err
+    assert f"removed {junk}" in err and "interrupted run" in err and f"removed {old}" in err
+    assert not junk.exists() and not old.exists() and live.exists()
+    live.rmdir()
+    frame = tmp_path / "b" / "street"
+    (frame / ".street.partial-999999999-x").mkdir(parents=True)
+    assert main(["batch", str(scene_dir.parent), "-o", str(tmp_path / "b"), "--nights", "0", "--workers", "1"]
+                + FAST) == 0
+    assert "removed" in capsys.readouterr().err and not (frame / ".street.partial-999999999-x").exists()

@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
     lim = DepthLimits(**est.info["depth_limits"])
     if lim.dropped:
         print(f"  {lim.sentence()}")
-    ref = reference_of(scene)
+    # Scored against the stereo itself only on the pixels held out of it (issue #28).
+    ref = reference_of(scene, holdout=float(est.info.get("holdout", 0.0)) if args.method == "stereo" else 0.0)
     if ref is not None:
         sc = score_depth(est.depth, scene.intrinsics, scene.labels, ref)
         cls = ", ".join(f"{k} {v:.3f}" for k, v in sc["classes"].items() if v == v)

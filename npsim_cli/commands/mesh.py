@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..options import add_param_options, log, log_warnings, params_from_args, stage_logger
+from ..options import add_param_options, clean_leftovers, log, log_warnings, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     formats = tuple(f.strip().lower() for f in args.format.split(",") if f.strip())
     check_mesh_formats(formats)
     check_output_folder(args.out)
+    clean_leftovers("mesh", args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, with_ground_truth=False)
     chain = Chain(scene)
     log("mesh", f"{scene.name}: {scene.width}x{scene.height}")

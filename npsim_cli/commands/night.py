@@ -19,7 +19,7 @@ from pathlib import Path
 
 from npsim_core.errors import NpsimInputError
 
-from ..options import add_param_options, params_from_args
+from ..options import add_param_options, clean_leftovers, params_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         raise NpsimInputError(f"--variants must be >= 1, got {args.variants}")
     params = params_from_args(args)
     check_output_folder(args.out)
+    clean_leftovers("night", args.out)
     night = {"iso": args.iso, "exposure": args.exposure, "exposure_mode": args.exposure_mode, "motion_blur_px": args.motion_blur,
              "light_table": args.light_table, "variant": args.variant, "final_max_depth": args.max_depth}
     for name, value in night.items():

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from npsim_core.errors import NpsimInputError
 
-from ..options import add_param_options, log, log_warnings, params_from_args, stage_logger
+from ..options import add_param_options, clean_leftovers, log, log_warnings, params_from_args, stage_logger
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -109,7 +109,7 @@ def process_frame(scene, params: ChainParams, out: Path, nights: int, cmd: str, 
     kw = {"kinds": tuple(kinds)} if kinds else {}
     written = export_frame(chain, params, out, nights=nights, progress=progress, inputs=inputs, **kw)
     log(cmd, f"{scene.name}: total {time.perf_counter() - t0:.1f} s")
-    errors = frame_errors(chain, res, params.depth.stereo_max_m)
+    errors = frame_errors(chain, res, params.depth.stereo_max_m, params.depth.stereo_holdout)
     log(cmd, f"{scene.name}: {_summary(errors)}")
     if scores is not None and errors:
         scores.append(errors)
@@ -121,6 +121,7 @@ def run_one(args: argparse.Namespace) -> int:
 
     params = params_from_args(args)
     check_output_folder(args.out)
+    clean_leftovers("run", args.out)
     scene = load_frame(args.scene, hfov_deg=args.fov, trainids=args.trainids)
     written = process_frame(scene, params, Path(args.out), args.nights, "run", inputs={"scene": str(args.scene)})
     print(f"wrote {len(written)} files to {args.out}")
@@ -156,6 +157,7 @@ def run_batch(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise NpsimInputError(f"--workers must be >= 1, got {args.workers}")
     check_output_folder(args.out)
+    clean_leftovers("batch", args.out, depth=1)
     sources = iter_frames(args.dataset, trainids=args.trainids, hfov_deg=args.fov)
     if args.limit is not None:
         sources = sources[: args.limit]

@@ -114,8 +114,16 @@ def run_frame(src: FrameSource, params: ChainParams, out_root: str | Path, night
                             error=f"internal error {type(exc).__name__}: {exc} (please report it with this frame)")
 
 
+def _cancel_on_signal(signum, frame) -> None:
+    raise NpsimCancelled(f"worker stopped by signal {signum}")
+
+
 def _worker_init(threads: int) -> None:
-    """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all)."""
+    """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all); a
+    SIGTERM from the parent cancels the frame in flight, so its export removes its staging folder."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _cancel_on_signal)
     os.environ["OMP_NUM_THREADS"] = str(threads)
     try:
         import cv2
@@ -220,8 +228,9 @@ def run_batch(sources: list[FrameSource], params: ChainParams, out_root: str | P
         threads = max(1, (os.cpu_count() or 1) // workers)
         import multiprocessing
 
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_worker_init, initargs=(threads,)) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_worker_init, initargs=(threads,))
+        try:
             pending = {pool.submit(run_frame, src, params, out_root, nights, layout): src for src in todo}
             for src in todo:
                 log(f"{src.name}: queued")
@@ -233,8 +242,31 @@ def run_batch(sources: list[FrameSource], params: ChainParams, out_root: str | P
                         finished(fut.result())
                     except Exception as exc:  # noqa: BLE001 -- a worker that died takes only its frame
                         finished(FrameOutcome(src.name, "failed", error=f"worker died: {type(exc).__name__}: {exc}"))
+        except BaseException:  # SIGINT/SIGTERM (or any error) in the parent: the workers must not outlive it
+            stopped = stop_workers(pool)
+            log(f"interrupted: {stopped} worker process{'es' if stopped != 1 else ''} stopped; frames in flight "
+                "were not written (their staging folders are removed, at the latest by the next run)")
+            raise
+        pool.shutdown(wait=True)
     return BatchResult([outcomes[s.name] for s in sources if s.name in outcomes], time.perf_counter() - t0,
                        manifest_path)
+
+
+def stop_workers(pool: ProcessPoolExecutor, grace_s: float = 10.0) -> int:
+    """Cancel the queued frames and end ``pool``'s worker processes: SIGTERM (a worker cancels its
+    frame, its export removes its staging folder), SIGKILL after ``grace_s`` for one stuck in native
+    code. Returns how many were running. ProcessPoolExecutor has no public way to do this."""
+    procs = [p for p in (getattr(pool, "_processes", None) or {}).values() if p.is_alive()]
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        p.terminate()
+    deadline = time.monotonic() + grace_s
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(2.0)
+    return len(procs)
 
 
 def _run_ray(todo: Iterable[FrameSource], params: ChainParams, out_root: Path, nights: int, layout: str,

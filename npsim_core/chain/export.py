@@ -58,14 +58,18 @@ def versions() -> dict[str, str]:
     return out
 
 
-def frame_errors(chain: Chain, res: ChainResults, stereo_max_m: float | None = None) -> dict:
+def frame_errors(chain: Chain, res: ChainResults, stereo_max_m: float | None = None,
+                 stereo_holdout: float | None = None) -> dict:
     """Scores of the input and refined depth against the frame's reference (ground truth, else
-    stereo; :mod:`npsim_core.scoring`): ``{"reference", "input", "refined"}``; empty without one."""
-    from ..scoring import reference_of, score_depth
+    stereo; :mod:`npsim_core.scoring`): ``{"reference", "input", "refined"}``; empty without one.
+    When the input is the stereo, only its held-out pixels are scored (``depth.stereo_holdout``)."""
+    from ..scoring import held_out, reference_of, score_depth
 
     if stereo_max_m is None:
         stereo_max_m = ChainParams().depth.stereo_max_m
-    ref = reference_of(chain.scene, stereo_max_m)
+    if stereo_holdout is None:
+        stereo_holdout = ChainParams().depth.stereo_holdout
+    ref = reference_of(chain.scene, stereo_max_m, held_out(res.depth_source, chain.scene.provenance, stereo_holdout))
     if ref is None or res.depth_in is None:
         return {}
     labels = chain.scene.labels
@@ -186,7 +190,9 @@ def export_frame(chain: Chain, params: ChainParams, folder: str | Path, *, night
     if res.mesh.n_faces == 0 and ("mesh" in kinds or n_nights):
         raise NpsimInputError(f"{n}: the mesh has no faces (all sky, or no valid depth within "
                               f"{params.mesh.far_limit:g} m), so there is no mesh or night to write")
-    staging = Path(tempfile.mkdtemp(prefix=f".{n}.partial-", dir=folder))
+    from ..io import staging_prefix
+
+    staging = Path(tempfile.mkdtemp(prefix=staging_prefix(n), dir=folder))
     try:
         return _export_staged(chain, params, res, folder, staging, nights=n_nights, kinds=kinds,
                               mesh_formats=mesh_formats, cancel=cancel, step=step, progress=progress, inputs=inputs)
@@ -312,7 +318,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
                                                    "message": res.refine.message},
         "lights": _lights_info(chain.lights(params)),
-        "errors": frame_errors(chain, res, params.depth.stereo_max_m), "nights": nights_info, "kinds": list(kinds),
+        "errors": frame_errors(chain, res, params.depth.stereo_max_m, params.depth.stereo_holdout), "nights": nights_info, "kinds": list(kinds),
         "files": names, "checksums": {nm: file_checksum(staging / nm) for nm in names}, "versions": versions()}
     if cancel is not None and cancel.is_set():
         raise NpsimCancelled("export cancelled")

@@ -54,6 +54,10 @@ class DepthSource:
     checkpoint : a local depth-network checkpoint folder ('' = none; nothing is downloaded).
     stereo_max_m : stereo depth beyond this many metres counts as a hole (filled from the prior)
         and is not used for scoring.
+    stereo_holdout : fraction of the valid stereo pixels held out of the input when the stereo is
+        the input depth (a fixed seed picks them; filled like holes) -- the frame is then scored
+        against those pixels only, so the score measures the chain, not its copy of the input
+        (issue #28); 0 = none (the scores then compare the result with its own input).
     near_limit : metres; any input depth nearer than this is invalid (NaN), from every source, and
         the pixels dropped are counted in the log (the far limit is ``mesh.far_limit``).
     stereo_surfaces : stereo depth is replaced by robust per-segment surface fits where the labels
@@ -66,6 +70,7 @@ class DepthSource:
     stereo_max_m: float = 80.0
     stereo_surfaces: bool = True
     near_limit: float = 0.1
+    stereo_holdout: float = 0.1
 
     def __post_init__(self) -> None:
         if self.source not in DEPTH_SOURCES:
@@ -75,6 +80,8 @@ class DepthSource:
                                   "(CLI: --checkpoint DIR)")
         if not self.stereo_max_m > 0:
             raise NpsimInputError(f"depth.stereo_max_m must be > 0, got {self.stereo_max_m}")
+        if not 0 <= float(self.stereo_holdout) < 1:
+            raise NpsimInputError(f"depth.stereo_holdout must be a fraction in [0, 1), got {self.stereo_holdout}")
         if not (math.isfinite(float(self.near_limit)) and float(self.near_limit) >= 0):
             raise NpsimInputError(f"depth.near_limit must be a finite number of metres >= 0, got {self.near_limit}")
 

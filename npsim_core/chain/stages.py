@@ -138,12 +138,17 @@ def input_geometry(s: Scene, src) -> tuple[Scene, str]:
                                                                                "from it)"
         return s, "files: the frame's depth and normals"
     if kind == "stereo":
-        from ..geometry.stereo import StereoParams
+        from ..geometry.stereo import StereoParams, without_holdout
 
-        est = estimate_geometry(s, "stereo", StereoParams(max_depth=src.stereo_max_m))
+        # Held-out stereo pixels never reach the input (nor the surface fits): they score the chain.
+        s, n_held = without_holdout(s, src.stereo_max_m, src.stereo_holdout)
+        est = estimate_geometry(s, "stereo", StereoParams(max_depth=src.stereo_max_m, holdout=0.0))
         i = est.info
         note = (f"stereo: {100 * i['stereo_valid']:.1f} % of pixels within {src.stereo_max_m:g} m, "
                 f"{100 * i['filled_from_prior']:.1f} % filled from the pop-up prior x {i['prior_scale']:.3f}")
+        if n_held:
+            note += (f"; {100 * src.stereo_holdout:g} % of the valid stereo pixels ({n_held}) held out of the input "
+                     "(fixed seed) and scored on alone")
         out = est.apply(s)
         if getattr(src, "stereo_surfaces", False):
             out, fit = stereo_surfaces(s, out, src.stereo_max_m)
@@ -209,8 +214,9 @@ def refine_stage(inputs: dict, params, ctx):
             ctx.progress(step / max(total, 1), {"stage": "refine", "step": step, "of": total,
                                                 "history": {k: list(v) for k, v in hist.items()}})
 
+    # input_depth: a refinement that makes a good input worse keeps the input (issue #28).
     return refine_depth(inputs["filter"], s.normals, s.intrinsics, inputs["uncertain"], params,
-                        progress=on_step, cancel=ctx.cancel_flag)
+                        progress=on_step, cancel=ctx.cancel_flag, input_depth=s.depth)
 
 
 # --------------------------------------------------------------------------- lights
@@ -441,7 +447,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=4),
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
     Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
-    Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine),
+    Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine, version=2),
     Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
     Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),
           lambda p: (p.mesh, p.postprocess), needs=mesh_needs, version=4),

@@ -25,7 +25,13 @@ from ..scene import Scene
 from . import DEPTH_NEAR_M, GeometryEstimate, invalid_label_mask
 from .popup import PopupParams, estimate_popup
 
-__all__ = ["StereoParams", "estimate_stereo"]
+__all__ = ["StereoParams", "estimate_stereo", "holdout_mask", "without_holdout", "STEREO_HOLDOUT", "HOLDOUT_SEED"]
+
+#: Fraction of the valid stereo pixels held out of the input depth when the stereo *is* the input,
+#: and the seed that picks them: the chain is then scored on those pixels only, so the score
+#: measures the chain, not a copy of its input (issue #28; :func:`npsim_core.scoring.reference_of`).
+STEREO_HOLDOUT = 0.1
+HOLDOUT_SEED = 0
 
 #: labelIds never taken from stereo: unlabeled, ego vehicle, rectification border, out of ROI, sky.
 STEREO_EXCLUDED = (0, 1, 2, 3, 23)
@@ -37,14 +43,19 @@ class StereoParams:
     smooth_px : σ of the Gaussian that smooths the depth (per label) the stereo normals are taken
         from (0 = W/128 px, at least 2).
     agreement : the prior's normal is kept where its scaled depth is within this fraction of the stereo.
-    popup : parameters of the prior that fills the holes."""
+    popup : parameters of the prior that fills the holes.
+    holdout : fraction of the valid stereo pixels held out of the input (filled from the prior like
+        a hole) for scoring (:func:`holdout_mask`); 0 = none."""
 
     max_depth: float = 80.0
     smooth_px: float = 0.0
     agreement: float = 0.15
     popup: PopupParams = PopupParams()
+    holdout: float = STEREO_HOLDOUT
 
     def __post_init__(self) -> None:
+        if not 0 <= self.holdout < 1:
+            raise NpsimInputError(f"stereo: holdout must be a fraction in [0, 1), got {self.holdout}")
         if not (self.max_depth > 0 and self.smooth_px >= 0):
             raise NpsimInputError(f"stereo: max_depth must be > 0 and smooth_px >= 0, got {self.max_depth}, "
                                   f"{self.smooth_px}")
@@ -84,6 +95,28 @@ def stereo_valid(scene: Scene, max_depth: float, near: float = DEPTH_NEAR_M) -> 
     return ok & ~invalid_label_mask(scene.labels, STEREO_EXCLUDED)
 
 
+def holdout_mask(scene: Scene, max_depth: float, fraction: float = STEREO_HOLDOUT,
+                 seed: int = HOLDOUT_SEED) -> np.ndarray:
+    """A fixed random ``fraction`` of the valid stereo pixels (:func:`stereo_valid`), (H, W) bool: the
+    same pixels for the same frame, ``max_depth`` and seed, so the input and the scoring agree."""
+    ok = stereo_valid(scene, max_depth).ravel()
+    out = np.zeros(ok.size, bool)
+    idx = np.flatnonzero(ok)
+    k = int(round(fraction * idx.size))
+    if k:
+        out[np.random.default_rng(seed).choice(idx, size=k, replace=False)] = True
+    return out.reshape(scene.labels.shape)
+
+
+def without_holdout(scene: Scene, max_depth: float, fraction: float = STEREO_HOLDOUT) -> tuple[Scene, int]:
+    """``scene`` with its held-out stereo pixels (:func:`holdout_mask`) removed from ``depth_stereo``
+    (NaN, a hole like any other) and how many they are."""
+    if not fraction or scene.depth_stereo is None:
+        return scene, 0
+    held = holdout_mask(scene, max_depth, fraction)
+    return scene.with_(depth_stereo=np.where(held, np.float32(np.nan), scene.depth_stereo)), int(held.sum())
+
+
 def estimate_stereo(scene: Scene, params: StereoParams | None = None) -> GeometryEstimate:
     """Stereo depth with its holes filled from the scaled pop-up prior; normals as in the module doc."""
     p = params or StereoParams()
@@ -91,6 +124,7 @@ def estimate_stereo(scene: Scene, params: StereoParams | None = None) -> Geometr
         raise NpsimInputError(f"scene {scene.name!r} has no stereo depth (a Cityscapes disparity PNG with its "
                               "camera JSON); use another depth source (--depth prior|network|files)")
     t0 = time.perf_counter()
+    scene, n_held = without_holdout(scene, p.max_depth, p.holdout)
     ok = stereo_valid(scene, p.max_depth)
     if ok.mean() < 0.01:
         raise NpsimInputError(f"scene {scene.name!r}: its stereo depth has {100 * ok.mean():.2f} % usable pixels "
@@ -113,5 +147,6 @@ def estimate_stereo(scene: Scene, params: StereoParams | None = None) -> Geometr
     info = {"stereo_valid": round(float(ok.mean()), 4), "prior_scale": round(scale, 4),
             "filled_from_prior": round(float((~ok & np.isfinite(fused)).mean()), 4), "max_depth": p.max_depth,
             "prior_normals": round(float(use_prior.mean()), 4),
-            "smooth_px": round(sigma, 2), "time_s": round(time.perf_counter() - t0, 3)}
+            "smooth_px": round(sigma, 2), "time_s": round(time.perf_counter() - t0, 3),
+            "holdout": p.holdout, "held_out_pixels": n_held}
     return GeometryEstimate(fused, normals, "stereo", info)

@@ -97,6 +97,9 @@ class RefineResult:
         Iterate whose depth is returned.
     max_change_m : float
         max |refined − initial| over valid pixels (m).
+    kept_input : bool
+        The chain's unfiltered input depth was returned (``refine_depth(input_depth=...)``): it
+        agreed with the estimated normals at least as well as the refined depth.
     """
 
     depth: np.ndarray
@@ -108,6 +111,7 @@ class RefineResult:
     steps: int = 0
     best_step: int = 0
     max_change_m: float = 0.0
+    kept_input: bool = False
 
     @property
     def final_loss(self) -> float:
@@ -327,7 +331,8 @@ def _validate(depth, normals, intrinsics, uncertain):
 
 def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params: RefineParams | None = None, *,
                  anchor=None, progress: Callable[[int, int, dict], None] | None = None,
-                 cancel=None, on_iterate: Callable[[int, float, np.ndarray], None] | None = None) -> RefineResult:
+                 cancel=None, on_iterate: Callable[[int, float, np.ndarray], None] | None = None,
+                 input_depth=None) -> RefineResult:
     """Normal-guided depth refinement.
 
     Parameters
@@ -353,6 +358,11 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
         float32 HxW copy of its depth (placeholder 1 m at invalid pixels; the input's NaN are
         not restored). Its own run time is excluded from ``time_s``, the history and the
         ``max_time_s`` budget (for accuracy-against-time curves, e.g. benchmarks/refine.py).
+    input_depth : (H, W) real, optional
+        The chain's input depth before filtering. When its normals agree with ``normals`` at least
+        as well as the result's do (mean ‖n̂ − N‖² over the pixels valid in both), the refinement
+        -- filter included -- made a good input worse, and the input is returned instead
+        (:func:`keeps_input`; issue #28: exact depth went from 12° to 22° normal RMSE).
 
     Returns
     -------
@@ -405,7 +415,21 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
                     f"{NORMAL_DRIFT:g}x) although the loss fell; kept the input depth (lower the learning rate)")
         info = dict(info, diverged=True, best_step=0)
         out[valid] = d[valid]
+    kept_input = False
     change = float(np.max(np.abs(out[valid].astype(np.float64) - d[valid]))) if valid.any() else 0.0
+    if input_depth is not None and params.keep_input and valid.any():
+        d_in = as_depth(input_depth, "input_depth")
+        if d_in.shape != d.shape:
+            raise NpsimInputError(f"input_depth has shape {d_in.shape}, depth {d.shape}; pass matching arrays")
+        e_in, e_out = keeps_input(d_in, out, n, intrinsics)
+        if e_in <= e_out:
+            msgs.append(f"kept the input depth: its normals already agree with the estimated normals ({e_in:.4g}) "
+                        f"at least as well as the filtered and refined depth's ({e_out:.4g})")
+            out = np.where(valid_depth_mask(d_in), d_in, np.float32(np.nan)).astype(np.float32)
+            info = dict(info, best_step=0)
+            kept_input = True
+            moved = np.abs(out[valid].astype(np.float64) - d[valid])
+            change = float(moved[np.isfinite(moved)].max()) if np.isfinite(moved).any() else 0.0
     if prob.n_flipped:
         msgs.append(f"{prob.n_flipped} normals faced away from the camera and were flipped")
     if bad.any():
@@ -415,7 +439,27 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
                         timings={"setup_s": t_setup - t_start, "optimize_s": t_end - t_setup,
                                  "total_s": t_end - t_start},
                         converged=info["converged"], diverged=info["diverged"], message="; ".join(msgs),
-                        steps=info["steps"], best_step=info["best_step"], max_change_m=change)
+                        steps=info["steps"], best_step=info["best_step"], max_change_m=change, kept_input=kept_input)
+
+
+def keeps_input(input_depth: np.ndarray, result: np.ndarray, normals: np.ndarray,
+                intrinsics: Intrinsics) -> tuple[float, float]:
+    """Mean ‖n̂ − N‖² of ``input_depth``'s and of ``result``'s normals n̂ against ``normals`` N, over
+    the pixels where both depths' normals and N are valid (N renormalised, flipped toward the
+    camera as in the loss). The refinement keeps the input when the first is not larger."""
+    from ..camera import normals_from_depth
+
+    N = np.asarray(normals, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        N = N / np.linalg.norm(N, axis=-1, keepdims=True)
+        flip = (N * intrinsics.pixel_rays(np.float64)).sum(-1) > 0
+    N = np.where(flip[..., None], -N, N)
+    a = normals_from_depth(input_depth, intrinsics).astype(np.float64)
+    b = normals_from_depth(result, intrinsics).astype(np.float64)
+    ok = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & np.isfinite(N).all(-1)
+    if not ok.any():
+        return math.inf, math.inf
+    return float(((a[ok] - N[ok]) ** 2).sum(-1).mean()), float(((b[ok] - N[ok]) ** 2).sum(-1).mean())
 
 
 #: A refinement whose normal term (disagreement with the estimated normals) ends above this
