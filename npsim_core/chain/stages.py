@@ -93,9 +93,11 @@ class MaterialsResult:
 def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     """Intrinsics (FOV override) and input depth/normals: the frame's, else the pop-up prior.
 
-    Depths beyond the far limit (``mesh.far_limit``, metres), non-positive or non-finite are
-    invalid (NaN): a sky at 1e6 m would otherwise pull the filter and the refinement
-    everywhere. A frame without a single valid depth is an error.
+    Depths beyond the far limit (``mesh.far_limit``, metres), nearer than ``depth.near_limit``,
+    non-positive or non-finite are invalid (NaN): a sky at 1e6 m would otherwise pull the filter
+    and the refinement everywhere, 1e-30 m put vertices on the camera centre. The pixels dropped
+    are counted in the depth source sentence (issue #28). A frame without a single valid depth
+    is an error.
     """
     camera, far_limit, src = params
     s: Scene = inputs["frame"]
@@ -111,9 +113,10 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
         raise NpsimInputError(f"scene {s.name!r}: no valid depth within {far_limit:g} m (all sky, NaN, <= 0, "
                               f"nearer than {near:g} m (depth.near_limit) or beyond the far limit, mesh.far_limit); "
                               "there is nothing to reconstruct")
-    est = s.provenance.get("geometry", {}).get("depth_limits") if isinstance(s.provenance.get("geometry"), dict) else None
-    if est:  # what the estimator itself dropped
-        lim = lim + DepthLimits(est["near_m"], est["far_m"], est["dropped_near"], est["dropped_far"])
+    geo = s.provenance.get("geometry")
+    est = geo.get("depth_limits") if isinstance(geo, dict) else None
+    if est:  # what the estimator itself dropped (estimate_geometry applies the same limits)
+        lim = lim + DepthLimits(**est)
     if lim.dropped:
         source += f"; {lim.sentence()}"
         s = s.with_(depth=d, provenance=dict(s.provenance, depth_limits=lim.to_json()))
