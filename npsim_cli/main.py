@@ -28,6 +28,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Commands whose SIGTERM keeps its default action: a Qt event loop runs Python signal handlers
+#: only when Python code runs, so the window would seem to ignore it.
+GUI_COMMANDS = ("gui", "annotate", "start")
+
+
 def _terminate(signum, frame) -> None:
     """SIGTERM ends a command like Ctrl-C: ``finally`` blocks run (an export's staging folder is
     removed, a batch ends its workers), then exit 130 (issue #28)."""
@@ -38,21 +43,21 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import threading
 
-    main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
-    try:
-        return _main(argv)
-    finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, previous)
-
-
-def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    catch = args.command not in GUI_COMMANDS and threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if catch else None
+    try:
+        return _run(args)
+    finally:
+        if catch:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except NpsimInputError as exc:

@@ -135,6 +135,7 @@ def run_sample_headless(out: str, size: tuple[int, int]) -> int:
 
     scene = street_scene(*size)
     out_p = Path(out)
+    clean_leftovers("start", out_p)
     written = process_frame(scene, ChainParams(), out_p, 3, "start", inputs={"scene": "built-in sample"})
     print(f"npsim start: wrote {len(written)} files to {out_p.resolve()}")
     for p in written:
