@@ -12,8 +12,9 @@ Errors over all pixels with valid ground truth (sky excluded), docs/method.md §
 ``--variants``: the pop-up prior on the hard street layouts (docs/synthetic.md),
 AbsRel per class and per variant and seed (``--seeds 0,1,2``), the share of pixels
 placed at the far limit (``far``) and of those the ones with a visible ground contact
-below them (``far|contact``, should be 0), the mean confidence, and the prior's time
-(best of ``--repeat``). ``--priors flat,default``: rows for
+below them (``far|contact``, should be 0), the share of pixels the prior's confidence
+map puts below 0.5 and the AbsRel there and elsewhere, and the prior's time (best of
+``--repeat``). ``--priors flat,default``: rows for
 ``PopupParams(facades="flat", sidewalk_height=0)`` (the first prior) and the default.
 The scenes are the exact ground truth and labels of ``make_street_scene`` without the
 render (the prior reads only labels and camera).
@@ -93,6 +94,25 @@ def class_abs_rel(depth: np.ndarray, scene) -> dict[str, float]:
     return out
 
 
+def confidence_split(est, scene, threshold: float = 0.5) -> tuple[float, float, float]:
+    """Share of the pixels with ground truth whose confidence is below ``threshold``, and AbsRel below / at or above it.
+
+    NaN when the estimate has no confidence map.
+    """
+    from npsim_core.metrics import depth_metrics
+
+    conf = est.confidence
+    if conf is None:
+        return float("nan"), float("nan"), float("nan")
+    valid = np.isfinite(scene.depth_gt)
+    low = valid & (conf < threshold)
+    share = low.sum() / max(int(valid.sum()), 1)
+    a = depth_metrics(est.depth, scene.depth_gt, low).abs_rel if low.any() else float("nan")
+    high = valid & (conf >= threshold)
+    b = depth_metrics(est.depth, scene.depth_gt, high).abs_rel if high.any() else float("nan")
+    return float(share), float(a), float(b)
+
+
 def variants_table(sizes: list[tuple[int, int]], seeds: list[int], repeat: int, variants: list[str],
                    priors: list[str] = ("flat", "default")) -> list[dict]:
     """Print (and return) the pop-up prior's table on the street variants (see the module docstring)."""
@@ -102,8 +122,9 @@ def variants_table(sizes: list[tuple[int, int]], seeds: list[int], repeat: int, 
     print(f"pop-up prior on the street variants, seeds {','.join(map(str, seeds))}; load "
           f"{os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)")
     names = [n for n, _ in VARIANT_CLASSES] + ["all"]
-    print("| size | variant | seed | prior | " + " | ".join(names) + " | far | far\\|contact | conf | time s |")
-    print("|---|---|---|---|" + "---|" * len(names) + "---|---|---|---|")
+    print("| size | variant | seed | prior | " + " | ".join(names)
+          + " | far | far\\|contact | low conf share | AbsRel low | AbsRel high | time s |")
+    print("|---|---|---|---|" + "---|" * len(names) + "---|---|---|---|---|---|")
     for W, H in sizes:
         for variant in variants:
             for seed in seeds:
@@ -117,13 +138,14 @@ def variants_table(sizes: list[tuple[int, int]], seeds: list[int], repeat: int, 
                         times.append(time.perf_counter() - t0)
                     err = class_abs_rel(est.depth, scene)
                     far, far_contact = far_limit_shares(est.depth, scene, params.max_depth)
-                    conf = getattr(est, "confidence", None)
-                    mc = float(np.nanmean(conf[np.isfinite(scene.depth_gt)])) if conf is not None else float("nan")
+                    low_share, low, high = confidence_split(est, scene)
                     rows.append({"size": f"{W}x{H}", "variant": variant, "seed": seed, "prior": label, **err,
-                                 "far": far, "far_contact": far_contact, "confidence": mc, "seconds": min(times)})
+                                 "far": far, "far_contact": far_contact, "low_confidence_share": low_share,
+                                 "abs_rel_low": low, "abs_rel_high": high, "seconds": min(times)})
                     print(f"| {W}x{H} | {variant} | {seed} | {label} | "
                           + " | ".join(f"{err[n]:.3f}" for n in names)
-                          + f" | {far:.4f} | {far_contact:.4f} | {mc:.2f} | {min(times):.2f} |", flush=True)
+                          + f" | {far:.4f} | {far_contact:.4f} | {low_share:.2f} | {low:.3f} | {high:.3f} "
+                          f"| {min(times):.2f} |", flush=True)
     print(f"load after: {os.getloadavg()[0]:.2f}")
     return rows
 

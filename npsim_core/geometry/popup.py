@@ -154,6 +154,10 @@ class PopupParams:
     walk_setback : float or None
         Metres from the farthest feet of what hides a facade's base to the facade when most of
         those feet stand on the sidewalk (crowds, shop fronts); ``None``: ``hidden_setback`` always.
+    vp_max_distance : float or None
+        Metres: a contact piece wholly farther than this (buildings across a square or crossing)
+        is never snapped to the street's vanishing point nor gives a street line -- a level and a
+        receding line fit it alike at that range. ``None``: any distance (the earlier prior).
     vanishing : str
         ``"auto"``: the street's vanishing column from the long receding contact lines (the
         principal point's column when fewer than two agree); ``"center"``: always ``cx``.
@@ -191,6 +195,7 @@ class PopupParams:
     contact_tol: float = 1.5
     hidden_setback: float = 5.0
     walk_setback: float | None = 1.0
+    vp_max_distance: float | None = 60.0
     vanishing: str = "auto"
     crowns: str = "columns"
     car_ids: tuple[int, ...] = (26,)
@@ -367,6 +372,11 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     # below the segment; resting points filled in once the segment below is placed.
     support = np.full((H, W, 3), np.nan)
     zc = ground_plane_depth(intr, h, pitch, v_offset=0.5, max_depth=p.max_depth)
+    if p.facades == "contact":
+        # a contact within a row of the horizon is placed at the near end of its row's range, not at
+        # the far limit (the limit is a last resort)
+        zc = np.where(zc >= p.max_depth, ground_plane_depth(intr, h, pitch, v_offset=1.0, max_depth=p.max_depth),
+                      zc)
     zc = np.clip(zc, p.min_depth, p.max_depth)
     vs, us = np.nonzero(g_sup)
     zs = zc[vs, us] * hscale[np.minimum(vs + 1, H - 1), us] if p.sidewalk_height else zc[vs, us]
@@ -822,6 +832,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     gy = (hgt / p.max_depth - g[2]) / g[1]
     v_min = intr.cy + intr.fy * gy
     v_near = intr.cy + intr.fy * (hgt / 60.0 - g[2]) / g[1]
+    v_vp = intr.cy + intr.fy * (hgt / p.vp_max_distance - g[2]) / g[1] if p.vp_max_distance else -np.inf
     tol = max(1.0, p.contact_tol * W / 2048.0)
     min_pts = 3
 
@@ -888,8 +899,9 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                 # no street line
                 r_vp = float(np.sqrt(np.mean((vv - (sv * uu + tv)) ** 2)))
                 r_level = float(np.sqrt(np.mean((vv - np.median(vv)) ** 2)))
-                # (a piece wholly beyond 60 m -- across a square -- is too coarse to tell: it stays free)
-                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level and vv.max() > v_near:
+                # (a piece wholly beyond vp_max_distance -- across a square -- is too coarse to tell: it
+                # stays free and gives no street line)
+                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level and vv.max() > v_vp:
                     ln = make(_image_line(sv, tv), "vp", uu[0], uu[-1])
                     if ln is not None:
                         X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
@@ -1108,6 +1120,11 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         # hidden columns: the foot lies between the facade's lowest pixel and the ground below it
         row = np.where(vis_s, row, np.minimum(np.maximum(row, lo_s), hi_s))
         row = np.where(np.isfinite(row), row, lo_s)
+        # (a foot beyond the far limit: a visible contact at the near end of its row's range, a hidden one
+        # half way (in rows) between the limit and the ground below its occluder; the limit itself only
+        # as a last resort)
+        row = np.where(row < v_min, np.where(vis_s, np.maximum(row, lo_s + 0.5),
+                                             np.where(np.isfinite(hi_s), 0.5 * (v_min + hi_s), row)), row)
         row = np.maximum(row, v_min + 1e-3)
         P = gm.point(cols, row)
         nrm = np.stack([cand[w].n for w in which])
