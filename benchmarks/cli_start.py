@@ -1,6 +1,6 @@
 """Command-line start-up: wall time and peak memory of ``npsim --help`` and argument errors.
 
-Target (issue #28): ≤ 0.5 s and ≤ 120 MB each. The command line builds its parser from
+Target: ≤ 0.5 s and ≤ 120 MB each. The command line builds its parser from
 modules that import nothing heavy; torch, Mitsuba, Qt, Ray and OIDN are imported only by the
 commands that run them. Each case runs ``--repeat`` times as a fresh process (the median time
 and the largest peak RSS are printed, the latter from ``os.wait4``), with the load average.

@@ -35,7 +35,7 @@ GUI_COMMANDS = ("gui", "annotate", "start")
 
 def _terminate(signum, frame) -> None:
     """SIGTERM ends a command like Ctrl-C: ``finally`` blocks run (an export's staging folder is
-    removed, a batch ends its workers), then exit 130 (issue #28)."""
+    removed, a batch ends its workers), then exit 130."""
     raise KeyboardInterrupt(f"signal {signum}")
 
 

@@ -148,7 +148,7 @@ def params_from_args(args: argparse.Namespace) -> "ChainParams":  # noqa: F821 (
 def warn_unread(cmd: str, params, touched: list[tuple[str, str, str]]) -> list[str]:
     """Log a warning for every field set (``touched``: section, field, where) that the chosen
     optimiser, denoiser, source or mode does not read (:func:`npsim_core.chain.params.unread_fields`);
-    returns the warnings. Nothing set is ever silently ignored (issue #28)."""
+    returns the warnings. Nothing set is ever silently ignored."""
     from npsim_core.chain.params import unread_fields
 
     unread = unread_fields(params)

@@ -79,7 +79,7 @@ def remove_stale_staging(folder: PathLike, depth: int = 0) -> list[tuple[Path, i
     """Remove the export staging folders (``.*.partial-*``) a killed run left in ``folder`` (and its
     sub-folders down to ``depth`` levels): those whose process (the pid in the name) is gone, and
     those of older versions without a pid. Returns (path, bytes) of each removed folder, for the
-    caller to say so (issue #28: 1.5 GB left by a killed 'npsim mesh').
+    caller to say so (1.5 GB were left by a killed 'npsim mesh').
 
     A staging folder of a live process on this machine is left alone; on a cluster whose nodes
     share the folder a pid says nothing, so do not run two writers into one frame folder."""
@@ -176,7 +176,7 @@ def _damage(data: bytes) -> str | None:
     """Why the bytes of a PNG or JPEG cannot be a whole image (truncated, a chunk's CRC wrong), or None.
 
     Checked before decoding, so the program names the file itself instead of libpng/libjpeg printing
-    "libpng error: Read Error" on stderr (or OpenCV returning a half-decoded JPEG; issue #28)."""
+    "libpng error: Read Error" on stderr (or OpenCV returning a half-decoded JPEG)."""
     if data.startswith(_PNG_SIGNATURE):
         pos, n = 8, len(data)
         while pos + 12 <= n:

@@ -255,7 +255,7 @@ def load_scene(folder: str | Path, *, with_ground_truth: bool = True) -> Scene:
         if attr.endswith("_gt") and not with_ground_truth:
             continue
         p = folder / files.get(attr, fname)
-        if attr in files and not p.exists():  # named, yet gone: the fallback must be said (issue #28)
+        if attr in files and not p.exists():  # named, yet gone: the fallback must be said
             warnings.append(f"{meta_path} names {files[attr]}, which is missing: {MISSING_FALLBACK[attr]}")
         if p.exists():
             if attr.startswith("depth") or attr == "roughness":

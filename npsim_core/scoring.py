@@ -49,7 +49,7 @@ def reference_of(scene: Scene, stereo_max_m: float = 80.0, holdout: float = 0.0)
 
     ``holdout`` > 0: the input depth is this stereo with that fraction of its valid pixels held out
     (:func:`npsim_core.geometry.stereo.holdout_mask`); the reference is those pixels alone, so the
-    score measures the chain, not the copy of its input (issue #28)."""
+    score measures the chain, not the copy of its input."""
     if scene.depth_gt is not None:
         return Reference(scene.depth_gt, scene.normals_gt, "ground truth")
     if scene.depth_stereo is None:

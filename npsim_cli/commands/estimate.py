@@ -53,7 +53,7 @@ REPLACED = ("depth_pred.npy", "normals_pred.npy", "scene.json")
 def keep_previous(folder: Path) -> list[tuple[str, str]]:
     """Copy the prediction files an estimate is about to replace in ``folder`` to the first free
     ``depth_pred.prev.npy``, ``depth_pred.prev2.npy``, ... (likewise the normals and scene.json), so
-    a user's earlier prediction is never lost (issue #28). Returns (old, kept) names."""
+    a user's earlier prediction is never lost. Returns (old, kept) names."""
     import shutil
 
     kept = []
@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     lim = DepthLimits(**est.info["depth_limits"])
     if lim.dropped:
         print(f"  {lim.sentence()}")
-    # Scored against the stereo itself only on the pixels held out of it (issue #28).
+    # Scored against the stereo itself only on the pixels held out of it.
     ref = reference_of(scene, holdout=float(est.info.get("holdout", 0.0)) if args.method == "stereo" else 0.0)
     if ref is not None:
         sc = score_depth(est.depth, scene.intrinsics, scene.labels, ref)

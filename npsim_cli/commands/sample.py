@@ -20,7 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, help="output scene folder (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="layout / prediction-error seed (default 0)")
     # The variants are checked in run(): importing npsim_core.synthetic here cost every command's
-    # start 0.15 s and numpy + OpenCV (issue #28, benchmarks/cli_start.py).
+    # start 0.15 s and numpy + OpenCV (benchmarks/cli_start.py).
     p.add_argument("--variant", default="default",
                    help="street variant (docs/synthetic.md; default: default; an unknown name lists them)")
     p.add_argument("--spp", type=int, default=None, help="Mitsuba samples per pixel (default: 16 up to 512x256 "

@@ -11,7 +11,7 @@
 from importlib import import_module
 
 #: Public names and their modules, imported on first use (PEP 562): the command line imports
-#: ``.params`` to build its parser and must not pay for the stages' imports (issue #28).
+#: ``.params`` to build its parser and must not pay for the stages' imports.
 _EXPORTS = {"Chain": "chain", "ChainResults": "chain", "NightFrame": "chain", "DEPTH_STAGES": "chain",
             "EXPORT_KINDS": "export", "check_output_folder": "export", "export_frame": "export",
             "frame_errors": "export", "verify_frame": "export", "ChainParams": "params", "CameraSetup": "params",

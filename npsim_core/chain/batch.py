@@ -92,8 +92,10 @@ def run_frame(src: FrameSource, params: ChainParams, out_root: str | Path, night
     from .chain import Chain
     from .export import export_frame
 
+    global _IN_FRAME
     t0 = time.perf_counter()
     folder = Path(out_root) / src.name
+    _IN_FRAME = True
     try:
         scene = src.load()
         chain = Chain(scene)
@@ -108,22 +110,38 @@ def run_frame(src: FrameSource, params: ChainParams, out_root: str | Path, night
     except (NpsimInputError, OSError) as exc:
         return FrameOutcome(src.name, "failed", time.perf_counter() - t0, error=str(exc))
     except NpsimCancelled:
+        if _STOPPING:  # a worker told to stop: its export cleaned up; end without taking another frame
+            os._exit(130)
         raise
     except Exception as exc:  # noqa: BLE001 -- an unforeseen failure is that frame's, not the batch's
         return FrameOutcome(src.name, "failed", time.perf_counter() - t0,
                             error=f"internal error {type(exc).__name__}: {exc} (please report it with this frame)")
+    finally:
+        _IN_FRAME = False
 
 
-def _cancel_on_signal(signum, frame) -> None:
-    raise NpsimCancelled(f"worker stopped by signal {signum}")
+#: In a worker process: a frame is being computed (its export must be cancelled, not killed), and
+#: the parent asked the worker to stop.
+_IN_FRAME = False
+_STOPPING = False
+
+
+def _stop_worker(signum, frame) -> None:
+    """A worker's SIGTERM: cancel the frame in flight (its export's ``finally`` removes the staging
+    folder; :func:`run_frame` then ends the process), or end at once when idle -- quietly either way."""
+    global _STOPPING
+    _STOPPING = True
+    if _IN_FRAME:
+        raise NpsimCancelled(f"worker stopped by signal {signum}")
+    os._exit(128 + signum)
 
 
 def _worker_init(threads: int) -> None:
-    """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all); a
-    SIGTERM from the parent cancels the frame in flight, so its export removes its staging folder."""
+    """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all); then
+    a SIGTERM from the parent stops the worker cleanly (:func:`_stop_worker`; before that its
+    default action ends it, with nothing written yet)."""
     import signal
 
-    signal.signal(signal.SIGTERM, _cancel_on_signal)
     os.environ["OMP_NUM_THREADS"] = str(threads)
     try:
         import cv2
@@ -140,6 +158,7 @@ def _worker_init(threads: int) -> None:
         drjit.set_thread_count(threads)
     except (ImportError, AttributeError):  # older Dr.Jit: keeps its default
         pass
+    signal.signal(signal.SIGTERM, _stop_worker)
 
 
 def _same_run(manifest: Path, params: ChainParams, nights: int) -> bool:

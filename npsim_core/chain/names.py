@@ -1,5 +1,5 @@
 """The chain's named choices, importable without numpy (the command line's parser is built from
-them; ``npsim --help`` must start in well under a second, issue #28). :mod:`.params` uses them."""
+them; ``npsim --help`` must start in well under a second). :mod:`.params` uses them."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ class DepthSource:
     stereo_holdout : fraction of the valid stereo pixels held out of the input when the stereo is
         the input depth (a fixed seed picks them; filled like holes) -- the frame is then scored
         against those pixels only, so the score measures the chain, not its copy of the input
-        (issue #28); 0 = none (the scores then compare the result with its own input).
+       ; 0 = none (the scores then compare the result with its own input).
     near_limit : metres; any input depth nearer than this is invalid (NaN), from every source, and
         the pixels dropped are counted in the log (the far limit is ``mesh.far_limit``).
     stereo_surfaces : stereo depth is replaced by robust per-segment surface fits where the labels
@@ -416,7 +416,7 @@ DENOISER_FIELDS: dict[str, tuple[str, ...]] = {
 
 def unread_fields(params: ChainParams) -> dict[tuple[str, str], str]:
     """The fields the chosen optimiser, denoiser, source or mode of ``params`` does not read:
-    (section, field) -> a sentence naming what reads it and the choice that would (issue #28: a
+    (section, field) -> a sentence naming what reads it and the choice that would (a
     ``--set refine.lr=10`` with the default Gauss-Newton solver changed nothing and said nothing)."""
     out: dict[tuple[str, str], str] = {}
     opt = params.refine.optimizer

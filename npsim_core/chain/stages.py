@@ -96,7 +96,7 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     Depths beyond the far limit (``mesh.far_limit``, metres), nearer than ``depth.near_limit``,
     non-positive or non-finite are invalid (NaN): a sky at 1e6 m would otherwise pull the filter
     and the refinement everywhere, 1e-30 m put vertices on the camera centre. The pixels dropped
-    are counted in the depth source sentence (issue #28). A frame without a single valid depth
+    are counted in the depth source sentence. A frame without a single valid depth
     is an error.
     """
     camera, far_limit, src = params
@@ -108,7 +108,7 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     from ..geometry import DepthLimits, limit_depth
 
     near = min(float(src.near_limit), far_limit / 2)
-    d, lim = limit_depth(s.depth, near, far_limit)  # issue #28: every source, the pixels dropped counted
+    d, lim = limit_depth(s.depth, near, far_limit)  # every source, the pixels dropped counted
     if not np.isfinite(d).any():
         raise NpsimInputError(f"scene {s.name!r}: no valid depth within {far_limit:g} m (all sky, NaN, <= 0, "
                               f"nearer than {near:g} m (depth.near_limit) or beyond the far limit, mesh.far_limit); "
@@ -217,7 +217,7 @@ def refine_stage(inputs: dict, params, ctx):
             ctx.progress(step / max(total, 1), {"stage": "refine", "step": step, "of": total,
                                                 "history": {k: list(v) for k, v in hist.items()}})
 
-    # input_depth: a refinement that makes a good input worse keeps the input (issue #28).
+    # input_depth: a refinement that makes a good input worse keeps the input.
     return refine_depth(inputs["filter"], s.normals, s.intrinsics, inputs["uncertain"], params,
                         progress=on_step, cancel=ctx.cancel_flag, input_depth=s.depth)
 
@@ -353,11 +353,11 @@ def materials_stage(inputs: dict, params, ctx) -> MaterialsResult:
     light_cls = ann.class_map() if ann is not None else np.zeros(s.labels.shape, np.uint8)
     # De-lit textures (night.delight): the day's light divided out with the reconstructed normals.
     geo = inputs.get("geometry")
-    normals = geo.scene.normals if (params and geo is not None and s.albedo is None) else None
+    normals = geo.scene.normals if (geo is not None and s.albedo is None) else None
     mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness, light_classes=light_cls,
                               normals=normals, pitch=float(s.camera_pitch or 0.0), instances=s.instances,
                               depth=geo.scene.depth if normals is not None else None,
-                              intrinsics=geo.scene.intrinsics)
+                              intrinsics=geo.scene.intrinsics, delight=bool(params))
     return MaterialsResult(mats, light_cls)
 
 

@@ -23,7 +23,7 @@ from ..scene import Scene
 
 METHODS = ("popup", "files", "network", "stereo")
 
-#: Depth limits applied to every depth that enters the program, from every source (issue #28):
+#: Depth limits applied to every depth that enters the program, from every source:
 #: nearer than ``DEPTH_NEAR_M`` (a camera sees nothing 10 cm in front of its lens; 1e-30 m built
 #: vertices on the camera centre) or beyond ``DEPTH_FAR_M`` (``mesh.far_limit``'s default: a sky
 #: at 1e30 m scored AbsRel 6e27) is invalid (NaN), and the count is reported.

@@ -29,7 +29,7 @@ __all__ = ["StereoParams", "estimate_stereo", "holdout_mask", "without_holdout",
 
 #: Fraction of the valid stereo pixels held out of the input depth when the stereo *is* the input,
 #: and the seed that picks them: the chain is then scored on those pixels only, so the score
-#: measures the chain, not a copy of its input (issue #28; :func:`npsim_core.scoring.reference_of`).
+#: measures the chain, not a copy of its input (:func:`npsim_core.scoring.reference_of`).
 STEREO_HOLDOUT = 0.1
 HOLDOUT_SEED = 0
 
@@ -88,7 +88,7 @@ def segment_normals(depth: np.ndarray, labels: np.ndarray, intrinsics, sigma: fl
 
 def stereo_valid(scene: Scene, max_depth: float, near: float = DEPTH_NEAR_M) -> np.ndarray:
     """Pixels whose stereo depth is usable: finite, within [``near``, ``max_depth``] (the near limit
-    of every input depth, issue #28), not sky/ego/border."""
+    of every input depth), not sky/ego/border."""
     st = scene.depth_stereo
     with np.errstate(invalid="ignore"):
         ok = np.isfinite(st) & (st >= near) & (st > 0) & (st <= max_depth)

@@ -11,7 +11,7 @@ The cached chain filter -> uncertain -> refine is :class:`npsim_core.chain.Chain
 from importlib import import_module
 
 #: Public names and their modules, imported on first use (PEP 562): :mod:`.optimize` imports
-#: torch, which the command line's start must not pay for (issue #28).
+#: torch, which the command line's start must not pay for.
 _EXPORTS = {"FilterParams": "bilateral", "cross_bilateral": "bilateral", "cross_bilateral_reference": "bilateral",
             "UncertaintyParams": "uncertainty", "uncertain_map": "uncertainty", "region_variance": "uncertainty",
             "RefineParams": "params", "PRESETS": "params", "RefinementProblem": "optimize",

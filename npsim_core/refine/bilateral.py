@@ -138,7 +138,7 @@ def _prepare(depth, image, labels, params: FilterParams, image_u8=None):
         rgb = as_image(image, shape)
     valid = valid_depth_mask(d)
     with np.errstate(invalid="ignore"):
-        # Below a micrometre a depth is no measurement (every entrance drops < 0.1 m, issue #28);
+        # Below a micrometre a depth is no measurement (every entrance drops < 0.1 m);
         # its inverse (1e30 for 1e-30 m) would overflow the float32 sums.
         valid &= d >= MIN_DEPTH_M
     if params.domain == "inverse":

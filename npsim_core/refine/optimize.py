@@ -362,7 +362,7 @@ def refine_depth(depth, normals, intrinsics: Intrinsics, uncertain=None, params:
         The chain's input depth before filtering. When its normals agree with ``normals`` at least
         as well as the result's do (mean ‖n̂ − N‖² over the pixels valid in both), the refinement
         -- filter included -- made a good input worse, and the input is returned instead
-        (:func:`keeps_input`; issue #28: exact depth went from 12° to 22° normal RMSE).
+        (:func:`keeps_input`; exact depth went from 12° to 22° normal RMSE before; docs/refine.md §3).
 
     Returns
     -------

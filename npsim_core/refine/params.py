@@ -1,7 +1,7 @@
 """Parameters of the normal-guided refinement (:mod:`.optimize`), importable without torch.
 
 The command line builds its parser and validates ``--set refine.*`` from here; torch is
-imported only when a refinement runs (``npsim --help`` must not pay for it, issue #28).
+imported only when a refinement runs (``npsim --help`` must not pay for it).
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ class RefineParams:
     keep_input : bool
         Return the chain's unfiltered input depth when its normals agree with the estimated normals
         at least as well as the filtered and refined depth's (``refine_depth(input_depth=...)``): a
-        good input is never made worse (issue #28). Measured at 256x128 on the synthetic street:
+        good input is never made worse. Measured at 256x128 on the synthetic street:
         exact depth kept (AbsRel 0, normal RMSE 23.0° instead of 0.0076 and 29.3°), the pop-up prior
         kept (0.0636 / 35.5° instead of 0.0676 / 40.5°), the simulated prediction refined as before.
     threads : int
@@ -165,8 +165,8 @@ class RefineParams:
 
 
 #: The fields only some optimisers read (every other field is read by all): field -> optimisers
-#: that read it. A field set for an optimiser that does not read it is reported (issue #28,
-#: :func:`npsim_core.chain.params.unread_fields`).
+#: that read it. A field set for an optimiser that does not read it is reported
+#: (:func:`npsim_core.chain.params.unread_fields`).
 OPTIMIZER_FIELDS: dict[str, tuple[str, ...]] = {
     "lr": ("lbfgs", "adam_faithful"),
     "tol": ("fast", "lbfgs"),
