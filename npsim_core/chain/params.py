@@ -56,8 +56,8 @@ class DepthSource:
         and is not used for scoring.
     stereo_holdout : fraction of the valid stereo pixels held out of the input when the stereo is
         the input depth (a fixed seed picks them; filled like holes) -- the frame is then scored
-        against those pixels only, so the score measures the chain, not its copy of the input
-       ; 0 = none (the scores then compare the result with its own input).
+        against those pixels only, so the score measures the chain, not its copy of the input;
+        0 = none (the scores then compare the result with its own input).
     near_limit : metres; any input depth nearer than this is invalid (NaN), from every source, and
         the pixels dropped are counted in the log (the far limit is ``mesh.far_limit``).
     stereo_surfaces : stereo depth is replaced by robust per-segment surface fits where the labels
