@@ -172,7 +172,7 @@ def _batch_page(folder: Path, doc: dict) -> str:
                      f"<td>{_f(refd.get('normal_rmse_deg'), '{:.1f}')}</td><td>{len(f.get('nights', []))}</td>"
                      f"<td>{img(night)}</td><td>{img(depth)}</td></tr>")
     parts.append("</table>")
-    parts += realism_table({k: c[2] for k, c in checks.items() if c[0] == "done"})  # issue 25
+    parts += realism_table({k: c[2] for k, c in checks.items() if c[0] == "done"})
     if failed:
         parts.append("<h2>Failed frames</h2><ul>" + "".join(
             f"<li class=failed><b>{html.escape(k)}</b>: {html.escape(v.get('error', ''))}</li>"
