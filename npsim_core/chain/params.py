@@ -443,6 +443,9 @@ def unread_fields(params: ChainParams) -> dict[tuple[str, str], str]:
     if src not in ("auto", "stereo"):
         out[("depth", "stereo_max_m")] = (f"depth.stereo_max_m is read only by the stereo depth source (and "
                                           f"scoring against stereo), and depth.source is {src!r}")
+        for name in ("stereo_holdout", "stereo_surfaces"):
+            out[("depth", name)] = (f"depth.{name} is read only by the stereo depth source, and depth.source is "
+                                    f"{src!r} (--depth stereo or auto)")
     ls = params.lights.source
     if ls != "file":
         out[("lights", "file")] = f"lights.file is read only by lights.source 'file', and it is {ls!r} (--lights FILE)"
