@@ -18,16 +18,17 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
    smooth on curved surfaces. Weights are iteratively reweighted (Cauchy, scale from the
    segment's median absolute residual), so streaks and edge-fattened pixels do not pull the
    fit. σ by class: large for façades, walls, fences and ground (``plane_sigma``: they are
-   planes or smooth height fields), per instance for vehicles (``vehicle_sigma``), small for
-   vegetation and people (``detail_sigma``); thin objects (poles, signs, traffic lights,
+   planes or smooth height fields), per instance for vehicles (``vehicle_sigma``), moderate for
+   vegetation (``vegetation_sigma``), small for people (``detail_sigma``); thin objects (poles, signs, traffic lights,
    bicycles, motorcycles) get one robust depth per component (a flat card at their depth:
    stereo on them is mostly holes and edge fattening).
 4. **Normals** come from the fitted planes analytically (``n ∝ −(b fx, c fy, a + b cx + c cy)``),
    so the refinement is not guided by stereo noise.
 
 Where a segment has too little stereo support (weight of the window < ``min_support``) the
-caller's hole filling (the scaled pop-up prior) is kept. The fits run at 512 px wide (the
-coefficients are smooth) and are evaluated at full resolution.
+caller's hole filling (the scaled pop-up prior) is kept. The fits run on a grid about σ/6
+coarser than the image (at most 512 px wide; the coefficients are smooth) and are evaluated at
+full resolution.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ import numpy as np
 
 from ..camera import Intrinsics
 
-__all__ = ["SurfaceParams", "fit_surfaces", "PLANE_CLASSES", "VEHICLE_CLASSES", "THIN_CLASSES", "DETAIL_CLASSES"]
+__all__ = ["SurfaceParams", "fit_surfaces", "PLANE_CLASSES", "VEHICLE_CLASSES", "THIN_CLASSES", "DETAIL_CLASSES",
+           "VEGETATION_CLASSES"]
 
 #: Façades, walls, fences, ground: planes or smooth height fields.
 PLANE_CLASSES = (6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 22, 4, 5)
@@ -48,8 +50,9 @@ PLANE_CLASSES = (6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 22, 4, 5)
 VEHICLE_CLASSES = (26, 27, 28, 29, 30, 31)
 #: Thin objects: one depth per component.
 THIN_CLASSES = (17, 18, 19, 20, 32, 33)
-#: Irregular surfaces: a small window.
-DETAIL_CLASSES = (21, 24, 25)
+#: Irregular surfaces: a small window (people) or a moderate one (tree crowns, hedges).
+DETAIL_CLASSES = (24, 25)
+VEGETATION_CLASSES = (21,)
 #: Never fitted: unlabeled, ego vehicle, borders, sky.
 _SKIP = (0, 1, 2, 3, 23)
 _WORK_WIDTH = 512
@@ -60,7 +63,8 @@ _NOMINAL_BASELINE = 0.209313  # Cityscapes; only scales the speckle threshold to
 class SurfaceParams:
     """Parameters of :func:`fit_surfaces`; sizes in pixels at 2048 px wide (scaled to the image).
 
-    plane_sigma, vehicle_sigma, detail_sigma : Gaussian window σ of the local plane fits.
+    plane_sigma, vehicle_sigma, vegetation_sigma, detail_sigma : Gaussian window σ of the local
+        plane fits (façades and ground, vehicles, vegetation, people and other classes).
     speckle_area, speckle_px : speckle islands (area, disparity difference in px) dropped.
     edge_px : stereo this close to a segment border is not used (edge fattening).
     iterations : reweighting iterations of the robust fit.
@@ -68,7 +72,8 @@ class SurfaceParams:
     """
 
     plane_sigma: float = 96.0
-    vehicle_sigma: float = 32.0
+    vehicle_sigma: float = 64.0
+    vegetation_sigma: float = 16.0
     detail_sigma: float = 8.0
     speckle_area: int = 400
     speckle_px: float = 1.0
@@ -181,7 +186,7 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
         if r > 1 else border
     use &= ~near_edge
 
-    f = max(1, int(round(W / _WORK_WIDTH)))
+    base_f = max(1, int(round(W / _WORK_WIDTH)))
     qfull = np.where(use, 1.0 / np.where(use, depth, 1.0), 0.0)
     out_q = np.full((H, W), np.nan)
     coef_full = np.full((H, W, 3), np.nan)
@@ -221,7 +226,9 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
             counts["unsupported"] += 1
             continue
         sigma_full = (p.plane_sigma if lab in PLANE_CLASSES else p.vehicle_sigma if lab in VEHICLE_CLASSES
-                      else p.detail_sigma) * scale
+                      else p.vegetation_sigma if lab in VEGETATION_CLASSES else p.detail_sigma) * scale
+        # Work on a grid about sigma/6 coarser (at least 512 px wide): the coefficients are smooth.
+        f = max(base_f, int(sigma_full // 6))
         pad = int(3 * sigma_full) + f
         ya, yb = max(0, y0[s] - pad), min(H, y1[s] + 1 + pad)
         xa, xb = max(0, x0[s] - pad), min(W, x1[s] + 1 + pad)

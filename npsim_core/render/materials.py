@@ -92,7 +92,7 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
                        roughness: np.ndarray | None = None, light_classes: np.ndarray | None = None,
                        params: MaterialParams = MaterialParams(), normals: np.ndarray | None = None,
                        pitch: float = 0.038, instances: np.ndarray | None = None,
-                       depth: np.ndarray | None = None, intrinsics=None) -> Materials:
+                       depth: np.ndarray | None = None, intrinsics=None, delight: bool = False) -> Materials:
     """Albedo, roughness and BSDF kinds for a scene.
 
     Parameters
@@ -101,15 +101,17 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
     labels : (H, W) uint8 labelIds.
     albedo, roughness : maps from the scene (used as given when not None).
     light_classes : (H, W) light class per pixel (0 = none); window classes get glass roughness.
-    normals, depth, intrinsics : the reconstructed geometry (camera-frame normals, z-depth m);
-        when given (and no albedo map), the day's light is divided out (:func:`delit_albedo`, camera ``pitch`` rad),
+    normals, depth, intrinsics : the reconstructed geometry (camera-frame normals, z-depth m).
+        With normals, roughness is raised where the surface is not smooth
+        (:func:`geometry_roughness`); with ``delight`` and all three (and no albedo map), the
+        day's light is divided out (:func:`delit_albedo`, camera ``pitch`` rad),
         else the per-class prior fallback is used. ``instances``: Cityscapes instanceIds (one
         surface per instance) or None.
     """
     kl = kind_lut()
     H, W = labels.shape
     source = "scene" if albedo is not None else "fallback"
-    if albedo is None and normals is not None and depth is not None and intrinsics is not None:
+    if albedo is None and delight and normals is not None and depth is not None and intrinsics is not None:
         albedo, day = delit_albedo(image, labels, normals, depth, intrinsics, pitch, params, instances=instances)
         source = (f"de-lit (sun {', '.join(f'{v:.2f}' for v in day.sun)}, sun/sky {day.ratio:g}, "
                   f"{100 * day.shadow_fraction:.0f} % of sun-facing pixels in shadow)")
@@ -120,6 +122,9 @@ def estimate_materials(image: np.ndarray, labels: np.ndarray, *, albedo: np.ndar
     if roughness is None:
         rough_of_kind = np.array([_ROUGHNESS[k] for k in KINDS], dtype=np.float32)
         roughness = rough_of_kind[kl[labels]]
+        if normals is not None:  # gloss only where the geometry is smooth enough to reflect coherently
+            roughness = np.maximum(roughness, geometry_roughness(normals, labels))
+            source += "+geometry gloss"
         if light_classes is not None:
             roughness = np.where(np.isin(light_classes, GLASS_LIGHT_CLASSES), _ROUGHNESS["glass"], roughness)
         source += "+prior roughness"
@@ -173,7 +178,7 @@ class DayLight:
 #: Ground bounce relative to the sky light (a downward surface sees the street, ~1/3 as bright).
 _GROUND_BOUNCE = 0.3
 #: Classes whose pixels estimate the light (large, matte, well-labelled surfaces).
-_DAYLIGHT_CLASSES = (7, 8, 9, 11, 12, 13, 22, 26, 27, 28)
+_DAYLIGHT_CLASSES = (7, 8, 9, 11, 12, 13, 22)
 
 
 def _up_vector(pitch: float) -> np.ndarray:
@@ -206,15 +211,17 @@ _SHADOW_PENALTY = 0.15
 
 
 def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *,
-                   steps: int = 24, max_dist: float = 40.0, thickness: float = 4.0) -> np.ndarray:
+                   steps: int = 24, min_dist: float = 0.5, max_dist: float = 40.0, thickness: float = 4.0,
+                   margin: float = 0.04) -> np.ndarray:
     """1 where camera-frame ``points`` (N, 3) see the sun along ``sun`` over the depth map, else 0.
 
-    Screen-space shadow rays: ``steps`` points from 0.15 m to ``max_dist`` m (geometric) toward
-    the sun are projected into the image; a point up to ``thickness`` m behind the visible
-    surface there is inside an object (the visible surface occludes it).
+    Screen-space shadow rays: ``steps`` points from ``min_dist`` to ``max_dist`` m (geometric)
+    toward the sun are projected into the image; a point more than ``margin`` (relative, plus
+    0.2 m) and up to ``thickness`` m behind the visible surface there is inside an object (the
+    visible surface occludes it). The margins keep stereo depth noise from casting shadows.
     """
     H, W = depth.shape
-    t = np.geomspace(0.15, max_dist, steps)
+    t = np.geomspace(min_dist, max_dist, steps)
     q = points[:, None, :] + t[None, :, None] * sun[None, None, :]
     z = q[..., 2]
     front = z > 0.1
@@ -223,7 +230,7 @@ def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intri
     inside = front & (u >= 0) & (u < W) & (v >= 0) & (v < H)
     d = np.where(inside, depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)], np.nan)
     with np.errstate(invalid="ignore"):
-        hit = inside & np.isfinite(d) & (z > d * 1.02 + 0.05) & (z < d + thickness)
+        hit = inside & np.isfinite(d) & (z > d * (1 + margin) + 0.2) & (z < d + thickness)
     return (~hit.any(axis=1)).astype(np.float32)
 
 
@@ -292,9 +299,12 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     3. ``albedo = photo / shading`` per pixel (chroma kept), then one global scale so that the
        frame's pixels match the per-class albedo priors in the median (a single photo does not
        give the absolute level; relative albedos between and within classes come from the photo).
-    4. Clamped where the estimate is unreliable: pixels without normals or depth, sky and
-       labelIds 0-3 get the prior fallback (:func:`fallback_albedo`); albedo is limited to
-       [0.01, 0.9] and to 4x its label's median (saturated or specular day pixels).
+    4. Clamped where the estimate is unreliable: only façades, walls, fences and the ground
+       (:data:`~npsim_core.geometry.surfaces.PLANE_CLASSES`, whose normals the surface fits
+       get right) are de-lit; every other pixel (vehicles, vegetation, people, thin objects,
+       pixels without normals or depth) gets the prior fallback (:func:`fallback_albedo`).
+       Albedo is limited to [0.01, 0.9] and to 4x its label's median (saturated or specular
+       day pixels).
     """
     import cv2
 
@@ -306,7 +316,11 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     light = light or estimate_daylight(image, labels, normals, depth, intrinsics, pitch, instances=instances)
     if not np.isfinite(light.score):
         return fb, light
-    valid = np.isfinite(normals).all(-1) & np.isfinite(depth) & (labels != 23) & (labels > 3)
+    from ..geometry.surfaces import PLANE_CLASSES
+
+    # Only where the reconstructed normals are reliable: façades, walls, fences and the ground
+    # (planes the surface fits get right); vehicles, vegetation, people keep the prior fallback.
+    valid = (np.isfinite(normals).all(-1) & np.isfinite(depth) & np.isin(labels, PLANE_CLASSES))
     n = np.where(valid[..., None], normals, 0.0).astype(np.float64)
     up = _up_vector(pitch)
     s = np.asarray(light.sun)
@@ -377,3 +391,26 @@ def cap_vehicle_details(albedo: np.ndarray, labels: np.ndarray, instances: np.nd
     cap = factor * med[seg]
     scale = np.where(veh & (lum > cap), cap / np.maximum(lum, 1e-6), 1.0).astype(np.float32)
     return (albedo * scale[..., None]).astype(np.float32)
+
+
+def geometry_roughness(normals: np.ndarray, labels: np.ndarray, *, full_deg: float = 20.0) -> np.ndarray:
+    """(H, W) float32 roughness floor from the geometry: 0 where the normals agree with their
+    5x5 neighbourhood (same label), rising linearly to 1 at ``full_deg`` degrees of deviation.
+
+    A glossy BSDF on a facet that is tilted every which way mirrors the lamps in sparkles and
+    streaks (docs/relight.md); where the reconstructed surface is not smooth it must not be
+    glossy. Pixels without normals get 0 (no floor)."""
+    import cv2
+
+    ok = np.isfinite(normals).all(-1)
+    n = np.where(ok[..., None], normals, 0.0).astype(np.float32)
+    out = np.zeros(labels.shape, np.float32)
+    for c in np.unique(labels[ok]):
+        m = (ok & (labels == c)).astype(np.float32)
+        mean = np.stack([cv2.blur(n[..., i] * m, (5, 5)) for i in range(3)], -1)
+        norm = np.linalg.norm(mean, axis=-1)
+        cosv = (mean * n).sum(-1) / np.maximum(norm, 1e-6)
+        dev = np.degrees(np.arccos(np.clip(cosv, -1, 1)))
+        sel = m > 0
+        out[sel] = np.clip(dev[sel] / full_deg, 0, 1)
+    return out
