@@ -150,10 +150,8 @@ class PopupParams:
         image line before the line is split into pieces.
     hidden_setback : float
         Metres from the feet of what hides a facade's base (parked cars' street side, mostly)
-        to the facade, assumed when neither side of the street shows a facade's foot.
-    walk_setback : float or None
-        Metres from the farthest feet of what hides a facade's base to the facade when most of
-        those feet stand on the sidewalk (crowds, shop fronts); ``None``: ``hidden_setback`` always.
+        to the facade, assumed when neither side of the street shows a facade's foot: a car's
+        width plus a 3.5-4 m sidewalk (the synthetic street has 7.1 m; 5 m before issue 27).
     vp_max_distance : float or None
         Metres: a contact piece wholly farther than this (buildings across a square or crossing)
         is never snapped to the street's vanishing point nor gives a street line -- a level and a
@@ -193,8 +191,7 @@ class PopupParams:
     contact_ids: tuple[int, ...] = DEFAULT_CONTACT_IDS
     sidewalk_height: float = 0.12
     contact_tol: float = 1.5
-    hidden_setback: float = 5.0
-    walk_setback: float | None = 1.0
+    hidden_setback: float = 6.0
     vp_max_distance: float | None = 60.0
     vanishing: str = "auto"
     crowns: str = "columns"
@@ -885,7 +882,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
 
     # --- snap pieces to the vanishing point where that fits (receding facades); keep free lines otherwise
     lines: dict[int, list[_Line]] = {}
-    side_X: dict[int, list[tuple[float, float, int]]] = {-1: [], 1: []}  # side -> [(offset m, sigma m, columns)]
+    side_X: dict[int, list[tuple[float, float]]] = {-1: [], 1: []}  # side -> [(offset m, sigma m)]
     for s_id, plist in pieces.items():
         out = []
         for uu, vv, s_, t_ in plist:
@@ -908,7 +905,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                         # its precision: half a row at the nearest contact (+ 0.3 m of label noise)
                         j = int(np.argmax(vv))
                         dX = float(np.diff(lateral(uu[[j, j]], vv[[j, j]] + [0.0, 0.5]))[0])
-                        side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3), uu.size))
+                        side_X[1 if du[0] > 0 else -1].append((X, math.hypot(dX, 0.3)))
                         ln.X = X
             if ln is None:
                 if uu.size < min_pts:
@@ -941,30 +938,20 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     feet_X = np.where(on_w, fa2 * d[1] - fb2 * d[0], fa * d[1] - fb * d[0])
     feet: dict[int, float] = {}
     evid: dict[int, tuple[float, float]] = {}
-    walk_feet: set[int] = set()
     for side in (-1, 1):
-        sel = (np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)
-        fx_ = feet_X[sel]
+        fx_ = feet_X[(np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)]
         if fx_.size >= 3:
             feet[side] = float(np.median(fx_))
-            if p.walk_setback is not None and on_w[sel].mean() >= 0.5:
-                # hidden by people and things on the sidewalk: the facade stands just behind
-                # their feet, not behind parked cars
-                feet[side] = side * float(np.median(np.abs(fx_[on_w[sel]])))
-                walk_feet.add(side)
-        ev = [(x, sg) for x, sg, _ in side_X[side] if x * side > 0.3]
+        ev = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
         if ev:
             evid[side] = (wmedian(*zip(*ev)), min(sg for _, sg in ev))
     side_line: dict[int, _Line] = {}
     setbacks = {}
     for side in (-1, 1):
-        # (weighted by precision and length: a bus shelter's short foot does not outweigh the facade's)
-        cands = [(x, sg / math.sqrt(n / min_pts)) for x, sg, n in side_X[side] if x * side > 0.3]
+        cands = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
         if side in feet:
             other = -side
-            if side in walk_feet:
-                setback = p.walk_setback
-            elif other in evid and evid[other][1] < 1.0 and other in feet and other not in walk_feet:
+            if other in evid and evid[other][1] < 1.0 and other in feet:
                 setback = float(np.clip(abs(evid[other][0]) - abs(feet[other]), 0.5, 15.0))
             else:
                 setback = p.hidden_setback
