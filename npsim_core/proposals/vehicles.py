@@ -248,6 +248,19 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     return r0, r1, c0, c1, z
 
 
+def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
+    """The connected part of ``mask`` nearest to (row r, column c) (a lamp, not the shading beside it)."""
+    import cv2
+
+    if not mask.any():
+        return mask
+    n, lab, stats, cent = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    if n <= 2:
+        return mask
+    d = np.hypot(cent[1:, 0] - c, cent[1:, 1] - r) / np.sqrt(stats[1:, cv2.CC_STAT_AREA])
+    return lab == 1 + int(np.argmin(d))
+
+
 def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, paint: np.ndarray,
                face: tuple[int, int, int, int], z: float | None) -> tuple[list[np.ndarray], int]:
     """The two lamps of an end face (local masks; fewer when hidden or beyond the frame) and how many
@@ -257,8 +270,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     each side of the face (fractions without depth). Each box is snapped to the pixels within a
     window around it that differ from the paint, never in the plate zone (``vehicle_plate_half_m``
     either side of the face's axis: plates are never lamps). The pair is then made symmetric about
-    the vehicle's vertical axis: the face's centre (the point between the two snapped lamps when
-    that is more than 10 % of the face width away: a misplaced face), both lamps taking the mean rows and the mean distances from the axis; a
+    the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre); two snapped lamps that agree
+    (rows and columns overlapping by half) take their mean rows and distances from the axis, two
+    that disagree stay as found, and a lamp that does not stand out mirrors the one that does; a
     lamp mostly off the silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is
     dropped. Empty boxes are never returned.
     """
@@ -289,7 +303,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         bc0, bc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
         br0, br1 = lr0, lr1
         win = np.zeros_like(m)
-        pad_r, pad_c = max(1, (br1 - br0 + 1) // 2), max(1, (bc1 - bc0 + 1) // 2)
+        pad_r, pad_c = max(1, (br1 - br0 + 1) // 2), max(1, bc1 - bc0 + 1)  # faces are placed to a lamp's width
         wr0, wr1 = max(r0, br0 - pad_r, 0), min(r1, br1 + pad_r, h - 1)
         wc0, wc1 = max(cc0, bc0 - pad_c, 0), min(cc1, bc1 + pad_c, w - 1)
         snapped = False
@@ -300,7 +314,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                 win[:, int(np.ceil(axis)):] = False
             else:
                 win[:, :int(np.floor(axis)) + 1] = False
-            cand = win & diff
+            cand = _blob_at(win & diff, (br0 + br1) / 2.0, (bc0 + bc1) / 2.0)
             full = max(1, (min(br1, h - 1) - max(br0, 0) + 1) * (min(bc1, w - 1) - max(bc0, 0) + 1))
             n = int(cand.sum())
             if n >= max(1, full // 3) and n <= 3 * full:
@@ -308,23 +322,30 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
                 snapped = True
         boxes.append((br0, br1, bc0, bc1, snapped))
-    if boxes[0][4] and boxes[1][4]:  # the face's centre, unless the two lamps say it is misplaced
-        between = ((boxes[0][2] + boxes[0][3]) / 2.0 + (boxes[1][2] + boxes[1][3]) / 2.0) / 2.0
-        if abs(between - axis) > 0.1 * fw:
-            axis = between
-    src = [bx for bx in boxes if bx[4]] or boxes
-    rr0 = int(round(np.mean([bx[0] for bx in src])))
-    rr1 = max(rr0, int(round(np.mean([bx[1] for bx in src]))))
-    # distances of the outer and inner lamp edges from the axis, mean over the lamps that stand out
-    d_out = float(np.mean([axis - bx[2] if k == 0 else bx[3] - axis for k, bx in enumerate(boxes) if bx in src]))
-    d_in = float(np.mean([axis - bx[3] if k == 0 else bx[2] - axis for k, bx in enumerate(boxes) if bx in src]))
-    d_in = max(d_in, 0.5)
+    if boxes[0][4] and boxes[1][4]:  # the vehicle's axis lies between its two lamps
+        axis = ((boxes[0][2] + boxes[0][3]) / 2.0 + (boxes[1][2] + boxes[1][3]) / 2.0) / 2.0
+    # (rows, outer and inner distance from the axis) per side, from its own box
+    own = [(bx[0], bx[1], axis - bx[2] if k == 0 else bx[3] - axis, axis - bx[3] if k == 0 else bx[2] - axis)
+           for k, bx in enumerate(boxes)]
+    snapped = [k for k in (0, 1) if boxes[k][4]]
+    if len(snapped) == 2:
+        (a0, a1, ao, ai), (b0, b1, bo, bi) = own
+        rows_agree = min(a1, b1) - max(a0, b0) + 1 >= 0.5 * min(a1 - a0 + 1, b1 - b0 + 1)
+        cols_agree = min(ao, bo) - max(ai, bi) >= 0.5 * min(ao - ai, bo - bi)
+        if rows_agree and cols_agree:  # one lamp pair: the mean rows and distances for both
+            mean = tuple(float(np.mean([own[0][q], own[1][q]])) for q in range(4))
+            own = [mean, mean]
+        # else each keeps what it snapped to (one of them caught something else; both stay as found)
+    elif len(snapped) == 1:  # the other lamp mirrors the one that stands out
+        own = [own[snapped[0]], own[snapped[0]]]
     lamps: list[np.ndarray] = []
     n_snapped = 0
     for side in (0, 1):
+        rr0, rr1 = int(round(own[side][0])), int(round(own[side][1]))
+        d_out, d_in = own[side][2], max(own[side][3], 0.5)
         lo_c = int(round(axis - d_out)) if side == 0 else int(round(axis + d_in))
         hi_c = int(round(axis - d_in)) if side == 0 else int(round(axis + d_out))
-        full = (rr1 - rr0 + 1) * max(0, hi_c - lo_c + 1)
+        full = max(0, rr1 - rr0 + 1) * max(0, hi_c - lo_c + 1)
         box = np.zeros_like(m)
         y_a, y_b, x_a, x_b = max(rr0, 0), min(rr1, h - 1), max(lo_c, 0), min(hi_c, w - 1)
         if full == 0 or y_b < y_a or x_b < x_a:

@@ -154,8 +154,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
     * a window spanning two or more cells (bays x floors), and a blob rejected as too large or too
       ragged for one window (``rejects``: (y0, x0, mask)) that spans them, is cut into one window per
       cell (a piece filling ``window_min_fill`` of its cell); a window
-      taller than 1.5x the median window height of its facade, or wider than 1.5x the width of the
-      windows beside it, without cells to cut it along, is dropped (a gable, a roof or an awning
+      taller than 1.5x the median window height of its facade and of the windows nearest to it, or
+      wider than 1.5x the wider of its neighbours on its floor, without cells to cut it along, is dropped (a gable, a roof or an awning
       taken for a window);
     * every cell of a floor with at least three windows and a bay that holds no window and looks
       faintly like one (``window_cell_min_share`` of its pixels beyond half the window thresholds,
@@ -183,7 +183,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         wins = [f for f in fs if f[3].kind == "window"]
         other = [f for f in fs if f[3].kind != "window"]
         if len(wins) < 3:
-            out.extend(fs)
+            out.extend(_cap_lit(p, wins, float((bld == b_id).sum())) + other)
             continue
         box = {id(f): (f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
                for f in wins}
@@ -205,6 +205,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         med_h = float(np.median(hm))
         all_cols = _columns(list(box.values()))
         cols = [c for c in all_cols if c[2] >= 2]  # bays seen on two floors at least
+        floor_of = {id(f): fl for fl in floors for f in fl}
         lines = []  # per floor: (top(x), bottom(x), members)
         for fl in floors:
             xs = np.array([(box[id(f)][2] + box[id(f)][3]) / 2.0 for f in fl])
@@ -244,9 +245,13 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         for k, f in enumerate(wins):
             y0, y1, x0, x1 = box[id(f)]
             near = np.argsort(np.abs(centres - centres[k]))[1:5]
-            local_w = float(np.median(widths[near])) if near.size else widths[k]
-            tall = hm[k] > 1.5 * med_h
-            wide = widths[k] > 1.5 * max(local_w, 1.0)
+            local_h = float(np.median(hm[near])) if near.size else med_h
+            tall = hm[k] > 1.5 * max(med_h, local_h)
+            # widths shrink along a receding facade: compare with the next windows of the same floor
+            row = sorted(floor_of[id(f)], key=lambda q: box[id(q)][2])
+            j = next(i for i, q in enumerate(row) if q is f)
+            beside = [box[id(row[i])][3] - box[id(row[i])][2] + 1 for i in (j - 1, j + 1) if 0 <= i < len(row)]
+            wide = bool(beside) and widths[k] > 1.5 * max(max(beside), 1.0)
             if not (tall or wide):
                 kept.append(f)
                 continue
@@ -299,17 +304,20 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl.kind = "window"
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have.append((r0, r1, a0, a1))
-        # a lit facade is lit per room: at most window_max_lit_share of the region
-        area = float((bld == b_id).sum())
-        kept.sort(key=lambda f: -f[3].confidence)
-        total, final = 0.0, []
-        for f in kept:
-            a = float(f[3].mask.sum())
-            if total + a <= p.window_max_lit_share * area:
-                final.append(f)
-                total += a
-        out.extend(final + other)
+        out.extend(_cap_lit(p, kept, float((bld == b_id).sum())) + other)
     return out
+
+
+def _cap_lit(p, wins: list, area: float) -> list:
+    """The most confident windows covering at most ``window_max_lit_share`` of a region of ``area``
+    pixels (a lit facade is lit per room, not as a whole)."""
+    total, final = 0.0, []
+    for f in sorted(wins, key=lambda f: -f[3].confidence):
+        a = float(f[3].mask.sum())
+        if total + a <= p.window_max_lit_share * area:
+            final.append(f)
+            total += a
+    return final
 
 
 def _split_blocks(ctx: Context, row: list, ref: np.ndarray) -> list[list]:
