@@ -939,7 +939,8 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     feet: dict[int, float] = {}
     evid: dict[int, tuple[float, float]] = {}
     for side in (-1, 1):
-        fx_ = feet_X[(np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & np.isfinite(feet_X)]
+        # (feet more than 15 m off the axis stand across a square or down a cross street: no street wall)
+        fx_ = feet_X[(np.sign(hu - u_vp) == side) & (np.sign(feet_X) == side) & (np.abs(feet_X) < 15.0)]
         if fx_.size >= 3:
             feet[side] = float(np.median(fx_))
         ev = [(x, sg) for x, sg in side_X[side] if x * side > 0.3]
