@@ -1,4 +1,4 @@
-"""Realism benchmark of issue 25 (results: docs/relight.md "Nights of real frames", README).
+"""Realism of nights from real-layout frames (results: docs/relight.md "Nights of real frames", README).
 
 Usage::
 
@@ -12,7 +12,7 @@ its exact depth written outside the dataset with ``--truth``), per frame:
    albedo or roughness, as on a real frame),
 2. the night of the exact depth (``depth.source=files`` with the exact depth and its normals),
    with the same lights (the proposals of run 1), seed, spp and materials estimation,
-3. with ``--legacy``: the night from the SGM stereo with the issue-25 steps off
+3. with ``--legacy``: the night from the SGM stereo without the surface fits
    (``depth.stereo_surfaces=false``, ``night.delight=false``) -- the "before".
 
 It prints the structure ratio per class and whole frame of each night (and the stereo night's
@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 MEASURED = ("road", "sidewalk", "building", "vegetation", "car")
-#: The issue-25 steps off (the "before").
+#: The surface fits and de-lighting off (the "before").
 LEGACY = ["depth.stereo_surfaces=false", "night.delight=false"]
 
 
@@ -98,7 +98,7 @@ def main(argv=None) -> int:
     ap.add_argument("--variant", default="default")
     ap.add_argument("--dir", default=None, help="fixture folder (default: a temporary one)")
     ap.add_argument("--figure", default=None, help="write day | before | after | exact nights as a PNG")
-    ap.add_argument("--legacy", action="store_true", help="also the night with the issue-25 steps off")
+    ap.add_argument("--legacy", action="store_true", help="also the night without the surface fits (before)")
     ap.add_argument("--save", default=None, help="folder for the nights' PNGs")
     args = ap.parse_args(argv)
     from npsim_core.camera import normals_from_depth
@@ -138,7 +138,7 @@ def main(argv=None) -> int:
     ex_night, _, t_exact, ex_chain = night_of(exact, exact_params, ann)
     rows["exact depth"] = (ex_night.image, t_exact, ex_chain)
     if args.legacy:
-        rows["SGM stereo, issue-25 steps off"] = (lg_night.image, t_leg, lg_chain)
+        rows["SGM stereo, before (fits off)"] = (lg_night.image, t_leg, lg_chain)
 
     load = os.getloadavg()
     print(f"\nrealism benchmark: {W}x{H} fixture (--stereo sgm, seed {args.seed}, variant {args.variant}), "

@@ -1,10 +1,10 @@
-"""Issue 25: nights of real-layout frames (SGM stereo, no true albedo) and their realism measures.
+"""Nights of real-layout frames (SGM stereo, no true albedo) and their realism measures.
 
 The SGM car test renders the same 256x128 fixture frame (OpenCV semi-global matching on a
 rendered stereo pair) twice -- from its stereo and from its exact depth, same lights (none but
 the ego headlights), seed and spp -- and holds the car's structure ratio of the stereo night
-within 10 % of the exact one's. Before the surface fits (``depth.stereo_surfaces``) it was 19 %
-above (docs/relight.md).
+at most 10 % above the exact one's. Before the surface fits (``depth.stereo_surfaces``) it was
+23 % above (docs/relight.md).
 """
 
 from __future__ import annotations
@@ -82,7 +82,10 @@ def test_a_car_on_sgm_stereo_renders_without_streaks(sgm_frame):
     car_sgm = structure_ratio(scene.image, scene.labels, stereo)["classes"]["car"]
     car_exact = structure_ratio(scene.image, scene.labels, exact)["classes"]["car"]
     assert car_sgm is not None and car_exact is not None
-    assert abs(car_sgm / car_exact - 1) <= 0.10, (car_sgm, car_exact)
+    # Streaks raise the ratio: at most 10 % above the exact night's (before the fits: +23 %). A car
+    # fitted smoother than the exact boxes (at 256 px a car is ~30 px wide) may fall below it, but
+    # not so far that it is washed out.
+    assert 0.8 <= car_sgm / car_exact <= 1.10, (car_sgm, car_exact)
 
 
 def test_a_plate_is_not_lit():
