@@ -3,6 +3,7 @@
 Run under Xvfb (the 3D view needs a display)::
 
     xvfb-run -a -s "-screen 0 1600x900x24" .venv/bin/python -m benchmarks.gui_latency [--sizes 512x256,2048x1024]
+    xvfb-run -a -s "-screen 0 1600x900x24" .venv/bin/python -m benchmarks.gui_latency --frame X_leftImg8bit.png
 
 For each size a two-frame Cityscapes-layout fixture (``npsim_core.synthetic.cityscapes``: image,
 labelIds, stereo disparity and camera JSON, no NPSim file) is written to a temporary folder and
@@ -18,6 +19,9 @@ the app is driven as a user would:
   the canvas has repainted (median and max over the events);
 * **peak RSS**: the process's peak resident memory (``VmHWM``, reset when the frame is opened)
   while the frame is opened, its full-resolution mesh built and the night previewed;
+* **accept / undo**: after *Propose lights* (Ctrl+P, in a worker), Ctrl+Shift+A at 0.5 and 0.9, an accept
+  with nothing left, Ctrl+Z and redo, each driven as its shortcut does: the action's time on the GUI
+  thread and the longest heartbeat stall during it and the 2 s after (the night preview updates);
 * **longest stall**: the largest lateness of a 10 ms ``QTimer`` heartbeat on the GUI thread over
   the whole session of that size, from just before the frame is opened (the open itself counts;
   the window's first paint at start-up does not) (target: no gap over 100 ms); each stall over
@@ -60,6 +64,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", default="512x256,2048x1024")
     ap.add_argument("--repeats", type=int, default=3, help="slider changes per size")
     ap.add_argument("--fixture-dir", default="", help="where to write the fixtures (default: a temporary folder)")
+    ap.add_argument("--frame", default="", help="a real-layout frame: a dataset image (e.g. a Cityscapes "
+                    "X_leftImg8bit.png with its gtFine labels) instead of the generated fixtures")
     args = ap.parse_args(argv)
     from PySide6.QtCore import QElapsedTimer, QPoint, Qt, QTimer
     from PySide6.QtTest import QTest
@@ -78,20 +84,38 @@ def main(argv: list[str] | None = None) -> int:
     base = Path(args.fixture_dir or tempfile.mkdtemp(prefix="npsim-gui-latency-"))
 
     def wait(cond, timeout=900.0) -> float:
-        t0 = time.perf_counter()
+        t0 = told = time.perf_counter()
         while not cond():
             app.processEvents()
             time.sleep(0.002)
-            if time.perf_counter() - t0 > timeout:
-                raise TimeoutError("timed out")
+            now = time.perf_counter()
+            if now - t0 > timeout:
+                raise TimeoutError(f"timed out in phase {phase[0]!r}")
+            if now - told > 60:
+                told = now
+                jobs = [ch.name for ch in (win.pipeline_jobs, win.render_jobs, win.view_jobs, win.export_jobs,
+                                           win.editor.proposal_jobs) if ch.is_busy]
+                print(f"  … still in {phase[0]!r} after {now - t0:.0f} s (jobs: {', '.join(jobs) or 'none'}; "
+                      f"{win.busy_label.text()})", file=sys.stderr, flush=True)
         return time.perf_counter() - t0
 
-    rows, slider_rows, brush_rows, stall_rows = [], [], [], []
-    for size in [s for s in args.sizes.split(",") if s]:
-        w, h = parse_size(size)
-        root = base / f"cityscapes_{w}x{h}"
-        stems = write_cityscapes_fixture(root, frames=2, size=(w, h), corrupt=0)
-        image = root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png"
+    rows, slider_rows, brush_rows, stall_rows, action_rows = [], [], [], [], []
+    if args.frame:
+        import cv2
+
+        shape = cv2.imread(args.frame, cv2.IMREAD_UNCHANGED)
+        if shape is None:
+            print(f"{args.frame}: not an image", file=sys.stderr)
+            return 2
+        runs = [(Path(args.frame), shape.shape[1], shape.shape[0])]
+    else:
+        runs = []
+        for size in [s for s in args.sizes.split(",") if s]:
+            w, h = parse_size(size)
+            root = base / f"cityscapes_{w}x{h}"
+            stems = write_cityscapes_fixture(root, frames=2, size=(w, h), corrupt=0)
+            runs.append((root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png", w, h))
+    for image, w, h in runs:
 
         gaps: list[float] = []
         phase = ["start"]
@@ -176,6 +200,33 @@ def main(argv: list[str] | None = None) -> int:
         painted = int((ed.session.ann.instance_map > 0).sum())
         brush_rows.append((f"{w}x{h}", float(np.median(times)), float(np.max(times)), painted))
         wait(lambda: not win.jobs_busy)
+        # ---- proposals: propose (worker), then accept / undo as the shortcuts do; each action is driven
+        # synchronously, then 2 s of the app's own follow-up (night update) count towards it
+        phase[0] = "propose (Ctrl+P, worker)"
+        ed.actions_by_name["propose"].trigger()
+        wait(lambda: ed.proposal_book is not None and not ed.proposal_jobs.is_busy)
+        n_prop = len(ed.proposal_book.light_ids)
+
+        def act(name: str, fn) -> None:
+            phase[0] = name
+            k0 = len(gaps)
+            t0 = time.perf_counter()
+            fn()
+            app.processEvents()
+            t_act = time.perf_counter() - t0
+            wait(lambda: time.perf_counter() - t0 > 2.0, 10)
+            g = gaps[k0:] or [0.0]
+            action_rows.append((f"{w}x{h}", name, t_act, float(max(g)), len(ed.session.existing_ids())))
+        ed.confidence_slider.setValue(50)
+        act("accept ≥ 0.50 (Ctrl+Shift+A)", ed.actions_by_name["accept_above"].trigger)
+        act("undo the accept (Ctrl+Z)", ed.actions_by_name["undo"].trigger)
+        ed.confidence_slider.setValue(90)
+        act("accept ≥ 0.90 (Ctrl+Shift+A)", ed.actions_by_name["accept_above"].trigger)
+        act("accept again: nothing left (Ctrl+Shift+A)", ed.actions_by_name["accept_above"].trigger)
+        act("undo (Ctrl+Z)", ed.actions_by_name["undo"].trigger)
+        act("redo (Ctrl+Shift+Z)", ed.actions_by_name["redo"].trigger)
+        phase[0] = "after the actions"
+        wait(lambda: not win.jobs_busy)
         hb.stop()
         g = np.array(gaps) if gaps else np.zeros(1)
         for i in np.argsort(g)[::-1][:3]:
@@ -207,6 +258,11 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|")
     for r in brush_rows:
         print(f"| {r[0]} | {r[1] * 1000:.1f} | {r[2] * 1000:.1f} | {r[3]} |")
+    print(f"\n| frame | action ({n_prop} proposals) | action → canvas (ms) | longest stall, action and the "
+          "2 s after (ms) | lights after |")
+    print("|---|---|---|---|---|")
+    for r in action_rows:
+        print(f"| {r[0]} | {r[1]} | {r[2] * 1000:.0f} | {r[3]:.0f} | {r[4]} |")
     if stall_rows:
         print("\n| frame | stall (ms) | during (benchmark phase, the app's busy label) |")
         print("|---|---|---|")

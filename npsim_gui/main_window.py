@@ -14,10 +14,11 @@ from pathlib import Path
 
 import cv2
 
-from PySide6.QtCore import QEventLoop, QObject, QSettings, Qt, QTimer, Signal
+from PySide6.QtCore import QEvent, QEventLoop, QObject, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QComboBox, QDockWidget, QFileDialog, QHBoxLayout, QLabel, QListWidget, QMainWindow,
-                               QMessageBox, QProgressDialog, QToolButton, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QAbstractSpinBox, QApplication, QComboBox, QDockWidget, QFileDialog, QHBoxLayout,
+                               QLabel, QLineEdit, QListWidget, QMainWindow, QMessageBox, QProgressDialog,
+                               QToolButton, QVBoxLayout, QWidget)
 
 from npsim_core.annotation import annotation_paths, find_recovery, load_recovery
 from npsim_core.errors import NpsimCancelled, NpsimInputError
@@ -28,6 +29,7 @@ from npsim_core.memory import release_free_memory
 from npsim_core.views import VIEW_MODES, view_image
 
 from .editor.editor import AnnotationEditor
+from .editor.shortcuts import keys as keymap_keys
 from .param_values import gui_values, with_gui_value
 from .params_panel import ParameterPanel
 from .render_panel import RenderPanel
@@ -85,9 +87,9 @@ class MainWindow(QMainWindow):
         self.view_mode = QComboBox()
         self.view_mode.addItems(VIEW_MODES)
         bar.addWidget(self.view_mode)
+        # what runs (or why nothing does) sits in the status bar beside Cancel, where its whole text fits
         self.busy_label = QLabel("")
         bar.addStretch(1)
-        bar.addWidget(self.busy_label)
         lay.addLayout(bar)
         self.editor = AnnotationEditor(self)
         lay.addWidget(self.editor, 1)
@@ -125,22 +127,25 @@ class MainWindow(QMainWindow):
 
     def _build_menus(self) -> None:
         m = self.menuBar().addMenu("&File")
-        self.act_open_scene = self._action(m, "Open scene folder…", "Ctrl+O", self.open_scene_dialog)
-        self.act_open_image = self._action(m, "Open dataset image…", "Ctrl+I", self.open_image_dialog)
-        self.act_open_dataset = self._action(m, "Open dataset…", "Ctrl+D", self.open_dataset_dialog)
-        self.act_next = self._action(m, "Next frame", "Ctrl+Right", lambda: self.step_frame(+1))
-        self.act_prev = self._action(m, "Previous frame", "Ctrl+Left", lambda: self.step_frame(-1))
-        self.act_open_project = self._action(m, "Open project…", "Ctrl+Shift+O", self.open_project_dialog)
-        self.act_reopen = self._action(m, "Reopen last scene", "Ctrl+Shift+R", self.reopen_last)
-        self.act_save_project = self._action(m, "Save project…", "Ctrl+S", self.save_project_dialog)
-        self.act_save_ann = self._action(m, "Save annotation", "Ctrl+Shift+S", self.save_annotation)
+        self.act_open_scene = self._action(m, "Open scene folder…", "open_scene", self.open_scene_dialog)
+        self.act_open_image = self._action(m, "Open dataset image…", "open_image", self.open_image_dialog)
+        self.act_open_dataset = self._action(m, "Open dataset…", "open_dataset", self.open_dataset_dialog)
+        self.act_next = self._action(m, "Next frame", "next_frame", lambda: self.step_frame(+1))
+        self.act_prev = self._action(m, "Previous frame", "previous_frame", lambda: self.step_frame(-1))
+        self.act_open_project = self._action(m, "Open project…", "open_project", self.open_project_dialog)
+        self.act_reopen = self._action(m, "Reopen last scene", "reopen", self.reopen_last)
         m.addSeparator()
-        self.act_export = self._action(m, "Export…", "Ctrl+E", self.export_dialog)
+        self.act_save_ann = self._action(m, "Save annotation", "save_annotation", self.save_annotation)
+        self.act_done = self._action(m, "Frame done", "done", self.toggle_done)
+        self.act_done.setCheckable(True)
+        self.act_save_project = self._action(m, "Save project…", "save_project", self.save_project_dialog)
         m.addSeparator()
-        self._action(m, "Quit", "Ctrl+Q", self.close)
+        self.act_export = self._action(m, "Export…", "export", self.export_dialog)
+        m.addSeparator()
+        self._action(m, "Quit", "quit", self.close)
         r = self.menuBar().addMenu("&Run")
-        self._action(r, "Recompute", "F5", self.recompute)
-        self._action(r, "Render night preview", "F6", lambda: self.request_render(force=True))
+        self._action(r, "Recompute", "recompute", self.recompute)
+        self._action(r, "Render night preview", "render", self.render_now)
         # Esc is the editor's "clear selection" too: it cancels when there is nothing to clear
         # (AnnotationEditor.escapeUnused) or when the focus is outside the editor (keyPressEvent)
         self.act_cancel = self._action(r, "Cancel running job (Esc)", "", self.cancel_jobs)
@@ -150,21 +155,45 @@ class MainWindow(QMainWindow):
         self.cancel_btn.setDefaultAction(self.act_cancel)
         self.cancel_btn.setText("Cancel")
         self.cancel_btn.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        self.statusBar().addPermanentWidget(self.busy_label)
         self.statusBar().addPermanentWidget(self.cancel_btn)
         v = self.menuBar().addMenu("&View")
         for d in (self.params_dock, self.frames_dock, self.render_dock, self.log_dock) + \
                 ((self.viewer_dock,) if self.viewer else ()):
             v.addAction(d.toggleViewAction())
         h = self.menuBar().addMenu("&Help")
-        self._action(h, "Annotation shortcuts", "F1", self.editor.show_shortcuts)
+        self.editor.keymap_window = "app"
+        h.addAction(self.editor.actions_by_name["help"])  # F1: the sheet of this window's keymap
+        self.editor.actions_by_name["help"].setShortcutContext(Qt.ShortcutContext.WindowShortcut)
+        # frame navigation works wherever the focus is (spin boxes and line edits keep Ctrl+Left/Right)
+        self._nav_keys = {QKeySequence(k).toString() for a in (self.act_next, self.act_prev)
+                          for k in a.shortcuts()}
+        QApplication.instance().installEventFilter(self)
 
-    def _action(self, menu, text: str, shortcut: str, fn) -> QAction:
+    def _action(self, menu, text: str, action: str, fn) -> QAction:
+        """A window action with the keys of ``action`` in the keymap (editor/shortcuts.py)."""
         a = QAction(text, self)
-        if shortcut:
-            a.setShortcut(QKeySequence(shortcut))
+        if action:
+            a.setShortcuts(keymap_keys(action, "app"))
         a.triggered.connect(fn)
         menu.addAction(a)
         return a
+
+    def eventFilter(self, obj, event) -> bool:  # noqa: N802 (Qt API)
+        # A focused spin box or line edit claims Ctrl+Left/Right (move by word) before the window's
+        # shortcuts see them: frame navigation is application-wide, so its keys are not left to them.
+        if event.type() == QEvent.Type.ShortcutOverride and self.isActiveWindow() and not self._closed:
+            seq = QKeySequence(event.keyCombination()).toString()
+            if seq in self._nav_keys and isinstance(obj, (QAbstractSpinBox, QLineEdit)):
+                event.ignore()
+                return True
+        return super().eventFilter(obj, event)
+
+    def toggle_done(self) -> None:
+        """Ctrl+D: this frame's 'done' flag (saved in its annotation's JSON)."""
+        s = self.editor.session
+        s.set_done(not bool(s.ann.meta.get("done", False)))
+        self._update_title()
 
     def _connect(self) -> None:
         self.params_panel.changed.connect(self.on_param_changed)
@@ -186,7 +215,7 @@ class MainWindow(QMainWindow):
         self.render_panel.seedChanged.connect(lambda s: self.on_param_changed("night", "seed", int(s)))
         self.render_panel.denoiserChanged.connect(lambda d: self.on_param_changed("night", "denoiser", str(d)))
         self.render_panel.lightsToggled.connect(self.on_lights_toggled)
-        self.render_panel.renderRequested.connect(lambda: self.request_render(force=True))
+        self.render_panel.renderRequested.connect(self.render_now)
         self.render_dock.visibilityChanged.connect(self._on_render_dock_visible)
         self.editor.escapeUnused.connect(self.cancel_jobs)
         self.editor.night_lights_row.show()
@@ -226,6 +255,8 @@ class MainWindow(QMainWindow):
         if not busy and getattr(self, "_cancelling", False):
             self._cancelling = False
             self._set_busy("cancelled — F5 recomputes, F6 renders")
+            if self.render_panel.status.text() == "rendering…":
+                self.render_panel.status.setText("render cancelled — F6 renders")
         dlg = getattr(self, "_export_dialog", None)
         if dlg is not None and not self.export_jobs.is_busy:
             dlg.reset()  # a cancelled or failed export never leaves its dialog up
@@ -347,8 +378,10 @@ class MainWindow(QMainWindow):
 
     def _update_title(self, *_a) -> None:
         name = self.chain.scene.name if self.chain else "no scene"
+        done = bool(self.editor.session.ann.meta.get("done"))
+        self.act_done.setChecked(done)
         dirty = " *" if self.editor.session.is_dirty else ""
-        self.setWindowTitle(f"NPSim — {name}{dirty}")
+        self.setWindowTitle(f"NPSim — {name}{' (done)' if done else ''}{dirty}")
 
     # ----------------------------------------------------------------- parameters
     def on_param_changed(self, section: str, field: str, value) -> None:
@@ -523,7 +556,8 @@ class MainWindow(QMainWindow):
             if display.mesh is not res.mesh:
                 self.log.log(f"3D view shows a {display.mesh.n_faces:,}-face reduction of the "
                              f"{res.mesh.n_faces:,}-face mesh")
-        self.request_render()
+        force, self._render_after_compute = getattr(self, "_render_after_compute", False), False
+        self.request_render(force=force)
 
     def refresh_view(self) -> None:
         """Recompute the canvas image for the current view mode (in a worker)."""
@@ -541,6 +575,19 @@ class MainWindow(QMainWindow):
     def on_lights_toggled(self, state: dict) -> None:
         self.light_override = dict(state)
         self.request_render()
+
+    def render_now(self) -> None:
+        """F6 / the Render button: the night preview now, computing the mesh first when there is none
+        yet (e.g. after the computation was cancelled)."""
+        if self.chain is None:
+            return
+        if self.results is None or self.results.mesh is None or not getattr(self, "results_final", True):
+            self._render_after_compute = True
+            if not self.pipeline_jobs.is_busy:
+                self.recompute()
+            self._set_busy("computing the mesh, then the night…")
+            return
+        self.request_render(force=True)
 
     def request_render(self, force: bool = False) -> None:
         """Render the night preview in a worker; skipped (and remembered) while the preview is hidden,

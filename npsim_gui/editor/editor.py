@@ -26,7 +26,8 @@ from .overlays import boundary_rgba, class_color, labels_rgba, lights_region, li
 from .palette import ClassPalette, InstanceList
 from .proposals import ProposalBook
 from .session import EditorSession, join_group
-from .shortcuts import GROUP_CLASS_KEYS, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutDialog
+from .shortcuts import GROUP_CLASS_KEYS, KEYMAP, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutSheet
+from .shortcuts import keys as keymap_keys
 from ..workers import JobChannel
 from .tools import Tool, ToolController, ToolOptions
 
@@ -291,8 +292,12 @@ class AnnotationEditor(QWidget):
         self.canvas.hovered.connect(self._on_hover)
 
     def _action(self, text: str, keys, slot) -> QAction:
+        """An editor action; ``keys``: an action id of the keymap (:data:`shortcuts.KEYMAP`) or literal keys."""
         a = QAction(text, self)
-        a.setShortcuts([QKeySequence(k) for k in ([keys] if isinstance(keys, str) else keys)])
+        if isinstance(keys, str) and any(sc.action == keys for sc in KEYMAP):
+            a.setShortcuts(keymap_keys(keys))
+        else:
+            a.setShortcuts([QKeySequence(k) for k in ([keys] if isinstance(keys, str) else keys)])
         a.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
         a.triggered.connect(slot)
         self.addAction(a)
@@ -301,34 +306,34 @@ class AnnotationEditor(QWidget):
     def _build_actions(self) -> None:
         self.actions_by_name: dict[str, QAction] = {}
         A = self.actions_by_name
-        A["undo"] = self._action("Undo", "Ctrl+Z", self.session.undo)
-        A["redo"] = self._action("Redo", ["Ctrl+Shift+Z", "Ctrl+Y"], self.session.redo)
-        for t, k in TOOL_KEYS.items():
-            A[f"tool_{t.value}"] = self._action(TOOL_TITLES[t], k, lambda _=False, t=t: self.set_tool(t))
+        A["undo"] = self._action("Undo", "undo", self.session.undo)
+        A["redo"] = self._action("Redo", "redo", self.session.redo)
+        for t in TOOL_KEYS:
+            A[f"tool_{t.value}"] = self._action(TOOL_TITLES[t], f"tool_{t.value}", lambda _=False, t=t: self.set_tool(t))
         for cid, k in {**LIGHT_CLASS_KEYS, **GROUP_CLASS_KEYS}.items():
-            A[f"class_{cid}"] = self._action(light_class(cid).name, k,
+            A[f"class_{cid}"] = self._action(light_class(cid).name, [k],
                                              lambda _=False, c=cid: self.session.set_current_class(c))
-        A["new"] = self._action("New light", "N", self.new_light)
-        A["class"] = self._action("Change class of selection", "C", self.change_selected_class)
-        A["group"] = self._action("Group selection", "Ctrl+G", self.group_selected)
-        A["ungroup"] = self._action("Ungroup", "Ctrl+Shift+G", self.ungroup_selected)
-        A["delete"] = self._action("Delete selection", ["Delete", "Backspace"], self.delete_selected)
-        A["activate"] = self._action("Activate group (new lights join it)", "A", self.toggle_active_group)
-        A["escape"] = self._action("Clear selection", "Esc", self.clear_selection)
-        A["filter"] = self._action("Filter classes", "Ctrl+F", self.focus_class_filter)
-        A["split"] = self._action("One light per region", "R", self.split_box.toggle)
-        A["similar"] = self._action("Similar colour only", "T", self.similar_box.toggle)
-        A["fine"] = self._action("Fine superpixel scale", "D", self.fine_box.toggle)
-        A["smaller"] = self._action("Brush smaller", "[", lambda: self.brush_spin.setValue(self.brush_spin.value() - 1))
-        A["larger"] = self._action("Brush larger", "]", lambda: self.brush_spin.setValue(self.brush_spin.value() + 1))
-        for name, key in (("labels", "L"), ("superpixels", "P"), ("lights", "M")):
-            A[f"layer_{name}"] = self._action(f"Toggle {name}", key, self.layer_boxes[name].toggle)
-        A["help"] = self._action("Shortcuts", "F1", self.show_shortcuts)
-        A["propose"] = self._action("Propose lights", PROPOSAL_KEYS["propose"], self.propose_lights)
+        A["new"] = self._action("New light", "new", self.new_light)
+        A["class"] = self._action("Change class of selection", "class", self.change_selected_class)
+        A["group"] = self._action("Group selection", "group", self.group_selected)
+        A["ungroup"] = self._action("Ungroup", "ungroup", self.ungroup_selected)
+        A["delete"] = self._action("Delete selection", "delete", self.delete_selected)
+        A["activate"] = self._action("Activate group (new lights join it)", "activate", self.toggle_active_group)
+        A["escape"] = self._action("Clear selection", "escape", self.clear_selection)
+        A["filter"] = self._action("Filter classes", "filter", self.focus_class_filter)
+        A["split"] = self._action("One light per region", "split", self.split_box.toggle)
+        A["similar"] = self._action("Similar colour only", "similar", self.similar_box.toggle)
+        A["fine"] = self._action("Fine superpixel scale", "fine", self.fine_box.toggle)
+        A["smaller"] = self._action("Brush smaller", "smaller", lambda: self.brush_spin.setValue(self.brush_spin.value() - 1))
+        A["larger"] = self._action("Brush larger", "larger", lambda: self.brush_spin.setValue(self.brush_spin.value() + 1))
+        for name in ("labels", "superpixels", "lights"):
+            A[f"layer_{name}"] = self._action(f"Toggle {name}", f"layer_{name}", self.layer_boxes[name].toggle)
+        A["help"] = self._action("Shortcuts", "help", self.show_shortcuts)
+        A["propose"] = self._action("Propose lights", "propose", self.propose_lights)
         # (lambdas: triggered(bool) must not reach the methods' optional arguments)
-        A["accept"] = self._action("Accept proposals", PROPOSAL_KEYS["accept"], lambda: self.accept_proposals())
-        A["reject"] = self._action("Reject proposals", PROPOSAL_KEYS["reject"], lambda: self.reject_proposals())
-        A["accept_above"] = self._action("Accept proposals above the confidence", PROPOSAL_KEYS["accept_above"],
+        A["accept"] = self._action("Accept proposals", "accept", lambda: self.accept_proposals())
+        A["reject"] = self._action("Reject proposals", "reject", lambda: self.reject_proposals())
+        A["accept_above"] = self._action("Accept proposals above the confidence", "accept_above",
                                          lambda: self.accept_proposals_above())
 
     # ----------------------------------------------------------------- public API
@@ -376,8 +381,11 @@ class AnnotationEditor(QWidget):
     def show_message(self, text: str) -> None:
         self.status.setText(text)
 
-    def show_shortcuts(self) -> ShortcutDialog:
-        dlg = ShortcutDialog(self)
+    #: Which window's keymap the F1 sheet shows ("annotate" stand-alone, "app" in the main window).
+    keymap_window = "annotate"
+
+    def show_shortcuts(self) -> ShortcutSheet:
+        dlg = ShortcutSheet(self.keymap_window, self)
         dlg.show()
         self._shortcut_dialog = dlg
         return dlg

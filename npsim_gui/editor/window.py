@@ -14,13 +14,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import QTimer
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QFileDialog, QLabel, QMainWindow, QMessageBox
 
 from npsim_core.annotation import (AnnotationItem, discover_items, find_recovery, load_annotation, load_recovery)
 from npsim_core.errors import NpsimInputError
 
 from .editor import AnnotationEditor
+from .shortcuts import keys as keymap_keys
 
 
 class EditorWindow(QMainWindow):
@@ -47,10 +48,11 @@ class EditorWindow(QMainWindow):
             self.set_items(items)
 
     # ----------------------------------------------------------------- menus
-    def _menu_action(self, menu, text, keys, slot) -> QAction:
+    def _menu_action(self, menu, text, action, slot) -> QAction:
+        """A window action with the keys of ``action`` in the keymap (shortcuts.py)."""
         a = QAction(text, self)
-        if keys:
-            a.setShortcuts([QKeySequence(k) for k in ([keys] if isinstance(keys, str) else keys)])
+        if action:
+            a.setShortcuts(keymap_keys(action, "annotate"))
         a.triggered.connect(slot)
         menu.addAction(a)
         return a
@@ -58,14 +60,14 @@ class EditorWindow(QMainWindow):
     def _build_menus(self) -> None:
         mb = self.menuBar()
         f = mb.addMenu("&File")
-        self._menu_action(f, "Open folder…", "Ctrl+O", self.open_folder_dialog)
-        self.save_action = self._menu_action(f, "Save", "Ctrl+S", self.save)
-        self._menu_action(f, "Next image", "PgDown", self.next_image)
-        self._menu_action(f, "Previous image", "PgUp", self.previous_image)
-        self.done_action = self._menu_action(f, "Done", "Ctrl+D", self.toggle_done)
+        self._menu_action(f, "Open folder…", "open_folder", self.open_folder_dialog)
+        self.save_action = self._menu_action(f, "Save", "save_annotation", self.save)
+        self._menu_action(f, "Next image", "next_frame", self.next_image)
+        self._menu_action(f, "Previous image", "previous_frame", self.previous_image)
+        self.done_action = self._menu_action(f, "Done", "done", self.toggle_done)
         self.done_action.setCheckable(True)
         f.addSeparator()
-        self._menu_action(f, "Quit", "Ctrl+Q", self.close)
+        self._menu_action(f, "Quit", "quit", self.close)
         e = mb.addMenu("&Edit")
         for name in ("undo", "redo", "new", "class", "group", "ungroup", "activate", "delete", "escape", "filter"):
             e.addAction(self.editor.actions_by_name[name])
