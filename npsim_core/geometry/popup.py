@@ -390,13 +390,17 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
         if p.car_ids:  # then cars, on their own lines: wheels, not the body's underside, touch the ground
             fac_info["cars"] = {}
             passes.append((p.car_ids, p.car_envelope, fac_info["cars"]))
+    next_ground = None
+    if passes:  # first ground row at or below each pixel (H: none), shared by the passes
+        rowidx = np.where(ground, np.arange(H)[:, None], H)
+        next_ground = np.minimum.accumulate(rowidx[::-1], axis=0)[::-1]
     for ids_, envelope, pinfo in passes:
         lut[:] = False
         lut[list(ids_)] = True
         is_contact = lut[seg_label] & ~placed
         is_contact[0] = False
         res = _place_facades(labels, seg, nseg, ground, invalid, is_contact, walk, intr, g, f, e, h, p, pinfo,
-                             envelope=envelope)
+                             envelope=envelope, next_ground=next_ground)
         if res is not None:
             s_arr, u_arr, n_arr, c_arr, placed_ids, v_arr = res
             fidx = np.full(nseg + 1, -1, dtype=np.int64)
@@ -494,8 +498,18 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     notes = []
     if rest.any():
         if known.any():
-            _, (iy, ix) = ndimage.distance_transform_edt(~known, return_indices=True)
-            depth[rest] = depth[iy[rest], ix[rest]]
+            # nearest placed pixel, searched in the unplaced pixels' bounding box grown by 1/8 of the
+            # image (the whole image when that box holds no placed pixel): the full-frame transform
+            # costs 0.2 s at 2048x1024
+            rv, ru = np.nonzero(rest)
+            m = max(H, W) // 8
+            box = (slice(max(rv.min() - m, 0), min(rv.max() + m + 1, H)),
+                   slice(max(ru.min() - m, 0), min(ru.max() + m + 1, W)))
+            if not known[box].any():
+                box = (slice(0, H), slice(0, W))
+            _, (iy, ix) = ndimage.distance_transform_edt(~known[box], return_indices=True)
+            sub = rest[box]
+            depth[box][sub] = depth[box][iy[sub], ix[sub]]
         else:
             depth[rest] = p.fallback_depth
             notes.append(f"no ground or placed segment: unplaced regions set to {p.fallback_depth} m")
@@ -778,7 +792,7 @@ def _crossing(p: _Line, q: _Line) -> float | None:
 
 
 def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, intr, g, f, e, h, p, info,
-                   envelope: float = 0.0):
+                   envelope: float = 0.0, next_ground: np.ndarray | None = None):
     """Per-(segment, column) vertical planes of the facade segments standing on their contact line.
 
     Returns ``(seg_ids, cols, normals (N, 3), offsets (N,))`` for every column of every facade
@@ -806,8 +820,9 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     at_bottom = vb >= H - 1
     visible = ~at_bottom & ground[vbel, ku]
     unknown = ~at_bottom & invalid[vbel, ku]
-    rowidx = np.where(ground, np.arange(H)[:, None], H)
-    next_ground = np.minimum.accumulate(rowidx[::-1], axis=0)[::-1]
+    if next_ground is None:
+        rowidx = np.where(ground, np.arange(H)[:, None], H)
+        next_ground = np.minimum.accumulate(rowidx[::-1], axis=0)[::-1]
     ng = next_ground[vbel, ku]
     if envelope > 0:
         # lower envelope of the visible contacts (a car's wheels; the body's underside is seen 0.3 m up,
