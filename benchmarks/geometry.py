@@ -44,7 +44,7 @@ def _row(name, seconds, depth, normals, scene):
 VARIANT_CLASSES = (("road", 7), ("sidewalk", 8), ("building", 11), ("vegetation", 21), ("car", 26))
 BEFORE = {"facades": "flat", "sidewalk_height": 0.0}
 PRIORS = {"flat": BEFORE, "segment": {"crowns": "segment"}, "default": {}}
-ALL_VARIANTS = "default,receding,occluded_base,corner,clutter,hard,canopy,square,shopfront,hard2"
+ALL_VARIANTS = "default,receding,occluded_base,corner,clutter,hard,busy,canopy,square,shopfront,hard2"
 
 
 def far_limit_shares(depth: np.ndarray, scene, max_depth: float) -> tuple[float, float]:
