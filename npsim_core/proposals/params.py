@@ -113,6 +113,9 @@ class ProposalParams:
     window_split_steps: int = 2
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
+    #: A blob too large or ragged for one window is cut where its mean departure from the wall over a
+    #: column (row, for a tall blob) dips below this fraction of the peaks either side (0: never).
+    window_gap_contrast: float = 0.6
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).

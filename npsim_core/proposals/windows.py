@@ -74,6 +74,37 @@ def _features(ctx: Context) -> np.ndarray:
     return np.dstack([np.log(np.maximum(ctx.lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
 
+def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float) -> list[tuple[int, int, np.ndarray]]:
+    """Cut a blob along its longer axis where the wall shows through: the mean departure from the
+    wall (``dev``, in window thresholds) over each column (row for a tall blob) dips below
+    ``contrast`` times the lower of the peaks on either side. Returns (y, x, mask) pieces, local."""
+    h, w = m.shape
+    axis = 0 if w >= h else 1                      # 0: profile over columns
+    cnt = m.sum(axis)
+    prof = np.where(cnt > 0, (dev * m).sum(axis) / np.maximum(cnt, 1), 0.0)
+    n = prof.size
+    if n < 5:
+        return [(0, 0, m)]
+    left = np.maximum.accumulate(prof)
+    right = np.maximum.accumulate(prof[::-1])[::-1]
+    gap = np.zeros(n, bool)
+    for j in range(1, n - 1):
+        if prof[j] <= prof[j - 1] and prof[j] <= prof[j + 1] and prof[j] < contrast * min(left[j - 1], right[j + 1]):
+            gap[j] = True
+    if not gap.any():
+        return [(0, 0, m)]
+    out = []
+    d = np.diff(np.r_[0, (~gap).astype(np.int8), 0])
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        sub = m[:, a:b] if axis == 0 else m[a:b, :]
+        if not sub.any():
+            continue
+        ys, xs = np.nonzero(sub)
+        piece = sub[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+        out.append((int(ys.min()) + (0 if axis == 0 else int(a)), int(xs.min()) + (int(a) if axis == 0 else 0), piece))
+    return out
+
+
 def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, p) -> bool:
     """Whether a blob differs from the building pixels in a ring ``window_ring_px`` wide around it by
     at least half the window thresholds (log luminance or Lab chroma). The wall reference is a
@@ -476,6 +507,15 @@ def propose(ctx: Context) -> list[Group]:
         why = accept(y0, x0, m)
         if why in ("fill", "size"):
             rejects.append((y0, x0, m))
+        if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_gap_contrast > 0:
+            # Panes of a receding row merged across one-pixel walls: cut where the wall shows through.
+            dev = np.maximum(np.abs(ratio[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]) / t,
+                             chroma[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] / p.window_chroma_delta)
+            pieces = _gap_split(m, dev, p.window_gap_contrast)
+            if len(pieces) > 1:
+                for py, px, pm in pieces:
+                    stack.append((y0 + py, x0 + px, pm, p.window_split_steps + 1))
+                continue
         if why in ("fill", "size") and depth_ < p.window_split_steps:
             # Panes joined by thin bridges (a shadow edge, 1-px gaps far away): erode, split, grow back.
             er = cv2.erode(m.astype(np.uint8), cross) > 0
