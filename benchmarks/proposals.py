@@ -225,7 +225,8 @@ def main(argv: list[str] | None = None) -> int:
                 for c, s in score(scene.lights, kept, categories=CATS).items():
                     tot[c] += (s.n_gt, s.n_pred, s.n_match, big[c].n_gt, big[c].n_match)
                 actions.setdefault((W, H, variant), []).append(editor_actions(scene.lights, props))
-                rules.setdefault((W, H, variant), []).append(window_rules(scene, kept) + kept_groups(scene.lights, kept))
+                rules.setdefault((W, H, variant), []).append(window_rules(scene, kept)
+                                                             + kept_groups(scene.lights, kept))
                 if (W, H) == (2048, 1024) and variant == "hard" and pic is None:
                     pic = (scene, props)
             for c in CATS:

@@ -270,10 +270,10 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     each side of the face (fractions without depth). Each box is snapped to the pixels within a
     window around it that differ from the paint, never in the plate zone (``vehicle_plate_half_m``
     either side of the face's axis: plates are never lamps). The pair is then made symmetric about
-    the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre); two snapped lamps that agree
-    (rows and columns overlapping by half) take their mean rows and distances from the axis, two
-    that disagree stay as found, and a lamp that does not stand out mirrors the one that does; a
-    lamp mostly off the silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is
+    the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre);
+    two snapped lamps that agree (rows and columns overlapping by half) take their mean rows and
+    distances from the axis, two that disagree stay as found, and a lamp that does not stand out
+    mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is
     dropped. Empty boxes are never returned.
     """
     p = ctx.params

@@ -186,8 +186,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
       ragged for one window (``rejects``: (y0, x0, mask)) that spans them, is cut into one window per
       cell (a piece filling ``window_min_fill`` of its cell); a window
       taller than 1.5x the median window height of its facade and of the windows nearest to it, or
-      wider than 1.5x the wider of its neighbours on its floor, without cells to cut it along, is dropped (a gable, a roof or an awning
-      taken for a window);
+      wider than 1.5x the wider of its neighbours on its floor, without cells to cut it along, is
+      dropped (a gable, a roof or an awning taken for a window);
     * every cell of a floor with at least three windows and a bay that holds no window and looks
       faintly like one (``window_cell_min_share`` of its pixels beyond half the window thresholds,
       mostly building pixels) is proposed (confidence 0.55);
