@@ -273,8 +273,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre);
     two snapped lamps that agree (rows and columns overlapping by half) take their mean rows and
     distances from the axis, two that disagree stay as found, and a lamp that does not stand out
-    mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is
-    dropped. Empty boxes are never returned.
+    mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
+    silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
+    are never returned.
     """
     p = ctx.params
     h, w = m.shape
