@@ -953,8 +953,13 @@ class MainWindow(QMainWindow):
     #: The recovery file is written this long (ms) after the first edit not yet in it.
     AUTOSAVE_MS = 1000
 
-    #: Screens narrower than this get one right-hand column: parameters over the night preview.
-    NARROW_SCREEN = 1500
+    #: Screens narrower than this get one right-hand column: parameters over the night preview (tabbed
+    #: with the 3D view), so the annotation canvas, the annotator's workspace, is the largest panel.
+    #: (With parameters on the left and the 3D view over the night on the right, the canvas was 401 px
+    #: wide at 1600x900.) Only very wide screens get the three-column arrangement.
+    NARROW_SCREEN = 2500
+    #: Width of the right-hand column as a fraction of the screen (at least RIGHT_MIN px).
+    RIGHT_FRACTION, RIGHT_MIN = 0.25, 330
 
     def _fit_screen(self) -> None:
         """Start within the screen (a saved layout that fits overrides this)."""
@@ -1003,10 +1008,12 @@ class MainWindow(QMainWindow):
         self.render_dock.raise_()
         if self._narrow:
             self.resizeDocks([self.params_dock, self.render_dock], [300, 400], vertical)
+            right_w = max(self.RIGHT_MIN, int(self._avail.width() * self.RIGHT_FRACTION))
+            self.resizeDocks([self.render_dock], [right_w], Qt.Orientation.Horizontal)
         elif self.viewer is not None:
             self.resizeDocks([self.viewer_dock, self.render_dock], [400, 500], vertical)
             self.resizeDocks([self.viewer_dock], [self._avail.width() // 3], Qt.Orientation.Horizontal)
-        self.resizeDocks([self.log_dock], [140], vertical)
+        self.resizeDocks([self.log_dock], [90], vertical)
         if frames_open and not self._narrow:
             self.resizeDocks([self.params_dock, self.frames_dock], [600, 160], vertical)
 

@@ -149,7 +149,7 @@ class LossPlot(QWidget):
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.series: dict[str, list[float]] = {}
-        self.setMinimumHeight(120)
+        self.setMinimumHeight(80)  # the log strip under the canvas stays low: the canvas gets the height
 
     def set_history(self, series: dict[str, list[float]]) -> None:
         self.series = {k: [float(x) for x in v] for k, v in series.items() if len(v)}

@@ -218,3 +218,48 @@ def test_an_edit_during_a_long_job_does_not_wait_for_it(qtbot, settings):
     win.cancel_jobs()
     qtbot.waitUntil(lambda: not win.jobs_busy, timeout=30_000)
     win.close()
+
+
+def test_at_1600x900_the_canvas_is_the_largest_panel_and_the_side_panel_needs_no_scrolling(qtbot, settings):
+    """The annotator's workspace gets the room: wider and larger than any dock, the editor's tabs
+    (classes, instances, proposals, view) on screen without scrolling."""
+    from PySide6.QtCore import QRect
+    from PySide6.QtWidgets import QDockWidget
+
+    win = _window(qtbot, with_3d=True)
+    win.fit_to(QRect(0, 0, 1600, 900))
+    win.move(0, 0)
+    win.show()
+    qtbot.waitExposed(win)
+    qtbot.wait(50)
+    c = win.editor.canvas
+    docks = [d for d in win.findChildren(QDockWidget) if d.isVisible() and not d.visibleRegion().isEmpty()]
+    assert c.width() > 700
+    for d in docks:
+        assert c.width() * c.height() > d.width() * d.height(), d.objectName()
+        if d is not win.log_dock:
+            assert c.width() > d.width(), d.objectName()
+    side = win.editor.side_panel
+    tabs = win.editor.side_tabs
+    for k in range(tabs.count()):
+        tabs.setCurrentIndex(k)
+        qtbot.wait(10)
+        assert side.widget().minimumSizeHint().height() <= side.viewport().height(), tabs.tabText(k)
+    win.close()
+
+
+def test_superpixel_borders_are_hidden_at_fit_zoom_on_a_large_frame(qtbot):
+    from npsim_gui.editor.editor import AnnotationEditor
+
+    ed = AnnotationEditor()
+    qtbot.addWidget(ed)
+    ed.resize(1100, 700)
+    ed.show()
+    qtbot.waitExposed(ed)
+    ed.load(np.zeros((1024, 2048, 3), np.uint8))
+    ed.shutdown()  # the superpixels themselves are not needed here
+    ed.canvas.fit()
+    assert ed.layer_boxes["superpixels"].isChecked() and not ed.superpixel_borders_shown()
+    assert not ed.canvas.layers["superpixels"].isVisible()
+    ed.canvas.set_zoom(1.0)
+    assert ed.superpixel_borders_shown() and ed.canvas.layers["superpixels"].isVisible()

@@ -13,7 +13,8 @@ from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QAbstractItemView, QAbstractButton, QButtonGroup, QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout,
                                QGridLayout, QGroupBox, QHBoxLayout, QLabel, QMainWindow, QPushButton, QScrollArea,
-                               QSlider, QSpinBox, QToolButton, QTreeWidget, QTreeWidgetItem, QVBoxLayout, QWidget)
+                               QSlider, QSpinBox, QTabWidget, QToolButton, QTreeWidget, QTreeWidgetItem,
+                               QVBoxLayout, QWidget)
 
 from npsim_core.annotation import class_of, is_group_class, is_light_class
 from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
@@ -153,8 +154,14 @@ class AnnotationEditor(QWidget):
 
         # Display adjustment of the base image (never of the data).
         view = QGroupBox("View (display only)")
-        vl = QHBoxLayout(view)
+        vl_outer = QVBoxLayout(view)
+        vl_outer.setSpacing(2)
+        vl = QHBoxLayout()
         vl.setSpacing(3)
+        vl2 = QHBoxLayout()
+        vl2.setSpacing(3)
+        vl_outer.addLayout(vl)
+        vl_outer.addLayout(vl2)
         self.view_brightness = QSpinBox()
         self.view_brightness.setRange(-100, 100)
         self.view_brightness.setSuffix(" %")
@@ -182,9 +189,11 @@ class AnnotationEditor(QWidget):
         self.view_auto.clicked.connect(self.auto_display)
         self.view_reset = QPushButton("Reset")
         self.view_reset.clicked.connect(lambda: self.set_display(0.0, 1.0, 1.0))
-        vl.addWidget(self.view_auto)
-        vl.addWidget(self.view_reset)
-        pl.addWidget(view)
+        vl2.addWidget(self.view_auto)
+        vl2.addWidget(self.view_reset)
+        vl_outer.addStretch(1)
+        view.setTitle("")
+        view.setFlat(True)
 
         # Top bar over the canvas: layer toggles with opacity, superpixel settings.
         # Two rows, so the canvas column stays narrow enough for 1600-px screens.
@@ -215,6 +224,7 @@ class AnnotationEditor(QWidget):
         self.zoom_label = QLabel("")
         bl.addWidget(self.zoom_label, 0, 5)
         self.canvas.zoomChanged.connect(lambda z: self.zoom_label.setText(f"zoom {z:.2f}"))
+        self.canvas.zoomChanged.connect(lambda _z: self._update_superpixel_layer())
         self.sp_method = QComboBox()
         self.sp_method.addItems(list(METHODS))
         self.sp_method.setToolTip("superpixel method")
@@ -238,7 +248,13 @@ class AnnotationEditor(QWidget):
         sp_row.setSpacing(3)
         for w in (self.sp_method, self.sp_size, self.sp_compact, apply_sp):
             sp_row.addWidget(w)
+        sp_row.insertWidget(3, apply_sp)  # (placed below: the row is narrower in two lines)
+        sp_row.removeWidget(apply_sp)
         opts.addRow("Superpixels", sp_row)
+        sp_row2 = QHBoxLayout()
+        sp_row2.addStretch(1)
+        sp_row2.addWidget(apply_sp)
+        opts.addRow(sp_row2)
         bl.addWidget(self.sp_status, 1, 2, 1, 4)  # under the zoom read-out
 
         pal = QGroupBox("Classes")
@@ -248,9 +264,13 @@ class AnnotationEditor(QWidget):
         self.palette.groupClassChosen.connect(self.session.set_current_class)
         self.palette.filterDone.connect(self.canvas.setFocus)
         pal_l.addWidget(self.palette)
-        pl.addWidget(pal)
+        # Classes, instances and proposals share one tabbed area under the tools: each is on screen when
+        # picked, none below the fold (the side panel at 1600x900 ran 1350 px tall)
+        self.side_tabs = QTabWidget()
+        self.side_tabs.setDocumentMode(True)
+        self.side_tabs.addTab(pal, "Classes")
 
-        pl.addWidget(self._build_proposals_box())
+        proposals_box = self.proposals_box = self._build_proposals_box()
 
         inst = QGroupBox("Instances")
         il = QVBoxLayout(inst)
@@ -258,15 +278,23 @@ class AnnotationEditor(QWidget):
         self.instance_list.setMinimumHeight(110)
         self.instance_list.selectionEdited.connect(self._on_list_selection)
         il.addWidget(self.instance_list)
-        row = QHBoxLayout()
-        for text, slot in (("New", self.new_light), ("Class", self.change_selected_class),
-                           ("Group", self.group_selected), ("Ungroup", self.ungroup_selected),
-                           ("Delete", self.delete_selected)):
+        row = QGridLayout()
+        row.setSpacing(2)
+        for k, (text, slot) in enumerate((("New", self.new_light), ("Class", self.change_selected_class),
+                                          ("Group", self.group_selected), ("Ungroup", self.ungroup_selected),
+                                          ("Delete", self.delete_selected))):
             b = QPushButton(text)
             b.clicked.connect(slot)
-            row.addWidget(b)
+            row.addWidget(b, k // 3, k % 3)
         il.addLayout(row)
-        pl.addWidget(inst, 1)
+        self.side_tabs.addTab(inst, "Instances")
+        self.side_tabs.addTab(proposals_box, "Proposals")
+        self.side_tabs.addTab(view, "View")
+        self.side_tabs.setTabToolTip(3, "brightness, contrast and gamma of the shown image (display only)")
+        for box in (pal, inst, proposals_box):
+            box.setTitle("")  # the tab names them
+            box.setFlat(True)
+        pl.addWidget(self.side_tabs, 1)
         self.status = QLabel("")
         self.status.setWordWrap(True)
         pl.addWidget(self.status)
@@ -540,10 +568,31 @@ class AnnotationEditor(QWidget):
         self._refresh_lists()
         self._on_current()
 
+    #: Superpixel borders are drawn only when a superpixel is at least this many screen pixels wide: at
+    #: fit zoom on a large frame they speckle the whole image and hide the proposals.
+    MIN_SUPERPIXEL_SCREEN_PX = 8.0
+
+    def superpixel_borders_shown(self) -> bool:
+        """True when the borders are on (P) and large enough on screen to be read."""
+        s = self.session
+        size = s.sp_params.region_size * (0.5 if self.options.fine_scale else 1.0)
+        return self.layer_boxes["superpixels"].isChecked() and \
+            size * self.canvas.zoom() >= self.MIN_SUPERPIXEL_SCREEN_PX
+
+    def _update_superpixel_layer(self) -> None:
+        on = self.superpixel_borders_shown()
+        self.canvas.set_layer_visible("superpixels", on)
+        cb = self.layer_boxes["superpixels"]
+        cb.setToolTip("" if on or not cb.isChecked() else
+                      "superpixel borders appear when you zoom in (hidden while a superpixel is under "
+                      f"{self.MIN_SUPERPIXEL_SCREEN_PX:g} screen pixels)")
+
     def _on_layer_toggled(self, name: str, visible: bool) -> None:
         self.canvas.set_layer_visible(name, visible)
         if name == "labels" and visible:
             self._show_labels_layer()
+        if name == "superpixels":
+            self._update_superpixel_layer()
 
     def _show_labels_layer(self) -> None:
         """Draw the semantic label layer when it is visible and not drawn for these labels yet."""
@@ -568,10 +617,12 @@ class AnnotationEditor(QWidget):
 
     def _on_superpixels(self) -> None:
         self._show_superpixel_borders()
+        self._update_superpixel_layer()
 
     def _on_fine_toggled(self, on: bool) -> None:
         self.options.fine_scale = on
         self._show_superpixel_borders()
+        self._update_superpixel_layer()
 
     def _show_superpixel_borders(self) -> None:
         """Borders of the scale the tools use (the fine one when the toggle is on and it is ready)."""
@@ -777,6 +828,7 @@ class AnnotationEditor(QWidget):
             def fn():
                 return propose_lights(image, labels)
         generation = id(s.ann)
+        self.side_tabs.setCurrentWidget(self.proposals_box)  # where the proposals and their status appear
         self.proposal_status.setText("proposing…")
         # the book (pixel lists and the overlay: full-frame passes) is built in the worker too
         self.proposal_jobs.submit(lambda cancel, progress: (ProposalBook(fn()), generation))
