@@ -47,6 +47,23 @@ class _Done(QObject):
     done = Signal()
 
 
+def _copy_export(files: list[Path], folder: Path, cancel: threading.Event, progress) -> list[Path]:
+    """Copy an earlier export's ``files`` into ``folder`` (manifest last, as the writer does)."""
+    import shutil
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for k, src in enumerate(files):
+        if cancel.is_set():
+            raise NpsimCancelled("export cancelled")
+        progress((k / max(len(files), 1), f"copying {src.name}"))
+        dst = folder / src.name
+        if src.resolve() != dst.resolve():
+            shutil.copy2(src, dst)
+        out.append(dst)
+    return out
+
+
 class MainWindow(QMainWindow):
     """Main application window for one scene at a time."""
 
@@ -912,6 +929,17 @@ class MainWindow(QMainWindow):
         if self.chain is None:
             return
         chain, params = self.chain, self.params
+        folder = Path(folder)
+        name = chain.scene.name
+        if (folder / f"{name}_export.json").exists() and \
+                self.ask("Overwrite the export?", f"{folder} already holds an export of {name}. Overwrite its "
+                         "files?", ["Overwrite", "Cancel"]) != "Overwrite":
+            return
+        # An unchanged frame (same parameters, annotation and nights) is not computed again: its last
+        # export's files are copied (a full-resolution export renders for minutes).
+        key = (id(chain), params, getattr(self, "_ann_version", 0), nights)
+        last = getattr(self, "_export_cache", None)
+        reuse = last[1] if last is not None and last[0] == key and all(p.exists() for p in last[1]) else None
         apply_ann = self._annotation_for_job()
         dlg = None
         if show_progress:
@@ -922,11 +950,14 @@ class MainWindow(QMainWindow):
         self._export_dialog = dlg
 
         def job(cancel, progress):
+            if reuse is not None:
+                return _copy_export(reuse, folder, cancel, progress), key
             apply_ann(chain)
             return export_frame(chain, params, folder, nights=nights, cancel=cancel,
-                                progress=lambda f, text: progress((f, text)))
+                                progress=lambda f, text: progress((f, text))), key
 
         self._export_folder = folder  # what the (once-connected) handlers report
+        self._export_reused = reuse is not None
         self.export_jobs.submit(job)
 
     def _on_export_progress(self, info) -> None:
@@ -935,11 +966,14 @@ class MainWindow(QMainWindow):
             dlg.setValue(int(info[0] * 100))
             dlg.setLabelText(info[1])
 
-    def _on_export_done(self, written) -> None:
+    def _on_export_done(self, payload) -> None:
+        written, key = payload
         dlg = getattr(self, "_export_dialog", None)
         if dlg is not None:
             dlg.setValue(100)
-        self.log.log(f"exported {len(written)} files to {self._export_folder}")
+        self._export_cache = (key, list(written))
+        how = " (unchanged frame: the last export's files copied, nothing recomputed)" if self._export_reused else ""
+        self.log.log(f"exported {len(written)} files to {self._export_folder}{how}")
         self.last_export = written
         self.export_reports = getattr(self, "export_reports", 0) + 1
 

@@ -285,3 +285,29 @@ def test_large_frames_answer_sliders_from_a_proxy(qtbot):
     qtbot.waitUntil(lambda: win.results is not full and win.results_final, timeout=180_000)
     assert win.results.depth.shape == (384, 768)
     win.close()
+
+
+def test_export_of_an_unchanged_frame_reuses_the_last_one_and_asks_before_overwriting(window, qtbot, tmp_path):
+    logged, asked = [], []
+    window.log.log = lambda text, _orig=window.log.log: (logged.append(text), _orig(text))
+    window.ask = lambda title, text, buttons: asked.append(title) or "Cancel"
+    calls = []
+    import npsim_core.chain as chain_mod
+
+    real = chain_mod.export_frame
+    chain_mod.export_frame = lambda *a, **k: calls.append(1) or real(*a, **k)
+    try:
+        for k in (1, 2):
+            before = getattr(window, "export_reports", 0)
+            window.export(tmp_path / f"e{k}", nights=0, show_progress=False)
+            qtbot.waitUntil(lambda: getattr(window, "export_reports", 0) == before + 1, timeout=120_000)
+        assert len(calls) == 1 and "nothing recomputed" in logged[-1]  # the second was copied
+        n = window.chain.scene.name
+        a, b = (tmp_path / "e1" / f"{n}_depth_refined.png"), (tmp_path / "e2" / f"{n}_depth_refined.png")
+        assert a.read_bytes() == b.read_bytes()
+        before = getattr(window, "export_reports", 0)
+        window.export(tmp_path / "e1", nights=0, show_progress=False)  # already an export there: Cancel
+        assert asked == ["Overwrite the export?"] and not window.export_jobs.is_busy
+        assert getattr(window, "export_reports", 0) == before
+    finally:
+        chain_mod.export_frame = real
