@@ -275,3 +275,19 @@ def test_a_one_at_a_time_channel_starts_a_job_when_the_cancelled_one_has_stopped
     stop_first.set()
     qtbot.waitUntil(lambda: done == ["second"] and not ch.is_busy, timeout=10_000)
     assert started == ["first", "second"]
+
+
+def test_the_3d_view_mesh_is_held_to_its_face_budget():
+    """The reduction lands up to 1.5x over its target; the 3D view lowers the target until it fits."""
+    from types import SimpleNamespace
+
+    from npsim_gui.main_window import MainWindow, _display_mesh
+
+    asked = []
+
+    class Chain:
+        def display_mesh(self, res, max_faces, params=None):
+            asked.append(max_faces)
+            return SimpleNamespace(n_faces=int(max_faces * 1.45))  # as on real frames: 87 k for 60 k
+    shown = _display_mesh(Chain(), None, MainWindow.DISPLAY_FACES, None)
+    assert shown.n_faces <= 1.1 * MainWindow.DISPLAY_FACES and asked[0] == MainWindow.DISPLAY_FACES
