@@ -1,10 +1,11 @@
 """Documentation screenshots of the app on real-layout frames (run under Xvfb).
 
 ``xvfb-run -a -s "-screen 0 1600x900x24" .venv/bin/python -m npsim_gui.app_screenshot docs/img``
-writes ``app_real_frame.png``: the main window at the screen's size on frame 0 of a
+writes ``app.png``: the main window at the screen's size on frame 0 of a
 Cityscapes-layout dataset (``npsim_core.synthetic.cityscapes``, 2048x1024: image, labelIds,
 stereo disparity, camera JSON) opened as a dataset root, once its full-resolution mesh and night
-preview are shown; and ``editor_proposals.png``: the stand-alone editor on the synthetic street
+preview are shown, with its light proposals (Ctrl+P) and those >= 0.9 accepted; and
+``editor_proposals.png``: the stand-alone editor on the synthetic street
 (1024x512) with light proposals, the sure ones (confidence >= 0.9) accepted, zoomed on a street
 corner. ``--dataset ROOT`` uses an existing dataset instead of writing the fixture.
 """
@@ -47,7 +48,12 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
     _wait(app, lambda: win.render_panel.night is not None and not win.render_jobs.is_busy)
     win.render_panel.split.setValue(35)  # the day / night split shows both
     win.editor.auto_display()
-    win.editor.layer_boxes["superpixels"].setChecked(False)  # thousands of borders hide a fit-zoom frame
+    ed = win.editor
+    ed.actions_by_name["propose"].trigger()  # Ctrl+P: the proposals as a dashed layer, their tab shown
+    _wait(app, lambda: ed.proposal_book is not None and not ed.proposal_jobs.is_busy)
+    ed.confidence_slider.setValue(90)
+    ed.accept_proposals_above()
+    _wait(app, lambda: not win.jobs_busy)
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 1.5)
     if win.viewer is not None:
@@ -74,12 +80,11 @@ def editor_proposals(app: QApplication, out: Path) -> None:
     win.move(0, 0)
     _settle(app, win)
     ed = win.editor
-    ed.layer_boxes["superpixels"].setChecked(False)
     ed.set_proposals(propose_for_scene(scene))
     ed.accept_proposals_above(0.9)
     ed.canvas.set_zoom(2.2)
     ed.canvas.centerOn(330, 190)
-    ed.side_panel.ensureWidgetVisible(ed.proposal_tree)  # the Proposals box and its list
+    ed.side_tabs.setCurrentWidget(ed.proposals_box)  # the Proposals tab and its list
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 0.5)
     win.grab().save(str(out))
@@ -104,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     w, h = (int(v) for v in args.size.split("x"))
     if "app" in args.names:
-        app_real_frame(app, out / "app_real_frame.png", Path(args.dataset) if args.dataset else None, (w, h))
+        app_real_frame(app, out / "app.png", Path(args.dataset) if args.dataset else None, (w, h))
     if "proposals" in args.names:
         editor_proposals(app, out / "editor_proposals.png")
     return 0

@@ -17,7 +17,9 @@ from PySide6.QtCore import QTimer
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QFileDialog, QLabel, QMainWindow, QMessageBox
 
-from npsim_core.annotation import (AnnotationItem, discover_items, find_recovery, load_annotation, load_recovery)
+from npsim_core.annotation import (AnnotationItem, annotation_paths, discover_items, find_recovery, load_annotation,
+                                   load_recovery)
+from npsim_core.chain.session import frame_annotation_files
 from npsim_core.errors import NpsimInputError
 
 from .editor import AnnotationEditor
@@ -131,7 +133,10 @@ class EditorWindow(QMainWindow):
         ann = None
         readonly = None
         dirty = False
-        rec = find_recovery(it.folder, it.stem)
+        folder, stem = it.folder, it.stem
+        if Path(it.image_path).parent == Path(it.folder):  # an image (not a scene folder): where the CLI reads
+            folder, stem = frame_annotation_files(it.image_path)  # beside it, or a read-only dataset's folder
+        rec = find_recovery(folder, stem)
         if rec is not None:
             choice = self.ask("restore", "Recover unsaved edits",
                               f"{it.name}: the last session ended without saving. Restore its unsaved edits?",
@@ -144,9 +149,9 @@ class EditorWindow(QMainWindow):
                     self.statusBar().showMessage(str(exc))
             else:
                 rec.unlink(missing_ok=True)
-        if ann is None and it.has_annotation():
+        if ann is None and annotation_paths(folder, stem)["json"].exists():
             try:
-                ann = load_annotation(it.folder, it.stem)
+                ann = load_annotation(folder, stem)
             except NpsimInputError as exc:
                 # Never overwrite a file we could not read: edit a blank annotation read-only.
                 readonly = str(exc)
@@ -155,7 +160,7 @@ class EditorWindow(QMainWindow):
             readonly = f"annotation size {ann.shape} differs from the image {image.shape[:2]}"
             ann = None
         self.index = index
-        self.editor.load(image, labels, ann, it.folder, it.stem, dirty=dirty)
+        self.editor.load(image, labels, ann, folder, stem, dirty=dirty)
         self.editor.session.readonly_reason = readonly
         if readonly:
             self.statusBar().showMessage(f"read-only: {readonly}")
