@@ -561,13 +561,13 @@ def _variant_with_prims(variant: str, seed: int, W: int = 256, H: int = 128):
     return s, prims, gt.prim, layout
 
 
-@pytest.mark.parametrize("seed, where", [(0, (5.5, 9.5)), (3, (-7.4, 10.7))])
+@pytest.mark.parametrize("seed, where", [(3, (5.8, 7.5)), (3, (-7.4, 10.7)), (2, (5.7, 46.5))])
 def test_crown_over_a_hidden_trunk_stands_near_its_true_depth(seed, where):
-    """Canopy street, 256x128: the near crown whose trunk hides behind a bus shelter (seed 0, right) or a
-    group of people (seed 3, left) stands within 20 % of its true depth (median over its pixels).
+    """Canopy street, 256x128: crowns whose trunk hides (behind people, a van or a sign board) stand
+    within 20 % of their true depth (median over their pixels).
 
-    Measured: 8.5 m / 11.2 m against 8.9 / 11.4 m; one fronto-parallel depth per crown segment (the
-    earlier prior, ``crowns="segment"``) put them at 15.6 / 15.8 m (+75 %, +39 %).
+    Measured: 10.0 / 13.3 / 39.5 m against 9.0 / 11.4 / 43.8 m; one fronto-parallel depth per crown
+    segment (the earlier prior, ``crowns="segment"``) put them at 16.8 / 15.8 / 16.5 m (+87, +39, -62 %).
     """
     s, prims, prim, _ = _variant_with_prims("canopy", seed)
     crowns = np.nonzero((prims.label == 21) & (prims.lo[:, 1] >= 2.0) & (prims.lo[:, 1] < 3.0)
@@ -623,7 +623,7 @@ def test_cars_stand_on_their_wheels(variant):
 def test_confidence_marks_where_the_prior_is_unsure():
     """The confidence map: in [0, 1] on every pixel with a depth, NaN on sky, carried through
     estimate_geometry; AbsRel where it is below 0.5 at least 3x that where it is not (hard2, canopy
-    at 256x128; measured 0.41 vs 0.03 and 0.35 vs 0.03); visible facade contacts above hidden ones."""
+    at 256x128; measured 0.24 vs 0.03 and 0.37 vs 0.03)."""
     for variant in ("hard2", "canopy"):
         s = street_variant(variant)
         est = estimate_geometry(s, "popup")

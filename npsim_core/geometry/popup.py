@@ -72,6 +72,29 @@ only row quantisation), and a tree crown whose trunk is hidden stands half way b
 the nearest support (the car in front) and the facade behind. ``sidewalk_height`` raises
 the sidewalk plane (and whatever stands on it) above the road.
 
+Hidden contacts (docs/geometry.md, "Hidden contacts"; default, ``facades="contact"``)
+-------------------------------------------------------------------------------------
+* Cars (``car_ids``) stand on their own contact lines after the facades, by the same
+  per-column model, their visible contacts replaced by the lower envelope over
+  ``car_envelope`` x the width: the wheels touch the ground, the body's underside (0.3 m
+  up) would put the car a third too far.
+* A contact piece wholly beyond ``vp_max_distance`` (buildings across a square) is not
+  snapped to the vanishing point and gives no street line; feet more than 15 m off the
+  street's axis give no hidden-foot street line either.
+* Tree crowns resting on other segments with no trunk in sight (``crowns="columns"``) get
+  a depth per column from their lowest pixel: no farther than what is below it and no
+  farther than a lower edge ``crown_base`` m up at that row allows (less ``crown_radius``);
+  a run of columns whose lower edge stays level is one crown (median of its columns); the
+  pixel takes the geometric mean of that and its segment's own placement.
+* A foot beyond the far limit is placed at the near end of its row's range (visible) or
+  half way between the limit and the ground below its occluder (hidden); the far limit
+  is a last resort, counted in ``info["far_limit_pixels"]`` and noted.
+* ``GeometryEstimate.confidence``: per pixel, how it was placed (ground 1, visible facade
+  contact 0.9, on the ground 0.8, crown on a trunk 0.7, on other segments or hidden facade
+  foot 0.5, crown over an occluder 0.45 / by its lower edge 0.35, nearest fill 0.2) divided
+  by ``1 + (z / (h fy)) / 0.1`` (one row's relative depth step at that depth); 0.05 at
+  the far limit; NaN where invalid.
+
 All work is vectorised over the image; the only Python loops are over
 segments (fitting lines to each one's contact points) and placement rounds.
 """
@@ -1157,8 +1180,10 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
     contact (a trunk); otherwise over what is below -- no farther than that (a crown above people on the
     sidewalk stands over that sidewalk) and no farther than a lower edge ``crown_base`` metres up seen
     at that row allows (minus ``crown_radius``, the underside's depth), whichever is nearer. A run of
-    columns whose lower edge stays level is one crown and takes the median of its columns; a segment
-    whose trunk shows anywhere keeps the depth the rounds gave it (at the trunk's contact). Writes
+    columns whose lower edge stays level is one crown and takes the median of its columns; the pixel
+    gets the geometric mean of that and the depth the rounds gave its segment (fronto-parallel between
+    the car in front and the facade behind). A segment whose trunk shows anywhere keeps the depth the
+    rounds gave it (at the trunk's contact). Writes
     ``depth`` in place; returns the pixels written and, per pixel, where its column's depth came from:
     1 a trunk contact, 2 what is below (an occluder), 3 the crown's lower edge.
     """
@@ -1221,7 +1246,9 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
     j = np.minimum(j, uniq.size - 1)
     hit = (uniq[j] == seg[pv, pu].astype(np.int64) * W + pu) & np.isfinite(tbl[j])
     pv, pu, j = pv[hit], pu[hit], j[hit]
-    depth[pv, pu] = tbl[j]
+    # two guesses that fail differently -- this column's and the segment's own placement (half way
+    # between the car in front and the facade behind): half way between them in log depth
+    depth[pv, pu] = np.sqrt(tbl[j] * depth[pv, pu])
     done[pv, pu] = True
     kind_px[pv, pu] = src[j]
     return done, kind_px
