@@ -25,8 +25,10 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
 4. **Normals** come from the fitted planes analytically (``n ∝ −(b fx, c fy, a + b cx + c cy)``),
    so the refinement is not guided by stereo noise.
 
-Where a segment has too little stereo support (weight of the window < ``min_support``) the
-caller's hole filling (the scaled pop-up prior) is kept. The fits run on a grid about σ/6
+Where a façade or ground segment has too little stereo support in the window, the local fit
+hands over (blended in the coefficients) to the segment's robust plane, so the surface goes on
+over the left border SGM cannot match and over occlusion holes; in other segments the caller's
+hole filling (the scaled pop-up prior) is kept there. The fits run on a grid about σ/6
 coarser than the image (at most 512 px wide; the coefficients are smooth) and are evaluated at
 full resolution.
 """
@@ -68,7 +70,10 @@ class SurfaceParams:
     speckle_area, speckle_px : speckle islands (area, disparity difference in px) dropped.
     edge_px : stereo this close to a segment border is not used (edge fattening).
     iterations : reweighting iterations of the robust fit.
-    min_support : below this window weight the hole filling is kept.
+    min_support : below this window weight the hole filling is kept (classes other than planes).
+    handover : on façades and the ground, below this window weight the local fit hands over to the
+        segment's robust plane (blended), which extends them over stereo holes where the hole
+        filling's depth agrees within ``handover_agreement`` (relative).
     """
 
     plane_sigma: float = 96.0
@@ -80,6 +85,8 @@ class SurfaceParams:
     edge_px: float = 4.0
     iterations: int = 3
     min_support: float = 0.02
+    handover: float = 0.1
+    handover_agreement: float = 0.15
 
 
 def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: SurfaceParams) -> np.ndarray:
@@ -143,6 +150,31 @@ def _local_planes(q: np.ndarray, w0: np.ndarray, uu: np.ndarray, vv: np.ndarray,
         scale = max(1.4826 * float(np.median(np.abs(r[sel]))) if sel.any() else 0.0, 0.005)
         w = w0 / (1.0 + (r / (2.385 * scale)) ** 2)
     return coef, support
+
+
+def _segment_plane(q: np.ndarray, m: np.ndarray, x0: int, y0: int, iterations: int = 4) -> np.ndarray | None:
+    """Robust (Cauchy IRLS) plane ``q = a + b u + c v`` over the pixels ``m`` of a crop whose
+    top-left pixel is (x0, y0); (a, b, c) in full-image pixel coordinates, None when < 12 pixels."""
+    vv, uu = np.nonzero(m)
+    if vv.size < 12:
+        return None
+    if vv.size > 20000:  # a fixed subsample: the plane has three unknowns
+        k = np.linspace(0, vv.size - 1, 20000).astype(np.int64)
+        vv, uu = vv[k], uu[k]
+    y = q[vv, uu].astype(np.float64)
+    A = np.stack([np.ones_like(y), (uu + x0).astype(np.float64), (vv + y0).astype(np.float64)], -1)
+    cu, cv = A[:, 1].mean(), A[:, 2].mean()
+    A[:, 1] -= cu
+    A[:, 2] -= cv
+    w = np.ones_like(y)
+    coef = np.zeros(3)
+    for _ in range(iterations):
+        sw = np.sqrt(w)
+        coef = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)[0]
+        r = (y - A @ coef) / np.maximum(np.abs(y), 1e-9)
+        scale = max(1.4826 * float(np.median(np.abs(r))), 0.005)
+        w = 1.0 / (1.0 + (r / (2.385 * scale)) ** 2)
+    return np.array([coef[0] - coef[1] * cu - coef[2] * cv, coef[1], coef[2]])
 
 
 def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, labels: np.ndarray,
@@ -265,6 +297,21 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
         full = full.astype(np.float64)
         U = np.arange(xa, xb)[None, :].astype(np.float64)
         V = np.arange(ya, yb)[:, None].astype(np.float64)
+        if lab in PLANE_CLASSES:
+            # A façade or the ground goes on where the stereo has none (the left border SGM cannot
+            # match, occlusions): far from support the local fit hands over to the segment's
+            # robust plane, blended in the coefficients so the surface stays smooth.
+            glob = _segment_plane(qfull[ya:yb, xa:xb], ms & use[ya:yb, xa:xb], xa, ya)
+            if glob is not None:
+                alpha = np.clip(support / p.handover, 0.0, 1.0)
+                full = alpha[..., None] * full + (1 - alpha[..., None]) * glob[None, None, :]
+                # ... but only where the hole filling agrees that it is the same surface (a far
+                # façade beyond the stereo's range joined to a near one is not).
+                qb = full[..., 0] + full[..., 1] * U + full[..., 2] * V
+                fz = filled[ya:yb, xa:xb]
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    agree = ~np.isfinite(fz) | (np.abs(1.0 / qb - fz) <= p.handover_agreement * fz)
+                support = np.where(ms & (alpha < 1) & agree, 1.0, np.where(alpha < 1, 0.0, support))
         qh = full[..., 0] + full[..., 1] * U + full[..., 2] * V
         ok = ms & (support >= p.min_support) & (qh > 1e-4)
         if not ok.any():
