@@ -11,6 +11,9 @@ Environment:
                                   removed at the end of the session). Either way the scene cache
                                   (``NPSIM_CACHE``) and the Mitsuba variant probe's cache (under
                                   ``XDG_CACHE_HOME``) stay out of the user's ``~/.cache/npsim``.
+
+Parallel runs (pytest-xdist, ``bash npsim.sh test`` uses ``-n 2 --dist loadfile``): the workers share
+the controller's caches, and ``loadfile`` keeps a file's tests (and its module fixtures) on one worker.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ GUI_FIXTURES = frozenset({"qtbot", "qapp", "qtmodeltester"})
 NO_DISPLAY = "no display: GUI tests need X (run 'bash npsim.sh test', which starts Xvfb)"
 _tmp_key = pytest.StashKey[str]()
 _saved_env_key = pytest.StashKey["dict[str, str | None]"]()
+#: The session's cache root, handed to pytest-xdist workers through their environment.
+_SHARED_ENV = "NPSIM_TEST_CACHE_ROOT"
 
 # Opening the platform plugin is the only reliable test: a stale DISPLAY aborts Qt just like a missing one.
 _PROBE = "from PySide6.QtGui import QGuiApplication; QGuiApplication([]); print('ok')"
@@ -61,12 +66,18 @@ def pytest_configure(config: pytest.Config) -> None:
     # npsim_core.render.variant caches its probe under XDG_CACHE_HOME (read at import, so set it here,
     # before collection imports anything; subprocesses started by tests inherit both).
     keep = os.environ.get("NPSIM_TEST_CACHE")
-    if keep:
+    shared = os.environ.get(_SHARED_ENV) if os.environ.get("PYTEST_XDIST_WORKER") else None
+    if shared:
+        # a pytest-xdist worker: the controller's caches (inherited environment), so each scene and
+        # the variant probe are made once for all workers (the scene cache is safe for concurrent use)
+        root = shared
+    elif keep:
         root = os.path.abspath(keep)
     else:
         root = tempfile.mkdtemp(prefix="npsim-test-cache-")
         config.stash[_tmp_key] = root
-    env = {"NPSIM_CACHE": os.path.join(root, "scenes"), "XDG_CACHE_HOME": os.path.join(root, "xdg")}
+    env = {"NPSIM_CACHE": os.path.join(root, "scenes"), "XDG_CACHE_HOME": os.path.join(root, "xdg"),
+           _SHARED_ENV: root}
     config.stash[_saved_env_key] = {k: os.environ.get(k) for k in env}
     for k, v in env.items():
         os.makedirs(v, exist_ok=True)

@@ -248,13 +248,8 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         put(staging / f"{n}_normals_refined_vis.png", write_image, normals_to_rgb(nr))
     mesh_info = {"faces": int(res.mesh.n_faces), "vertices": int(res.mesh.n_vertices),
                  "reduced_by_budget": res.mesh_result.reduced}
-    if "mesh" in kinds and "glb" in mesh_formats:
-        from ..mesh.export import GLB_MAX_ERROR_M
-
-        mesh_info["glb"] = {"compression": "KHR_draco_mesh_compression", "max_position_error_m": GLB_MAX_ERROR_M,
-                            "texture": "JPEG quality 90"}
     if "mesh" in kinds and ex.mesh != "none":
-        from ..mesh.export import export_mesh
+        from ..mesh.export import GLB_DRACO_MAX_FACES, GLB_MAX_ERROR_M, export_mesh
         from .stages import lit_mesh
 
         meshes = []
@@ -268,7 +263,13 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
             if ex.mesh == "full":
                 mesh_info["written"] = {"faces": int(res.mesh.n_faces), "what": "the chain's mesh"}
         for stem, m in meshes:
-            # a Draco-compressed GLB (positions within GLB_MAX_ERROR_M: 19 -> 1.4 MB at 2048x1024)
+            if "glb" in mesh_formats:
+                mesh_info.setdefault("glb", {})[f"{stem}.glb"] = (
+                    {"compression": "KHR_draco_mesh_compression", "max_position_error_m": GLB_MAX_ERROR_M,
+                     "texture": "JPEG quality 90"} if m.n_faces <= GLB_DRACO_MAX_FACES else
+                    {"compression": "none", "why": f"more than {GLB_DRACO_MAX_FACES} faces"})
+            # a Draco-compressed GLB up to GLB_DRACO_MAX_FACES (positions within GLB_MAX_ERROR_M:
+            # the reduced mesh of a 2048x1024 frame 19 -> 1.4 MB)
             out = export_mesh(m, staging, stem=stem, formats=tuple(mesh_formats), image=s.image, glb_compress=True)
             written += list(out.values())
             if "obj" in out:  # its material and texture files beside it
