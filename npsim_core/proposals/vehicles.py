@@ -272,8 +272,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     either side of the face's axis: plates are never lamps). The pair is then made symmetric about
     the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre);
     two snapped lamps that agree (rows and columns overlapping by half) take their mean rows and
-    distances from the axis, two that disagree stay as found, and a lamp that does not stand out
-    mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
+    distances from the axis, two that disagree stay as found (their pixels), and a lamp that does
+    not stand out mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
     silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
     are never returned.
     """
@@ -300,6 +300,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     off_plate = np.abs(cols + 0.5 - (axis + 0.5)) > plate            # columns clear of the plate zone
     diff = np.abs(img - paint).max(-1) > 40.0
     boxes: list[tuple[int, int, int, int, bool] | None] = []          # rows, cols (face coords), snapped?
+    blobs: list[np.ndarray | None] = []                                # the snapped pixels
     for side in (0, 1):
         bc0, bc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
         br0, br1 = lr0, lr1
@@ -308,27 +309,26 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         wr0, wr1 = max(r0, br0 - pad_r, 0), min(r1, br1 + pad_r, h - 1)
         wc0, wc1 = max(cc0, bc0 - pad_c, 0), min(cc1, bc1 + pad_c, w - 1)
         snapped = False
+        blob = None
         if wr1 >= wr0 and wc1 >= wc0:
             win[wr0:wr1 + 1, wc0:wc1 + 1] = True
             win &= m & off_plate[None, :]
-            if side == 0:  # keep to this lamp's half of the face
-                win[:, int(np.ceil(axis)):] = False
-            else:
-                win[:, :int(np.floor(axis)) + 1] = False
             cand = _blob_at(win & diff, (br0 + br1) / 2.0, (bc0 + bc1) / 2.0)
             full = max(1, (min(br1, h - 1) - max(br0, 0) + 1) * (min(bc1, w - 1) - max(bc0, 0) + 1))
             n = int(cand.sum())
             if n >= max(1, full // 3) and n <= 3 * full:
                 ys, xs = np.nonzero(cand)
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
-                snapped = True
+                snapped, blob = True, cand
         boxes.append((br0, br1, bc0, bc1, snapped))
+        blobs.append(blob)
     if boxes[0][4] and boxes[1][4]:  # the vehicle's axis lies between its two lamps
         axis = ((boxes[0][2] + boxes[0][3]) / 2.0 + (boxes[1][2] + boxes[1][3]) / 2.0) / 2.0
     # (rows, outer and inner distance from the axis) per side, from its own box
     own = [(bx[0], bx[1], axis - bx[2] if k == 0 else bx[3] - axis, axis - bx[3] if k == 0 else bx[2] - axis)
            for k, bx in enumerate(boxes)]
     snapped = [k for k in (0, 1) if boxes[k][4]]
+    pair = False
     if len(snapped) == 2:
         (a0, a1, ao, ai), (b0, b1, bo, bi) = own
         rows_agree = min(a1, b1) - max(a0, b0) + 1 >= 0.5 * min(a1 - a0 + 1, b1 - b0 + 1)
@@ -336,12 +336,17 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         if rows_agree and cols_agree:  # one lamp pair: the mean rows and distances for both
             mean = tuple(float(np.mean([own[0][q], own[1][q]])) for q in range(4))
             own = [mean, mean]
+            pair = True
         # else each keeps what it snapped to (one of them caught something else; both stay as found)
     elif len(snapped) == 1:  # the other lamp mirrors the one that stands out
         own = [own[snapped[0]], own[snapped[0]]]
     lamps: list[np.ndarray] = []
     n_snapped = 0
     for side in (0, 1):
+        if boxes[side][4] and not pair:  # a lamp that stands out on its own: its pixels, as found
+            lamps.append(blobs[side])
+            n_snapped += 1
+            continue
         rr0, rr1 = int(round(own[side][0])), int(round(own[side][1]))
         d_out, d_in = own[side][2], max(own[side][3], 0.5)
         lo_c = int(round(axis - d_out)) if side == 0 else int(round(axis + d_in))

@@ -186,8 +186,9 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
       ragged for one window (``rejects``: (y0, x0, mask)) that spans them, is cut into one window per
       cell (a piece filling ``window_min_fill`` of its cell); a window
       taller than 1.5x the median window height of its facade and of the windows nearest to it, or
-      wider than 1.5x the wider of its neighbours on its floor, without cells to cut it along, is
-      dropped (a gable, a roof or an awning taken for a window);
+      wider than ``window_wide_ratio`` x the wider of its floor neighbours, is cut along the cells it
+      spans; a tall one without floors to cut it along is dropped (a gable or a roof taken for a
+      window), a wide one without bays is kept as found (its neighbours may be slivers);
     * every cell of a floor with at least three windows and a bay that holds no window and looks
       faintly like one (``window_cell_min_share`` of its pixels beyond half the window thresholds,
       mostly building pixels) is proposed (confidence 0.55);
@@ -282,7 +283,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
             row = sorted(floor_of[id(f)], key=lambda q: box[id(q)][2])
             j = next(i for i, q in enumerate(row) if q is f)
             beside = [box[id(row[i])][3] - box[id(row[i])][2] + 1 for i in (j - 1, j + 1) if 0 <= i < len(row)]
-            wide = bool(beside) and widths[k] > 1.5 * max(max(beside), 1.0)
+            wide = bool(beside) and widths[k] > p.window_wide_ratio * max(max(beside), 1.0)
             if not (tall or wide):
                 kept.append(f)
                 continue
@@ -291,8 +292,12 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
             xc = (x0 + x1) / 2.0
             span_rows = [(top(xc), bot(xc)) for top, bot, _ in lines
                          if min(bot(xc), y1) - max(top(xc), y0) + 1 >= 0.5 * (bot(xc) - top(xc) + 1)]
-            if wide and len(span_cols) < 2 or tall and len(span_rows) < 2:
-                continue  # larger than a window and no cells to cut it along: not a window
+            if tall and len(span_rows) < 2:
+                continue  # taller than a window and no floors to cut it along: not a window
+            if wide and len(span_cols) < 2:
+                if not tall:
+                    kept.append(f)  # neighbours may be slivers behind a tree: keep it as found
+                continue
             li = f[3]
             for c0, c1, _ in (span_cols if wide else [(x0, x1, 0)]):
                 for r0, r1 in (span_rows if tall else [(y0, y1)]):
