@@ -336,6 +336,9 @@ class MainWindow(QMainWindow):
         self.results = None
         self.light_override = None
         self.render_panel.clear_night()
+        if self.viewer is not None:
+            self.viewer.clear()  # the last frame's display meshes and image go with its results
+        self._export_cache = None  # (it names the last frame's files)
         where = scene_annotation_files(scene)
         folder, stem = where if where is not None else (None, scene.name)
         ann, dirty = scene.lights, False

@@ -158,6 +158,12 @@ class MeshViewer(QWidget):
             self._camera_set = True
         self._redraw()
 
+    def clear(self) -> None:
+        """Show nothing and let go of the last frame's meshes and image (another frame opens)."""
+        self.display = None
+        self.mesh, self.image, self.vertex_fields = None, None, {}
+        self._redraw()
+
     def _colors(self, pd: pv.PolyData) -> np.ndarray:
         mode = self.mode.currentText()
         pix = np.asarray(pd.point_data["pixel"])

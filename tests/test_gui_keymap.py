@@ -152,3 +152,68 @@ def test_after_a_cancel_the_status_says_what_f6_does_and_f6_does_it(qtbot, setti
     QTest.keyClick(win.editor.canvas, Qt.Key.Key_F6)  # no mesh yet: F6 computes it, then renders
     qtbot.waitUntil(lambda: win.render_panel.night is not None, timeout=120_000)
     win.close()
+
+
+def test_during_the_recovery_question_the_window_shows_the_frame_and_its_parameters(qtbot, settings, dataset):
+    from npsim_core.annotation import LightAnnotation, write_recovery
+    from npsim_core.chain import ChainParams
+    from npsim_core.synthetic.cityscapes import fixture_image
+
+    root, stems = dataset
+    image = fixture_image(root, stems[0])
+    write_recovery(LightAnnotation.empty(SIZE[1], SIZE[0]), image.parent, stems[0])
+    win = _window(qtbot)
+    seen = {}
+
+    def ask(title, text, buttons):
+        seen["lambda2"] = win.params_panel.sliders[("refine", "lambda2")].value()
+        seen["steps"] = win.params_panel.sliders[("refine", "steps")].value()
+        seen["canvas"] = win.editor.canvas.base.array.shape[:2]
+        seen["zoom"] = win.editor.canvas.zoom()
+        return "Discard"
+    win.ask = ask
+    win.open_scene(image)
+    want = ChainParams().with_value("refine", "steps", 5)
+    assert seen["lambda2"] == pytest.approx(want.refine.lambdas[1]) and seen["steps"] == 5
+    assert seen["canvas"] == (SIZE[1], SIZE[0])  # the frame asked about, fitted
+    assert seen["zoom"] < 10
+    win.close()
+
+
+def test_esc_during_a_render_says_the_render_was_cancelled(qtbot, settings):
+    from npsim_core.errors import NpsimCancelled
+
+    win = _window(qtbot)
+
+    def job(cancel, progress):
+        cancel.wait(30)
+        raise NpsimCancelled("cancelled")
+    win.render_panel.status.setText("rendering…")
+    win.render_jobs.submit(job)
+    qtbot.waitUntil(lambda: win.render_jobs.is_busy and win.act_cancel.isEnabled(), timeout=5000)
+    win.cancel_jobs()
+    qtbot.waitUntil(lambda: not win.jobs_busy, timeout=10_000)
+    assert win.render_panel.status.text() == "render cancelled — F6 renders"
+    win.close()
+
+
+def test_the_proposals_box_never_says_cancelled_while_proposals_compute(qtbot):
+    import threading
+
+    from npsim_gui.editor.editor import AnnotationEditor
+
+    ed = AnnotationEditor()
+    qtbot.addWidget(ed)
+    release = threading.Event()
+
+    def slow():
+        release.wait(10)
+        from npsim_core.errors import NpsimCancelled
+        raise NpsimCancelled("superseded")
+    ed.proposal_source = lambda: slow
+    ed.propose_lights()
+    ed.propose_lights()  # Ctrl+P twice: the second request replaces the first before it started
+    qtbot.waitUntil(lambda: ed.proposal_jobs._running > 0, timeout=5000)
+    assert ed.proposal_jobs.is_busy and ed.proposal_status.text() == "proposing…"
+    release.set()
+    qtbot.waitUntil(lambda: not ed.proposal_jobs.is_busy, timeout=10_000)
