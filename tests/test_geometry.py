@@ -656,3 +656,14 @@ def test_far_limit_is_a_logged_last_resort():
     at = est.depth >= 0.999 * 40.0
     assert est.info["far_limit_pixels"] > 0 and any("far limit" in n for n in est.info["notes"])
     assert np.allclose(est.confidence[at], 0.05)
+
+
+def test_a_ragged_facade_foot_still_recedes_along_the_street():
+    """Shop fronts (1024x512, seed 0: the crowd leaves a ragged run of visible feet that no line through the
+    vanishing point fits within contact_tol): a piece whose own line runs within 10 degrees of the street
+    recedes along it instead of being extended as a free line. Building AbsRel measured 0.153 -> 0.103."""
+    s = street_variant("shopfront", 1024, 512, seed=0)
+    b = s.labels == BUILDING
+    old = depth_metrics(estimate_geometry(s, "popup", PopupParams(recede_angle=0.0)).depth, s.depth_gt, b).abs_rel
+    new = depth_metrics(estimate_geometry(s, "popup").depth, s.depth_gt, b).abs_rel
+    assert new < 0.12 < 0.14 < old, (old, new)

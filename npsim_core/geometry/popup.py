@@ -179,6 +179,10 @@ class PopupParams:
         Metres: a contact piece wholly farther than this (buildings across a square or crossing)
         is never snapped to the street's vanishing point nor gives a street line -- a level and a
         receding line fit it alike at that range. ``None``: any distance (the earlier prior).
+    recede_angle : float
+        Degrees: a contact piece that no line through the vanishing point fits within
+        ``contact_tol`` (a ragged foot between shop-front crowds) still recedes along the street
+        when its own line is within this angle of the street's direction; 0 = off.
     vanishing : str
         ``"auto"``: the street's vanishing column from the long receding contact lines (the
         principal point's column when fewer than two agree); ``"center"``: always ``cx``.
@@ -216,6 +220,7 @@ class PopupParams:
     contact_tol: float = 1.5
     hidden_setback: float = 6.0
     vp_max_distance: float | None = 60.0
+    recede_angle: float = 10.0
     vanishing: str = "auto"
     crowns: str = "columns"
     car_ids: tuple[int, ...] = (26,)
@@ -814,6 +819,8 @@ def _crossing(p: _Line, q: _Line) -> float | None:
     return float(x[0] / x[2])
 
 
+
+
 def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, intr, g, f, e, h, p, info,
                    envelope: float = 0.0, next_ground: np.ndarray | None = None):
     """Per-(segment, column) vertical planes of the facade segments standing on their contact line.
@@ -908,6 +915,8 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
     d = np.array([ratio, 1.0]) / math.hypot(ratio, 1.0)  # street direction in plan (a, b)
 
+    n_street = d[1] * e - d[0] * f  # normal of a vertical plane along the street
+
     def lateral(u, v):
         a, b = gm.plan(np.asarray(u, float), np.asarray(v, float))
         return a * d[1] - b * d[0]  # > 0 right of the street axis
@@ -936,7 +945,14 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
                 r_level = float(np.sqrt(np.mean((vv - np.median(vv)) ** 2)))
                 # (a piece wholly beyond vp_max_distance -- across a square -- is too coarse to tell: it
                 # stays free and gives no street line)
-                if (_fits(uu.size, bad) or uu.size < min_pts) and r_vp < r_level and vv.max() > v_vp:
+                # (a piece whose own line runs along the street within recede_angle recedes too: a
+                # facade whose foot is ragged -- shop fronts, people -- fits no line within tol)
+                fits_vp = _fits(uu.size, bad) or uu.size < min_pts
+                if not fits_vp and p.recede_angle and uu.size >= 2 * min_pts:
+                    s_f, t_f, _ = _robust_line(uu, vv, tol)
+                    lf = make(_image_line(s_f, t_f), "free")
+                    fits_vp = lf is not None and abs(float(lf.n @ n_street)) > math.cos(math.radians(p.recede_angle))
+                if fits_vp and r_vp < r_level and vv.max() > v_vp:
                     ln = make(_image_line(sv, tv), "vp", uu[0], uu[-1])
                     if ln is not None:
                         X = float(np.median(lateral(uu, np.maximum(vv, v_min + 1e-3))))
@@ -971,7 +987,8 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     keep = hv > v_min
     hu, hv, hl = hu[keep], hv[keep], labels[ng[hid][keep], ku[hid][keep]]
     fa, fb = gm_road.plan(hu, hv)
-    fa2, fb2 = gm.plan(hu, hv)
+    # (feet on the sidewalk lie on its raised plane, whichever plane the facade's own contacts use)
+    fa2, fb2 = (_GroundMap(intr, g, f, e, h - p.sidewalk_height) if p.sidewalk_height else gm_road).plan(hu, hv)
     on_w = hl == SIDEWALK_ID
     feet_X = np.where(on_w, fa2 * d[1] - fb2 * d[0], fa * d[1] - fb * d[0])
     feet: dict[int, float] = {}
