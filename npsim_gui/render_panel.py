@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QPushButton, QSlider, QSpinBox, QTreeWidget,
-                               QTreeWidgetItem, QVBoxLayout, QWidget, QSplitter)
+                               QTreeWidgetItem, QVBoxLayout, QWidget, QSplitter, QSizePolicy)
 
 from npsim_core.labels import light_class
 
@@ -57,6 +57,9 @@ class RenderPanel(QWidget):
             self.denoiser.setItemData(i, tip, Qt.ItemDataRole.ToolTipRole)
         self.denoiser.setToolTip("Monte Carlo denoiser of the night (night.denoiser)")
         self.status = QLabel("no render yet")
+        # a long status (an error, the render's numbers) wraps instead of widening the dock over the canvas
+        self.status.setWordWrap(True)
+        self.status.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.split = QSlider(Qt.Orientation.Horizontal)
         self.split.setRange(0, 100)
         self.split.setValue(0)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QImage, QPainter, QPainterPath, QPen, QPixmap
 from PySide6.QtWidgets import (QDoubleSpinBox, QGraphicsPixmapItem, QGraphicsScene, QGraphicsView, QHBoxLayout,
                                QLabel, QPlainTextEdit, QSlider, QWidget)
@@ -118,6 +118,11 @@ class ImageView(QGraphicsView):
         self.setTransformationAnchor(QGraphicsView.ViewportAnchor.AnchorUnderMouse)
         self.setBackgroundBrush(QColor(32, 32, 32))
         self._fitted = False
+
+    def sizeHint(self) -> QSize:  # noqa: N802 (Qt API)
+        # QGraphicsView asks for its scene's size (up to 2/3 of the screen): a 2048-px night made the
+        # night preview's dock take the room of the annotation canvas. It fits whatever it gets.
+        return QSize(320, 200)
 
     def set_image(self, rgb: np.ndarray) -> None:
         first = self._item.pixmap().isNull() or self._item.pixmap().size().width() != rgb.shape[1]

@@ -231,6 +231,11 @@ def test_at_1600x900_the_canvas_is_the_largest_panel_and_the_side_panel_needs_no
     win.move(0, 0)
     win.show()
     qtbot.waitExposed(win)
+    big = np.zeros((1024, 2048, 3), np.uint8)  # a full-size frame in every view (no computation needed)
+    win.editor.show_image(big)
+    win.render_panel.set_day(big)
+    win.render_panel.set_night(big, "16 spp · 11.31 s · llvm_ad_rgb · " + "a long render status " * 20)
+    win.frames_dock.show()
     qtbot.wait(50)
     c = win.editor.canvas
     docks = [d for d in win.findChildren(QDockWidget) if d.isVisible() and not d.visibleRegion().isEmpty()]
