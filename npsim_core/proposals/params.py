@@ -29,8 +29,8 @@ class ProposalParams:
     tl_lamp_fraction: float = 0.72
     #: Housing aspect (long / short side) above which the housing holds three cells in a line.
     tl_min_aspect: float = 1.6
-    #: A lamp cell whose mean linear luminance is this many times every other cell's is lit by day
-    #: (the signal's state).
+    #: A lamp cell whose brightest linear channel (mean) is this many times every other cell's is lit
+    #: by day (the signal's state).
     tl_lit_ratio: float = 2.5
 
     # --- street lamps

@@ -34,10 +34,11 @@ def _cells(mask: np.ndarray, vertical: bool, frac: float) -> list[np.ndarray]:
     return out
 
 
-def lit_cell(lum: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | None:
-    """Index of the cell the day photo shows lit: its mean linear luminance at least ``ratio`` times
-    every other cell's; None when no cell stands out (all dark, or glare on all)."""
-    means = np.array([float(lum[c].mean()) if c.any() else 0.0 for c in cells])
+def lit_cell(glow: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | None:
+    """Index of the cell the day photo shows lit: its mean ``glow`` (the brightest linear channel: a
+    lit red LED is bright in red only, so luminance undersells it) at least ``ratio`` times every
+    other cell's; None when no cell stands out (all dark, or glare on all)."""
+    means = np.array([float(glow[c].mean()) if c.any() else 0.0 for c in cells])
     k = int(np.argmax(means))
     others = np.delete(means, k)
     if means[k] <= 0 or (others.size and means[k] < ratio * max(float(others.max()), 1e-4)):
@@ -48,8 +49,9 @@ def lit_cell(lum: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | No
 def propose(ctx: Context) -> list[Group]:
     """One traffic_light_group of three 'inferred' lamps per traffic-light component.
 
-    Lamps are named red, amber, green in reading order (:data:`LAMP_ORDER`); a cell much brighter
-    than the other two by day (``tl_lit_ratio``) is the lamp the signal shows, kept as the
+    Lamps are named red, amber, green in reading order (:data:`LAMP_ORDER`); a cell whose brightest
+    channel is much brighter than the other two cells' by day (``tl_lit_ratio``) is the lamp the
+    signal shows, kept as the
     group's state, so the night lights that lamp (npsim_core.render.lights.traffic_light_states);
     without one the night's seed picks the state.
 
@@ -79,6 +81,7 @@ def propose(ctx: Context) -> list[Group]:
             conf += 0.15 * min(1.0, contrast / 0.15)
         conf = float(np.clip(conf, 0.0, 1.0))
         lights = [Light(INFERRED, y0, x0, c, conf, colour=LAMP_ORDER[k]) for k, c in enumerate(cells)]
-        lit = lit_cell(ctx.lum[y0:y0 + h, x0:x0 + w], cells, p.tl_lit_ratio)
+        lin = (ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32) / 255.0) ** 2.2
+        lit = lit_cell(lin.max(-1), cells, p.tl_lit_ratio)
         out.append(Group(TRAFFIC_LIGHT_GROUP, lights, conf, state=None if lit is None else LAMP_ORDER[lit]))
     return out
