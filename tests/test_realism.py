@@ -70,13 +70,17 @@ def _night(scene, params):
 
 def test_a_car_on_sgm_stereo_renders_without_streaks(sgm_frame):
     from npsim_core.camera import normals_from_depth
-    from npsim_core.chain import ChainParams
+    from npsim_core.chain import Chain, ChainParams
 
     scene, truth = sgm_frame
     assert scene.depth_stereo is not None and scene.albedo is None and scene.roughness is None
     p = ChainParams().with_sets(["night.final_spp=4", "night.exposure_mode=manual", "night.exposure=1"])
     p = replace(p, lights=replace(p.lights, source="none"))
-    stereo = _night(scene, p)
+    chain = Chain(scene)
+    night = chain.night_final(chain.compute(p), p)
+    stereo = night.image
+    assert set(night.realism["stats"]) == set(REAL_NIGHT)          # every night carries its realism
+    assert night.realism["structure"]["whole"] > 0
     exact_scene = scene.with_(depth=truth, normals=normals_from_depth(truth, scene.intrinsics), depth_stereo=None)
     exact = _night(exact_scene, replace(p, depth=replace(p.depth, source="files")))
     car_sgm = structure_ratio(scene.image, scene.labels, stereo)["classes"]["car"]
@@ -105,3 +109,63 @@ def test_a_plate_is_not_lit():
     body = np.median(lum[labels == 26])
     assert lum[40:44, 52:68].max() <= 2.0 * body * 1.001
     assert mats.source.startswith("fallback")
+
+
+def test_surface_fit_recovers_a_plane_under_sgm_like_errors():
+    """A wall and the ground under row streaks, speckle islands and a foreground-fattened edge:
+    the fit recovers both planes and their normals (the raw stereo is off by up to 30 %)."""
+    from npsim_core.camera import Intrinsics, backproject, normals_from_depth
+    from npsim_core.geometry.surfaces import fit_surfaces
+
+    W, H = 256, 128
+    intr = Intrinsics.cityscapes(W, H)
+    rays = backproject(np.ones((H, W), np.float32), intr)
+    # Ground 1.22 m below the camera (y down), a wall 6 m to the left (x = -6).
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_ground = np.where(rays[..., 1] > 1e-3, 1.22 / rays[..., 1], np.inf)
+        z_wall = np.where(rays[..., 0] < -1e-3, -6.0 / rays[..., 0], np.inf)
+    truth = np.minimum(z_ground, z_wall).astype(np.float32)
+    labels = np.where(z_wall < z_ground, 11, 7).astype(np.uint8)
+    labels[~np.isfinite(truth)] = 23
+    rng = np.random.default_rng(0)
+    noisy = truth * (1 + 0.04 * rng.standard_normal((H, 1)))          # whole rows off (streaks)
+    noisy = noisy * (1 + 0.01 * rng.standard_normal((H, W)))
+    for _ in range(12):                                                # speckle islands
+        y, x = rng.integers(40, H - 5), rng.integers(5, W - 5)
+        noisy[y:y + 3, x:x + 3] *= 0.7
+    edge = np.argmax(labels == 7, axis=1)                              # the wall's ground contact
+    for v in range(H):                                                 # wall depth bled into the ground
+        noisy[v, edge[v]:edge[v] + 3] = noisy[v, max(edge[v] - 1, 0)]
+    valid = np.isfinite(truth) & (truth < 80)
+    depth, normals, info = fit_surfaces(noisy, valid, np.where(valid, noisy, np.nan).astype(np.float32), labels,
+                                        intr)
+    inner = valid & (cv2_erode(labels == 7) | cv2_erode(labels == 11)) & (truth < 40)
+    raw_err = np.abs(noisy[inner] - truth[inner]) / truth[inner]
+    err = np.abs(depth - truth)[inner] / truth[inner]
+    assert raw_err.max() > 0.2 and np.median(err) < 0.01 and np.percentile(err, 99) < 0.03
+    n_true = normals_from_depth(truth, intr)
+    ang = np.degrees(np.arccos(np.clip((normals * n_true).sum(-1), -1, 1)))[inner]
+    assert np.median(ang) < 2.0
+    assert info["speckle_fraction"] > 0
+
+
+def cv2_erode(m: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.erode(m.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+
+
+def test_gloss_only_where_the_geometry_is_smooth():
+    from npsim_core.render.materials import estimate_materials
+
+    h, w = 32, 64
+    labels = np.full((h, w), 26, np.uint8)
+    flat = np.zeros((h, w, 3), np.float32)
+    flat[..., 2] = -1.0
+    rng = np.random.default_rng(1)
+    bumpy = flat + 0.5 * rng.standard_normal((h, w, 3)).astype(np.float32)
+    bumpy /= np.linalg.norm(bumpy, axis=-1, keepdims=True)
+    image = np.full((h, w, 3), 120, np.uint8)
+    smooth = estimate_materials(image, labels, normals=flat).roughness
+    rough = estimate_materials(image, labels, normals=bumpy).roughness
+    assert np.allclose(smooth, 0.25) and rough.mean() > 0.8   # paint stays glossy only when smooth

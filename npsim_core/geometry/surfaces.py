@@ -67,7 +67,8 @@ class SurfaceParams:
 
     plane_sigma, vehicle_sigma, vegetation_sigma, detail_sigma : Gaussian window σ of the local
         plane fits (façades and ground, vehicles, vegetation, people and other classes).
-    speckle_area, speckle_px : speckle islands (area, disparity difference in px) dropped.
+    speckle_area, speckle_px : speckle islands (area, disparity difference in px) dropped; both
+        at 2048 px wide (disparity scales with the width, area with its square).
     edge_px : stereo this close to a segment border is not used (edge fattening).
     iterations : reweighting iterations of the robust fit.
     min_support : below this window weight the hole filling is kept (classes other than planes).
@@ -95,7 +96,7 @@ def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: Su
     d16 = np.clip(np.rint(disp * 16.0), 0, 32767).astype(np.int16)
     kept = d16.copy()
     area = max(4, int(round(p.speckle_area * (W / 2048.0) ** 2)))
-    cv2.filterSpeckles(kept, 0, area, int(round(p.speckle_px * 16)))
+    cv2.filterSpeckles(kept, 0, area, max(1, int(round(p.speckle_px * 16 * W / 2048.0))))
     return valid & (kept == 0) & (d16 > 0)
 
 

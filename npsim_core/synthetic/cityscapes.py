@@ -4,15 +4,21 @@
 Cityscapes download (docs/method.md §10): ``leftImg8bit`` images, ``gtFine``
 labelIds / instanceIds / colour PNGs, stereo ``disparity`` PNGs and ``camera``
 JSONs, and nothing else. There is no ground-truth depth or normals and no
-NPSim-specific file; the stereo disparity is simulated from the street's exact
-depth with the defects real Cityscapes disparity has (holes on sky, the ego
-vehicle, occlusions, the left border, thin structures, glass, far range and
+NPSim-specific file. The stereo disparity is, by default, real semi-global
+matching: the street's right view is rendered (Cityscapes baseline, the same
+intrinsics) and OpenCV's ``StereoSGBM`` matches the pair (:func:`sgm_disparity`),
+so it has SGM's structured errors (row streaks, fattened edges, speckle, wrong
+depth on low-texture and glossy surfaces, no match at the left border). The older
+model (``stereo="noise"``) simulates it from the exact depth instead (holes on sky,
+the ego vehicle, occlusions, the left border, thin structures, glass, far range and
 weakly textured blobs; a few % of disparity noise; 1/256 px quantisation). The
+exact depth can be written outside the dataset (``truth``) for benchmarks. The
 last ``corrupt`` frames carry a truncated image so batch runs must report and
 skip them. Frame ``i`` is ``street_scene(W, H, seed + i)`` (see
 :func:`fixture_seed`), which tests use as the hidden truth. See docs/synthetic.md.
 
-Run as a script for a quick dataset: ``python -m npsim_core.synthetic.cityscapes OUT --frames 3``.
+Run as a script for a quick dataset: ``python -m npsim_core.synthetic.cityscapes OUT --frames 3
+[--stereo sgm|noise] [--truth DIR] [--variant NAME]``.
 """
 
 from __future__ import annotations
@@ -539,7 +545,7 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(prog="python -m npsim_core.synthetic.cityscapes",
                                  description="Write a Cityscapes-layout dataset of synthetic streets "
-                                             "(no ground truth; simulated stereo disparity).")
+                                             "(no ground truth; SGM stereo disparity by default).")
     ap.add_argument("root")
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--size", default="256x128", help="WxH (default 256x128)")
