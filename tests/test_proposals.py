@@ -481,3 +481,23 @@ def test_a_gable_with_six_windows_gives_six():
     for m in truth:
         assert max(_iou(ann.mask(i), m) for i in gable) >= 0.6
     assert len(wins) == 10
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_the_lights_street_signals_are_read_as_shown_and_lit_alone_at_night(seed):
+    """The lights street's signals show one lit lamp by day (its ground truth in the layout); the
+    proposals read that state and the night lights exactly that lamp in every head."""
+    from npsim_core.render.lights import activate_lights, load_light_table
+    from npsim_core.synthetic import street_scene
+
+    scene = street_scene(256, 128, seed, "lights")
+    truth = set(scene.provenance["layout"]["traffic_light_states"].values())
+    ann = propose_for_scene(scene).above(0.5)
+    seen = ann.meta.get("traffic_light_states", {})
+    assert len(truth) == 1 and seen and set(seen.values()) == truth
+    act = activate_lights(ann, load_light_table(), 7, image=scene.image)
+    heads = [g for g in ann.groups.values() if g.class_id == 20]
+    assert heads
+    for g in heads:
+        lit = [ann.meta["lamp_colours"][str(m)] for m in g.members if act.lights[m].on]
+        assert lit == list(truth)
