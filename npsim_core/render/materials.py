@@ -395,22 +395,21 @@ def cap_vehicle_details(albedo: np.ndarray, labels: np.ndarray, instances: np.nd
 
 def geometry_roughness(normals: np.ndarray, labels: np.ndarray, *, full_deg: float = 20.0) -> np.ndarray:
     """(H, W) float32 roughness floor from the geometry: 0 where the normals agree with their
-    5x5 neighbourhood (same label), rising linearly to 1 at ``full_deg`` degrees of deviation.
+    5x5 neighbourhood, rising linearly to 1 at ``full_deg`` degrees of deviation.
 
     A glossy BSDF on a facet that is tilted every which way mirrors the lamps in sparkles and
     streaks (docs/relight.md); where the reconstructed surface is not smooth it must not be
-    glossy. Pixels without normals get 0 (no floor)."""
+    glossy. Only pixels whose 5x5 neighbourhood is one label and has normals are judged (a
+    label border is an edge, not roughness); the others get 0 (no floor). 0.4 s at 2048x1024
+    (load 9)."""
     import cv2
 
     ok = np.isfinite(normals).all(-1)
     n = np.where(ok[..., None], normals, 0.0).astype(np.float32)
-    out = np.zeros(labels.shape, np.float32)
-    for c in np.unique(labels[ok]):
-        m = (ok & (labels == c)).astype(np.float32)
-        mean = np.stack([cv2.blur(n[..., i] * m, (5, 5)) for i in range(3)], -1)
-        norm = np.linalg.norm(mean, axis=-1)
-        cosv = (mean * n).sum(-1) / np.maximum(norm, 1e-6)
-        dev = np.degrees(np.arccos(np.clip(cosv, -1, 1)))
-        sel = m > 0
-        out[sel] = np.clip(dev[sel] / full_deg, 0, 1)
-    return out
+    k = np.ones((5, 5), np.uint8)
+    lab = labels.astype(np.uint8)
+    pure = (cv2.erode(lab, k) == cv2.dilate(lab, k)) & cv2.erode(ok.astype(np.uint8), k).astype(bool)
+    mean = cv2.blur(n, (5, 5))
+    cosv = (mean * n).sum(-1) / np.maximum(np.linalg.norm(mean, axis=-1), 1e-6)
+    dev = np.degrees(np.arccos(np.clip(cosv, -1, 1)))
+    return np.where(pure, np.clip(dev / full_deg, 0, 1), 0).astype(np.float32)
