@@ -53,7 +53,8 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
     _wait(app, lambda: ed.proposal_book is not None and not ed.proposal_jobs.is_busy)
     ed.confidence_slider.setValue(90)
     ed.accept_proposals_above()
-    _wait(app, lambda: not win.jobs_busy)
+    t0 = time.perf_counter()
+    _wait(app, lambda: time.perf_counter() - t0 > 1.0 and not win.jobs_busy)  # the night with those lights
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 1.5)
     if win.viewer is not None:
