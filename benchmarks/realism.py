@@ -180,11 +180,13 @@ def main(argv=None) -> int:
                     (f"chain's default ({mats.source.split(' (')[0]})", mats.albedo),
                     ("de-lit, SGM geometry (night.delight)", delit_sgm), ("de-lit, exact geometry", delit_ex)):
         e = albedo_errors(scene, a, gt_albedo, true.lights.instance_map if true.lights is not None else None)
-        print(f"{name:34s} " + " ".join(f"{'-' if e[c] is None else f'{e[c]:.3f}':>10s}" for c in MEASURED))
+        cells = ("-" if e[c] is None else f"{e[c]:.3f}" for c in MEASURED)
+        print(f"{name:34s} " + " ".join(f"{x:>10s}" for x in cells))
 
-    print(f"de-lit: sun (camera frame) from SGM geometry {np.round(day_sgm.sun, 2).tolist()} sun/sky {day_sgm.ratio:g}, "
-          f"from exact geometry {np.round(day_ex.sun, 2).tolist()} sun/sky {day_ex.ratio:g}; true sun "
-          f"{np.round(_true_sun(scene, args.seed, args.variant), 2).tolist()} sun/sky ~2.6; de-lighting took {t_delit:.2f} s")
+    true_sun = np.round(_true_sun(scene, args.seed, args.variant), 2).tolist()
+    print(f"de-lit: sun (camera frame) from SGM geometry {np.round(day_sgm.sun, 2).tolist()} sun/sky "
+          f"{day_sgm.ratio:g}, from exact geometry {np.round(day_ex.sun, 2).tolist()} sun/sky {day_ex.ratio:g}; "
+          f"true sun {true_sun} sun/sky ~2.6; de-lighting took {t_delit:.2f} s")
     if args.save:
         from npsim_core.io import write_image
 

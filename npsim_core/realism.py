@@ -6,7 +6,7 @@ the batch report and the app's night panel show for every night.
   whole frame and per class (each class mask eroded 2 px, at least 200 pixels). Both images are
   compared at 1024 px wide. Streaks, speckle, broken geometry and hard-edged lit blobs raise it;
   published day->night pairs give SOLO 0.75, CycleGAN 0.89, ControlNet 1.45. Identical to
-  ``../shared/tools/night_artefacts.py`` (tested).
+  ``../shared/tools/night_artefacts.py`` (checked on the benchmark's 2048x1024 nights: the same digits).
 * **Global statistics** -- grey mean, median, 99th percentile, % of pixels > 240, R/B of the
   brightest 10 % (grey), at 1024 px wide; identical to ``../shared/tools/night_stats.py``.
   :data:`REAL_NIGHT` holds the values of 5 real ACDC night photos (SPEC §10).

@@ -41,7 +41,8 @@ from ..io import atomic_write_bytes, atomic_write_text, write_image
 from ..labels import cityscapes
 
 __all__ = ["write_cityscapes_fixture", "simulate_stereo_disparity", "instance_ids", "ego_vehicle_mask",
-           "native_intrinsics", "camera_json", "sgm_disparity", "fixture_seed", "fixture_stem", "BASELINE", "NATIVE_SIZE"]
+           "native_intrinsics", "camera_json", "sgm_disparity", "fixture_seed", "fixture_stem", "BASELINE",
+           "NATIVE_SIZE"]
 
 #: Cityscapes' stereo baseline (m), as in every camera JSON of the dataset.
 BASELINE = 0.209313
