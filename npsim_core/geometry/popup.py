@@ -89,9 +89,9 @@ Hidden contacts (docs/geometry.md, "Hidden contacts"; default, ``facades="contac
 * A foot beyond the far limit is placed at the near end of its row's range (visible) or
   half way between the limit and the ground below its occluder (hidden); the far limit
   is a last resort, counted in ``info["far_limit_pixels"]`` and noted.
-* ``GeometryEstimate.confidence``: per pixel, how it was placed (ground 1, visible facade
-  contact 0.9, on the ground 0.8, crown on a trunk 0.7, on other segments or hidden facade
-  foot 0.5, crown over an occluder 0.45 / by its lower edge 0.35, nearest fill 0.2) divided
+* ``GeometryEstimate.confidence``: per pixel, how it was placed (ground 1, visible facade or
+  car contact 0.9, on the ground 0.8, on other segments or a hidden facade or car foot 0.5,
+  crown over an occluder 0.45 / by its lower edge 0.35, nearest fill 0.2) divided
   by ``1 + (z / (h fy)) / 0.1`` (one row's relative depth step at that depth); 0.05 at
   the far limit; NaN where invalid.
 
@@ -546,7 +546,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     # --- confidence: how the pixel was placed, times the ground's depth resolution at its depth
     conf_how = np.array([0.2, 0.8, 0.5])[how[seg]]  # unplaced (nearest fill), on the ground, on segments
     conf_how = np.where(fac_seen == 2, 0.9, np.where(fac_seen == 1, 0.5, conf_how))
-    conf_how = np.where(crown_px, np.array([0.5, 0.7, 0.45, 0.35])[crown_kind], conf_how)
+    conf_how = np.where(crown_px, np.array([0.5, 0.5, 0.45, 0.35])[crown_kind], conf_how)
     conf_how = np.where(rest, 0.2, np.where(ground, 1.0, conf_how))
     with np.errstate(invalid="ignore"):
         row_err = depth / (h * intr.fy)  # relative depth step of one image row at this depth (on the ground)
@@ -858,7 +858,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         # lower envelope of the visible contacts (a car's wheels; the body's underside is seen 0.3 m up,
         # its contact row would be the ground behind it): running max of the rows per segment
         win = max(3, int(round(envelope * W)) | 1)
-        segs_, st_ = np.unique(ks, return_index=True)
+        _, st_ = np.unique(ks, return_index=True)
         for i0, i1 in zip(st_, np.append(st_[1:], ks.size)):
             vv = np.where(visible[i0:i1], vb[i0:i1], -1)
             env = ndimage.maximum_filter1d(vv, size=win, mode="nearest")
