@@ -547,7 +547,7 @@ def test_estimate_cli_network(tmp_path, tiny_checkpoint, capsys):
     assert "checkpoint folder not found" in capsys.readouterr().err
 
 
-# --------------------------------------------------------------------------- hidden contacts (issue 27)
+# --------------------------------------------------------------------------- hidden contacts (docs/geometry.md)
 def _variant_with_prims(variant: str, seed: int, W: int = 256, H: int = 128):
     """(scene, primitives, per-pixel primitive index) of a street variant, light panes left out."""
     from npsim_core.synthetic import street_ground_truth

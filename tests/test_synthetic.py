@@ -369,7 +369,7 @@ def test_bad_seed_and_size_rejected(tmp_path, capsys):
 
 # --------------------------------------------------------------------------- hard variants (docs/synthetic.md)
 HARD = ["receding", "occluded_base", "corner", "clutter", "hard"]
-#: The layouts that defeat the prior on real frames without stereo (issue 27, docs/synthetic.md).
+#: The layouts that defeat the prior on real frames without stereo (docs/synthetic.md, docs/geometry.md).
 HIDDEN = ["canopy", "square", "shopfront", "hard2"]
 
 

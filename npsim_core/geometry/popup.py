@@ -174,7 +174,7 @@ class PopupParams:
     hidden_setback : float
         Metres from the feet of what hides a facade's base (parked cars' street side, mostly)
         to the facade, assumed when neither side of the street shows a facade's foot: a car's
-        width plus a 3.5-4 m sidewalk (the synthetic street has 7.1 m; 5 m before issue 27).
+        width plus a 3.5-4 m sidewalk (the synthetic street has 7.1 m; the earlier prior used 5 m).
     vp_max_distance : float or None
         Metres: a contact piece wholly farther than this (buildings across a square or crossing)
         is never snapped to the street's vanishing point nor gives a street line -- a level and a
