@@ -13,9 +13,24 @@ def has_display() -> bool:
                 or os.environ.get("QT_QPA_PLATFORM"))
 
 
+def _is_dataset_root(path) -> bool:
+    """True for a folder of several frames (a dataset root), not one frame's or one scene's folder."""
+    p = Path(path)
+    if (p / "project.json").exists() or (p / "scene.json").exists() or (p / "intrinsics.json").exists():
+        return False
+    from npsim_core.chain import iter_frames
+    from npsim_core.errors import NpsimInputError
+
+    try:
+        return len(iter_frames(p)) > 1
+    except NpsimInputError:
+        return False
+
+
 def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), screenshot: str | None = None,
          quit_after: float | None = None) -> int:
-    """Open the main window on ``path`` (scene folder, project folder or dataset image) or the sample scene.
+    """Open the main window on ``path`` (scene folder, project folder, dataset image, or a dataset root whose
+    frames go to the Frames dock) or the sample scene.
 
     ``screenshot``/``quit_after`` (seconds) support unattended runs: after the first
     render the window is grabbed to a PNG and the app exits.
@@ -30,8 +45,11 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
     from .main_window import MainWindow
 
     params = None
+    dataset = None
     try:  # read the input before any window exists, so a bad path is a message, not a dialog
-        if path is None:
+        if path is not None and Path(path).is_dir() and _is_dataset_root(path):
+            dataset, scene = path, None  # a dataset root: its frames in the Frames dock, the first one opened
+        elif path is None:
             from npsim_core.synthetic import street_scene
 
             scene = street_scene(*sample_size)
@@ -46,7 +64,10 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
     app.setApplicationName("NPSim")
     win = MainWindow()
     win.show()
-    win.set_scene(scene, params)
+    if dataset is not None:
+        win.open_dataset(dataset)
+    else:
+        win.set_scene(scene, params)
     if screenshot or quit_after:
         def finish() -> None:
             if screenshot:

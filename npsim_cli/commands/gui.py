@@ -8,7 +8,8 @@ import sys
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("gui", help="open the desktop app (default: the built-in sample scene)")
-    p.add_argument("path", nargs="?", help="scene folder, project folder, or image with *_labelIds.png beside it")
+    p.add_argument("path", nargs="?", help="scene folder, project folder, image with *_labelIds.png beside it "
+                                           "(or a Cityscapes/ACDC image), or a dataset root (its frames listed)")
     p.add_argument("--size", default="512x256", help="sample scene size when no PATH is given (default 512x256)")
     p.add_argument("--screenshot", help="save a window screenshot after the first render, then quit")
     p.add_argument("--quit-after", type=float, help="quit after this many seconds")
