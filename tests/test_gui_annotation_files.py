@@ -201,3 +201,29 @@ def test_edits_survive_the_app_being_killed(qtbot, settings, dataset, tmp_path):
     assert sorted(win.editor.session.ann.instance_ids()) == sorted(ids)
     assert win.editor.session.is_dirty and win.windowTitle().endswith("*")
     _close(win)
+
+
+def test_a_save_ending_after_the_next_image_opened_leaves_that_image_alone(qtbot, tmp_path):
+    """Ctrl+S, then straight to another (restored, so unsaved) image: the late save of the first must not
+    mark the second saved or delete its recovery file."""
+    from npsim_core.annotation import LightAnnotation, write_recovery
+    from npsim_core.annotation_ops import new_instance, paint
+    from npsim_gui.editor.session import EditorSession
+
+    s = EditorSession()
+    img = np.zeros((64, 128, 3), np.uint8)
+    s.load(img, None, None, tmp_path / "a", "a")
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    cmd, iid = new_instance(s.ann, 1)
+    s.apply(cmd)
+    s.apply(paint(s.ann, np.arange(5), iid))
+    rec_b = write_recovery(LightAnnotation.empty(64, 128), tmp_path / "b", "b")
+    s.save_in_background()
+    s.load(img, None, LightAnnotation.empty(64, 128), tmp_path / "b", "b", dirty=True)  # restored: unsaved
+    with qtbot.waitSignal(s.saved, timeout=10_000):
+        pass
+    s.wait_for_writes()
+    qtbot.wait(20)
+    assert s.is_dirty and rec_b.exists()
+    assert (tmp_path / "a" / "a_lights.json").exists()

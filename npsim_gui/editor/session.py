@@ -183,6 +183,7 @@ class EditorSession(QObject):
             raise ValueError(f"annotation is {ann.shape}, image is {(H, W)}")
         self.image, self.labels, self.ann = image, labels, ann
         self.stack = UndoStack(ann)
+        self.edit_serial += 1  # a save of the previous image that ends later never marks this one clean
         self.folder = Path(folder) if folder is not None else None
         self.stem = stem
         self.image_key = image_checksum(image)
@@ -454,7 +455,8 @@ class EditorSession(QObject):
 
         def job():
             try:
-                self._bridge.written.emit("save", serial, save_annotation(snap, folder, stem, image=image))
+                self._bridge.written.emit("save", serial, (folder, stem, save_annotation(snap, folder, stem,
+                                                                                         image=image)))
             except Exception as exc:  # noqa: BLE001 -- reported in the window, never lost in a thread
                 self._bridge.written.emit("save", serial, exc)
         self._writer.submit(job)
@@ -467,7 +469,7 @@ class EditorSession(QObject):
 
         def job():
             try:
-                self._bridge.written.emit("autosave", serial, write_recovery(snap, folder, stem))
+                self._bridge.written.emit("autosave", serial, (folder, stem, write_recovery(snap, folder, stem)))
             except Exception as exc:  # noqa: BLE001
                 self._bridge.written.emit("autosave", serial, exc)
         self._writer.submit(job)
@@ -477,19 +479,22 @@ class EditorSession(QObject):
         self._writer.submit(lambda: None).result()
 
     def _on_written(self, kind: str, serial: int, result) -> None:
-        if kind == "autosave":
-            if isinstance(result, Exception):
+        if isinstance(result, Exception):
+            if kind == "autosave":
                 self.message.emit(f"autosave failed: {result}")
-            elif not self.is_dirty:  # saved meanwhile: the recovery file is stale
-                self._writer.submit(lambda f=self.folder, s=self.stem: discard_recovery(f, s))
             else:
+                err = result.strerror if isinstance(result, OSError) and result.strerror else str(result)
+                self.saved.emit(None, f"{self.folder}: could not write the annotation ({err})")
+            return
+        folder, stem, result = result
+        current = (folder, stem) == (self.folder, self.stem)  # else written for an image no longer open
+        if kind == "autosave":
+            if current and not self.is_dirty:  # saved meanwhile: the recovery file is stale
+                self._writer.submit(lambda f=folder, s=stem: discard_recovery(f, s))
+            elif current:
                 self.autosaved.emit(result)
             return
-        if isinstance(result, Exception):
-            err = result.strerror if isinstance(result, OSError) and result.strerror else str(result)
-            self.saved.emit(None, f"{self.folder}: could not write the annotation ({err})")
-            return
-        if serial == self.edit_serial:
+        if current and serial == self.edit_serial:
             self.stack.mark_clean()
             self._meta_dirty = False
             self._writer.submit(lambda f=self.folder, s=self.stem: discard_recovery(f, s))
