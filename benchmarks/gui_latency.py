@@ -22,6 +22,8 @@ the app is driven as a user would:
 * **accept / undo**: after *Propose lights* (Ctrl+P, in a worker), Ctrl+Shift+A at 0.5 and 0.9, an accept
   with nothing left, Ctrl+Z and redo, each driven as its shortcut does: the action's time on the GUI
   thread and the longest heartbeat stall during it and the 2 s after (the night preview updates);
+* **memory per frame** (``--opens N``): the dataset root stepped through N times (next, previous, …),
+  the resident memory after each frame's mesh and night (target: ≤ 2.5 GB after any number);
 * **longest stall**: the largest lateness of a 10 ms ``QTimer`` heartbeat on the GUI thread over
   the whole session of that size, from just before the frame is opened (the open itself counts;
   the window's first paint at start-up does not) (target: no gap over 100 ms); each stall over
@@ -66,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fixture-dir", default="", help="where to write the fixtures (default: a temporary folder)")
     ap.add_argument("--frame", default="", help="a real-layout frame: a dataset image (e.g. a Cityscapes "
                     "X_leftImg8bit.png with its gtFine labels) instead of the generated fixtures")
+    ap.add_argument("--opens", type=int, default=0, help="memory per frame opened: step through the dataset root "
+                    "of --frame (or of the fixture) this many times, RSS after each frame's mesh and night")
     args = ap.parse_args(argv)
     from PySide6.QtCore import QElapsedTimer, QPoint, Qt, QTimer
     from PySide6.QtTest import QTest
@@ -239,8 +243,34 @@ def main(argv: list[str] | None = None) -> int:
         app.processEvents()
         win = None  # the next size starts from a new window
 
+    mem_rows = []
+    if args.opens:
+        # the dataset root above the frame's leftImg8bit/ folder (Cityscapes layout), else its folder
+        img = Path(runs[-1][0])
+        root = next((p.parent for p in img.parents if p.name == "leftImg8bit"), img.parent)
+        win = MainWindow()
+        win.ask = lambda *a: "Discard"
+        win.show()
+        QTest.qWaitForWindowExposed(win)
+        _reset_peak_rss()
+        win.open_dataset(root)
+        for k in range(args.opens):
+            if k:
+                win.step_frame(+1 if k % 2 else -1)
+            wait(lambda: win.results is not None and win.results_final and not win.pipeline_jobs.is_busy)
+            wait(lambda: win.render_panel.night is not None and not win.jobs_busy)
+            mem_rows.append((k + 1, win.chain.scene.name, _rss_kib("VmRSS") / 2**20, _rss_kib("VmHWM") / 2**20))
+        win.confirm_close = lambda: True
+        win.close()
+
     load = os.getloadavg()[0]
     print(f"# GUI latency on Cityscapes-layout frames (load {load:.1f}, {os.cpu_count()} cores)\n")
+    if mem_rows:
+        print("| frames opened | frame | RSS after its mesh and night (GB) | peak RSS so far (GB) |")
+        print("|---|---|---|---|")
+        for r in mem_rows:
+            print(f"| {r[0]} | {r[1]} | {r[2]:.2f} | {r[3]:.2f} |")
+        print()
     print("| frame | open → canvas shown (s) | open → full mesh (s) | open → night preview (s) | RSS before (GB) "
           "| peak RSS (GB) | last slider → full res (s) | longest stall (ms) | p99 stall (ms) | stalls > 100 ms |")
     print("|---|---|---|---|---|---|---|---|---|---|")
