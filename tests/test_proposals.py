@@ -501,3 +501,17 @@ def test_the_lights_street_signals_are_read_as_shown_and_lit_alone_at_night(seed
     for g in heads:
         lit = [ann.meta["lamp_colours"][str(m)] for m in g.members if act.lights[m].on]
         assert lit == list(truth)
+
+
+def test_no_lamp_on_a_vehicle_side_that_recedes_from_the_camera():
+    """The same silhouette and red patches, but the depth recedes across it (6 -> 10.5 m over 90 px,
+    about 3 m of depth per metre across: the car's side, its end face beyond the frame): no lamp;
+    facing the camera (flat depth) it keeps its pair."""
+    img, lab, depth, intr, inst, _ = _car_frame()
+    ys, xs = np.nonzero(lab == CAR)
+    side = depth.copy()
+    side[ys, xs] = 6.0 + 0.05 * (xs - xs.min())
+    _, lamps = _lights(propose_lights(img, lab, side, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert lamps == []
+    _, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2

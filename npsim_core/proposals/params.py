@@ -77,6 +77,10 @@ class ProposalParams:
     vehicle_kerb_m: float = 1.0
     #: Share of a lamp box that must be on the vehicle's silhouette (else hidden: not proposed).
     vehicle_lamp_min_visible: float = 0.6
+    #: A lamp box at least ``vehicle_lamp_slope_min_px`` wide whose depth changes by more than this
+    #: many metres per metre across it lies on a receding side face (or across an edge): no lamp.
+    vehicle_lamp_max_slope: float = 1.2
+    vehicle_lamp_slope_min_px: int = 6
     #: Plausible height (m above the ground) of a vehicle body's top edge.
     vehicle_body_top_m: tuple[float, float] = (0.6, 1.4)
     #: Typical body-top height (m), used where the silhouette cannot tell (narrow or occluded faces).

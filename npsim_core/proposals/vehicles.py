@@ -365,6 +365,34 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     return lamps, n_snapped
 
 
+def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
+    """Whether a lamp box lies on a surface receding from the camera (a vehicle's side, or across an
+    edge onto something else) rather than on its end face: the depth of its columns (median over
+    its rows) rises or falls by more than ``vehicle_lamp_max_slope`` metres per metre across it
+    (between the median depths of its two halves, its outermost columns left out).
+    Boxes narrower than ``vehicle_lamp_slope_min_px`` are not judged (depth noise)."""
+    p = ctx.params
+    h, w = lamp.shape
+    cols = np.flatnonzero(lamp.any(0))
+    if cols.size < p.vehicle_lamp_slope_min_px:
+        return False
+    rows = np.flatnonzero(lamp.any(1))
+    d = ctx.depth[y0 + rows.min():y0 + rows.max() + 1, x0 + cols]
+    d = np.where(lamp[rows.min():rows.max() + 1][:, cols], d, np.nan)
+    with warnings.catch_warnings():  # a column without valid depth stays NaN, left out below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        zc = np.nanmedian(d, axis=0)
+    zc, cols = zc[1:-1], cols[1:-1]  # the outermost columns bleed into what lies beside the vehicle
+    ok = np.isfinite(zc)
+    if ok.sum() < p.vehicle_lamp_slope_min_px:
+        return False
+    zc, cols = zc[ok], cols[ok].astype(np.float64)
+    z = float(np.median(zc))
+    k = zc.size // 2  # the median depth of each half: robust to noise and to one bled column
+    slope_px = (float(np.median(zc[-k:])) - float(np.median(zc[:k]))) / (cols[-k:].mean() - cols[:k].mean())
+    return bool(abs(slope_px) * float(ctx.intrinsics.fx) / z > p.vehicle_lamp_max_slope)
+
+
 def _in_traffic(ctx: Context, y0: int, x0: int, m: np.ndarray, face: tuple[int, int, int, int],
                 z: float | None) -> bool:
     """Whether a vehicle is driving rather than parked: nothing of the kerb side (sidewalk, parking,
@@ -427,6 +455,8 @@ def propose(ctx: Context) -> list[Group]:
         if z is not None and fw * z / fy < 1.0:
             conf -= 0.3
         lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z)
+        if z is not None:
+            lamps = [b for b in lamps if not _on_side_face(ctx, y0, x0, b)]
         if distinct == len(lamps) == 2:
             conf += 0.15
         conf = float(np.clip(conf, 0, 1))
