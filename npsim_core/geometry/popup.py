@@ -191,14 +191,26 @@ class PopupParams:
         visible contacts replaced by the lower envelope over ``car_envelope`` x the width (wheels);
         ``()`` keeps the earlier model for them.
     crowns : str
-        ``"columns"`` (default): tree crowns resting on other segments get a depth per column
-        from what is below each column (docs/geometry.md, "Hidden contacts"); ``"segment"``:
-        one fronto-parallel depth per crown segment (the earlier prior).
+        ``"canopy"`` (default): as ``"columns"``, then crown segments that recede along the street
+        (a row of street trees) are placed per pixel between the plane of crown undersides and
+        the vertical plane of their inner faces (docs/geometry.md, "Canopy"); ``"columns"``: tree
+        crowns resting on other segments get a depth per column from what is below each column
+        (docs/geometry.md, "Hidden contacts"); ``"segment"``: one fronto-parallel depth per crown
+        segment (the earlier prior).
     crown_base : float
         Metres above the ground of a crown's lower edge where no trunk is seen (street trees
         clear pedestrians); a crown bottom seen against what is behind it is placed by it.
     crown_radius : float
         Metres from the far edge of a crown's underside (what ``crown_base`` places) to its front.
+    crown_setback : float
+        Metres from a side's street line (its facades) to the road-side face of a row of street-tree
+        crowns (``crowns="canopy"``): a 4-5 m sidewalk, trunks 1-1.5 m from the kerb, crowns of
+        2.5-3 m radius over the parking strip -- about where the parked cars' street side is
+        (``hidden_setback``).
+    canopy_ratio : float
+        A crown segment is a receding row (``crowns="canopy"``) when the depth of the inner-face
+        plane over its pixels spans more than this factor (5th to 95th percentile); a single crown
+        spans less.
     """
 
     camera_height: float | None = None
@@ -222,11 +234,13 @@ class PopupParams:
     vp_max_distance: float | None = 60.0
     recede_angle: float = 10.0
     vanishing: str = "auto"
-    crowns: str = "columns"
+    crowns: str = "canopy"
     car_ids: tuple[int, ...] = (26,)
     car_envelope: float = 0.05
     crown_base: float = 2.4
     crown_radius: float = 2.5
+    crown_setback: float = 6.0
+    canopy_ratio: float = 1.75
 
     def __post_init__(self) -> None:
         if self.camera_height is not None and not (math.isfinite(self.camera_height) and self.camera_height > 0):
@@ -249,9 +263,11 @@ class PopupParams:
         if self.camera_height is not None and self.sidewalk_height >= self.camera_height:
             raise NpsimInputError(f"PopupParams.sidewalk_height ({self.sidewalk_height} m) must be below the "
                                   f"camera ({self.camera_height} m)")
-        if self.crowns not in ("columns", "segment"):
-            raise NpsimInputError(f"PopupParams.crowns must be 'columns' or 'segment', got {self.crowns!r}")
-        for name in ("crown_base", "crown_radius"):
+        if self.crowns not in ("canopy", "columns", "segment"):
+            raise NpsimInputError(f"PopupParams.crowns must be 'canopy', 'columns' or 'segment', got {self.crowns!r}")
+        if not (math.isfinite(self.canopy_ratio) and self.canopy_ratio >= 1):
+            raise NpsimInputError(f"PopupParams.canopy_ratio must be >= 1, got {self.canopy_ratio}")
+        for name in ("crown_base", "crown_radius", "crown_setback"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise NpsimInputError(f"PopupParams.{name} must be >= 0 metres, got {v}")
@@ -512,13 +528,19 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     # --- tree crowns resting on other segments: a depth per column from what is below it
     crown_px = np.zeros((H, W), dtype=bool)
     crown_kind = np.zeros((H, W), dtype=np.int8)
-    if p.crowns == "columns" and p.facades == "contact" and nseg:
+    if p.crowns in ("columns", "canopy") and p.facades == "contact" and nseg:
         crown_seg = np.isin(seg_label, p.thin_ids) & ~seg_fronto & ~seg_facade & (how == 2)
         crown_seg[0] = False
         if crown_seg.any():
             crown_px, crown_kind = _place_crowns(seg, crown_seg, depth, ground, invalid, zc, hscale, intr, h,
                                                  pitch, p)
             normals[crown_px] = -f
+            if p.crowns == "canopy":  # rows of crowns receding along the street: the slab overrides
+                seen = fac_seen == 2
+                z_cap = float(depth[seen].max()) if seen.any() else p.max_depth
+                slab = _canopy_slab(seg, crown_seg, depth, normals, rays, g, f, e, h, intr, fac_info, p, z_cap)
+                crown_px |= slab
+                crown_kind[slab] = 4
 
     # --- whatever is still unplaced: nearest placed depth, fronto-parallel normal
     rest = vertical & ~placed[seg]
@@ -546,7 +568,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     # --- confidence: how the pixel was placed, times the ground's depth resolution at its depth
     conf_how = np.array([0.2, 0.8, 0.5])[how[seg]]  # unplaced (nearest fill), on the ground, on segments
     conf_how = np.where(fac_seen == 2, 0.9, np.where(fac_seen == 1, 0.5, conf_how))
-    conf_how = np.where(crown_px, np.array([0.5, 0.5, 0.45, 0.35])[crown_kind], conf_how)
+    conf_how = np.where(crown_px, np.array([0.5, 0.5, 0.45, 0.35, 0.4])[crown_kind], conf_how)
     conf_how = np.where(rest, 0.2, np.where(ground, 1.0, conf_how))
     with np.errstate(invalid="ignore"):
         row_err = depth / (h * intr.fy)  # relative depth step of one image row at this depth (on the ground)
@@ -695,6 +717,12 @@ class _GroundMap:
     def point(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         a, b = self.plan(u, v)
         return a[:, None] * self.e + b[:, None] * self.f + self.hgt * self.g
+
+
+def street_direction(u_vp: float, intr, g: np.ndarray) -> np.ndarray:
+    """Unit direction ``(a, b)`` in plan (ground coordinates along ``e``, ``f``) of a street whose vanishing column is ``u_vp``."""
+    ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
+    return np.array([ratio, 1.0]) / math.hypot(ratio, 1.0)
 
 
 def _rows(line: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -912,8 +940,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
             cw = np.cumsum(np.asarray(wts)[o])
             u_vp = float(np.asarray(cand)[o][np.searchsorted(cw, 0.5 * cw[-1])])
     info["vanishing_column"] = round(u_vp, 1)
-    ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
-    d = np.array([ratio, 1.0]) / math.hypot(ratio, 1.0)  # street direction in plan (a, b)
+    d = street_direction(u_vp, intr, g)
 
     n_street = d[1] * e - d[0] * f  # normal of a vertical plane along the street
 
@@ -1269,3 +1296,59 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
     done[pv, pu] = True
     kind_px[pv, pu] = src[j]
     return done, kind_px
+
+
+
+def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, normals: np.ndarray, rays: np.ndarray,
+                 g: np.ndarray, f: np.ndarray, e: np.ndarray, h: float, intr, fac_info: dict,
+                 p: PopupParams, z_cap: float) -> np.ndarray:
+    """Crowns of a row of street trees receding along the street, as one slab (docs/geometry.md, "Canopy").
+
+    A row of crowns seen from the road is bounded by two planes: the plane of their undersides,
+    ``crown_base`` metres above the ground, and the vertical plane along the street of their inner
+    (road-side) faces, ``crown_setback`` metres in from that side's street line (facade). A ray meets
+    the slab where it has crossed both, so each pixel takes the larger of the two depths (exact on
+    undersides and inner faces; through a gap between crowns it sees a front face a little deeper),
+    no deeper than the street line nor than ``z_cap`` (the farthest facade standing on its visible
+    foot: the street's end). Only segments that recede (their inner-face depth spans more than
+    ``canopy_ratio`` over their pixels) are placed so: a single crown's width says nothing of its depth.
+    Writes ``depth`` and ``normals`` in place; returns the pixels written.
+    """
+    H, W = seg.shape
+    done = np.zeros((H, W), dtype=bool)
+    street = fac_info.get("street_lines_m", {})
+    if "vanishing_column" not in fac_info or not street:
+        return done
+    d = street_direction(float(fac_info["vanishing_column"]), intr, g)
+    n_lat = d[1] * e - d[0] * f  # lateral unit vector, > 0 right of the street axis
+    pv, pu = np.nonzero(crown_seg[seg])
+    if pv.size == 0:
+        return done
+    r = rays[pv, pu]
+    gr, lr = r @ g, r @ n_lat
+    side = np.where(lr < 0, -1, 1)
+    x_fac = np.where(side < 0, street.get("left", np.nan), street.get("right", np.nan))  # signed, m
+    x_in = np.where(np.abs(x_fac) > p.crown_setback + 0.5, x_fac - side * p.crown_setback, side * 0.5)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_bot = np.where(gr < -1e-6, (h - p.crown_base) / gr, np.nan)  # the undersides' plane (above the camera)
+        z_side = np.where(np.abs(lr) > 1e-6, x_in / lr, np.nan)
+        z_fac = np.where(np.abs(lr) > 1e-6, x_fac / lr, np.nan)
+    # which segments recede: the inner face's depth over the segment's pixels spans > canopy_ratio
+    sid = seg[pv, pu]
+    inv_l = np.abs(lr) + 1e-9
+    order = np.argsort(sid, kind="stable")
+    s_sorted = sid[order]
+    st = np.flatnonzero(np.r_[True, s_sorted[1:] != s_sorted[:-1]])
+    recedes = np.zeros(int(seg.max()) + 1, dtype=bool)
+    for a, b in zip(st, np.r_[st[1:], s_sorted.size]):
+        q5, q95 = np.percentile(inv_l[order[a:b]], [5, 95])
+        recedes[s_sorted[a]] = q95 > p.canopy_ratio * q5  # depth ~ 1/|lr|
+    z = np.fmin(np.fmin(np.fmax(z_side, z_bot), z_fac), z_cap)
+    ok = recedes[sid] & (z_side > 0) & (z_fac > 0) & np.isfinite(z)
+    pv, pu = pv[ok], pu[ok]
+    depth[pv, pu] = np.clip(z[ok], p.min_depth, p.max_depth)
+    on_side = ~(z_bot[ok] > z_side[ok])
+    normals[pv, pu] = np.where(on_side[:, None], -side[ok][:, None] * n_lat[None, :], g[None, :])
+    done[pv, pu] = True
+    fac_info["canopy_pixels"] = int(ok.sum())
+    return done
