@@ -20,8 +20,9 @@ wrong proposal (reject), per missed light (draw), per matched light with IoU < 0
 and per ground-truth group not reproduced exactly (regroup).
 
 Table 4: the window rules -- windows (kind ``window``, not shop fronts or office bands) larger
-than 1.5x the median window of their facade (area in m^2 at the window's depth; facade = connected
-building region), and the largest share of a facade's area that proposed windows cover (target
+than 1.5x the median window of their facade (area in m^2 at the window's depth; facade = the wall
+plane around the window, from the scene's primitives and exact normals: one face of one building
+box), and the largest share of a facade's area that proposed windows cover (target
 <= 40 %); and the proposed groups an annotator keeps: ground-truth groups (lights matched at mask
 IoU >= 0.5) reproduced exactly, reproduced in part without a foreign member (the editor completes
 them in 2 + missing actions), or not at all.
@@ -49,12 +50,26 @@ TARGET_CATS = CATS[:4]
 
 def frame(W: int, H: int, seed: int, variant: str):
     """Synthetic scene and its Cityscapes instance ids (as the Cityscapes fixture writes them)."""
+    return frame_and_walls(W, H, seed, variant)[:2]
+
+
+def frame_and_walls(W: int, H: int, seed: int, variant: str):
+    """:func:`frame` and the scene's wall planes (HxW int64, 0 elsewhere): one id per building
+    primitive and face orientation (the axis of its exact normal), lights' primitives left out --
+    the facades Table 4 measures windows on."""
     from npsim_core.synthetic import street_ground_truth, street_scene
     from npsim_core.synthetic.cityscapes import instance_ids
 
     scene = street_scene(W, H, seed, variant)
     layout, _, _, gt = street_ground_truth(W, H, seed, variant=variant)
-    return scene, instance_ids(scene.labels, gt.prim, layout.prims).astype(np.int32)
+    prims = layout.prims
+    wall_prim = (np.asarray(prims.label) == 11) & (np.asarray(prims.light) == 0)
+    ok = gt.prim >= 0
+    walls = np.zeros(gt.prim.shape, np.int64)
+    sel = ok & wall_prim[np.where(ok, gt.prim, 0)]
+    axis = np.abs(np.nan_to_num(gt.normals)).argmax(-1)
+    walls[sel] = (gt.prim[sel].astype(np.int64) + 1) * 4 + axis[sel]
+    return scene, instance_ids(scene.labels, gt.prim, layout.prims).astype(np.int32), walls
 
 
 def editor_actions(gt, props, threshold: float = 0.5) -> tuple[int, int]:
@@ -88,16 +103,31 @@ def editor_actions(gt, props, threshold: float = 0.5) -> tuple[int, int]:
     return without, 1 + wrong + missed + touch + regroup
 
 
-def window_rules(scene, ann) -> tuple[int, int, float]:
+def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int, float]:
     """(windows of kind ``window``, of those larger than 1.5x their facade's median, largest share of a
     facade covered by them) -- Table 4. Window area on the wall: pixel area x (z / f)^2 / cos of the
-    incidence angle (the scene's exact normals where it has them), so windows down a receding facade compare fairly."""
+    incidence angle (the scene's exact normals where it has them), so windows down a receding facade compare fairly.
+    Facade: the wall plane most of the pixels around the window show (``walls``, :func:`frame_and_walls`);
+    without ``walls`` the connected building region (which joins neighbouring buildings)."""
     import cv2
 
     from npsim_core.annotation import class_of
 
     kinds = ann.meta.get("light_kinds", {})
-    _, bld = cv2.connectedComponents((scene.labels == 11).astype(np.uint8), connectivity=4)
+    if walls is None:
+        _, bld = cv2.connectedComponents((scene.labels == 11).astype(np.uint8), connectivity=4)
+    else:  # each window on the wall plane around it: a 2-px ring
+        ring = cv2.dilate((ann.instance_map > 0).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        owner = cv2.dilate(ann.instance_map.astype(np.float32), np.ones((5, 5), np.uint8)).astype(np.int64)
+        bld = np.zeros(walls.shape, np.int64)
+        inside = ann.instance_map > 0
+        near = ring & ~inside & (walls > 0)
+        ids, inv = np.unique(walls, return_inverse=True)
+        inv = inv.reshape(walls.shape)
+        for i in np.unique(owner[near]):
+            vals = inv[near & (owner == i)]
+            bld[ann.instance_map == i] = int(np.bincount(vals).argmax())
+        bld_area = np.bincount(inv[walls > 0].ravel(), minlength=ids.size)
     m = ann.instance_map
     per: dict[int, list[float]] = {}
     lit: dict[int, float] = {}
@@ -130,7 +160,8 @@ def window_rules(scene, ann) -> tuple[int, int, float]:
         per.setdefault(fid, []).append(float(mk.sum()) * z * z / f2 / cos)
     n = sum(len(v) for v in per.values())
     big = sum(int((np.asarray(v) > 1.5 * np.median(v)).sum()) for v in per.values())
-    share = max((a / float((bld == fid).sum()) for fid, a in lit.items()), default=0.0)
+    area = (lambda fid: float((bld == fid).sum())) if walls is None else (lambda fid: float(bld_area[fid]) + lit[fid])
+    share = max((a / max(area(fid), 1.0) for fid, a in lit.items()), default=0.0)
     return n, big, share
 
 
@@ -216,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         for variant in variants:
             tot = {c: np.zeros(5, int) for c in CATS}  # GT, proposed, matched, GT >= 9 px, matched of those
             for seed in seeds:
-                scene, inst = frame(W, H, seed, variant)
+                scene, inst, walls = frame_and_walls(W, H, seed, variant)
                 t0 = time.perf_counter()
                 props = propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst)
                 times.setdefault((W, H), []).append(time.perf_counter() - t0)
@@ -225,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
                 for c, s in score(scene.lights, kept, categories=CATS).items():
                     tot[c] += (s.n_gt, s.n_pred, s.n_match, big[c].n_gt, big[c].n_match)
                 actions.setdefault((W, H, variant), []).append(editor_actions(scene.lights, props))
-                rules.setdefault((W, H, variant), []).append(window_rules(scene, kept)
+                rules.setdefault((W, H, variant), []).append(window_rules(scene, kept, walls)
                                                              + kept_groups(scene.lights, kept))
                 if (W, H) == (2048, 1024) and variant == "hard" and pic is None:
                     pic = (scene, props)
