@@ -515,3 +515,31 @@ def test_no_lamp_on_a_vehicle_side_that_recedes_from_the_camera():
     assert lamps == []
     _, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     assert len(lamps) == 2
+
+
+def test_a_rear_lamp_in_shade_is_a_rear_lamp():
+    """A rear lamp in shade is dark and only reddish (69, 50, 59 on 99, 107, 125 paint: not red by the
+    absolute test) -- its departure from the paint leans to red: a rear lamp; white lamps on blue
+    paint stay front lamps."""
+    img, lab, depth, intr, inst, _ = _car_frame(rear_color=(69, 50, 59), paint=(99, 107, 125))
+    _, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2 and all(class_of(i) in (4, 6) for i in lamps)
+    img, lab, depth, intr, inst, _ = _car_frame(rear_color=(240, 240, 230), paint=(40, 60, 140))
+    _, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert len(lamps) == 2 and all(class_of(i) in (3, 5) for i in lamps)
+
+
+def test_a_dark_signal_head_and_a_cabin_band_pass_the_editors_default_slider():
+    """Accepted at the editor's default threshold (0.9): a signal head elongated like one, even with its
+    lamps dark by day (no contrast bonus). A cabin whose glass is no darker than the paint is still
+    proposed as panes at the default 0.5 (the band above the body is mostly glass)."""
+    img, lab = _canvas()
+    lab[30:60, 90:100] = TRAFFIC_LIGHT
+    img[30:60, 90:100] = (15, 15, 15)
+    props = propose_lights(img, lab)
+    tl = [g for g in props.annotation.groups if class_of(g) == 20]
+    assert len(tl) == 1 and len(props.above(0.9).groups[tl[0]].members) == 3
+    img, lab, depth, intr, inst, _ = _car_frame()
+    img[lab == CAR] = (40, 60, 140)                                  # the rear window painted over
+    ann = propose_lights(img, lab, depth, intr, inst, params=FLAT).above(0.5)
+    assert [i for i in ann.instance_ids() if class_of(i) == 2]

@@ -81,6 +81,10 @@ class ProposalParams:
     #: many metres per metre across it lies on a receding side face (or across an edge): no lamp.
     vehicle_lamp_max_slope: float = 1.2
     vehicle_lamp_slope_min_px: int = 6
+    #: Lamps are rear lamps when red by day, or when their departure from the paint's colour (RGB, 8-bit)
+    #: leans to red: red minus the larger of green and blue departures above this fraction of its length
+    #: (a red lamp in shade or seen far away; a white lamp on blue paint departs evenly in red and green).
+    vehicle_rear_red_share: float = 0.2
     #: Plausible height (m above the ground) of a vehicle body's top edge.
     vehicle_body_top_m: tuple[float, float] = (0.6, 1.4)
     #: Typical body-top height (m), used where the silhouette cannot tell (narrow or occluded faces).

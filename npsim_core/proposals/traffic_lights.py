@@ -55,7 +55,8 @@ def propose(ctx: Context) -> list[Group]:
     group's state, so the night lights that lamp (npsim_core.render.lights.traffic_light_states);
     without one the night's seed picks the state.
 
-    Confidence: 0.8 for a housing elongated like a signal head (aspect >= ``tl_min_aspect``), 0.4 for a
+    Confidence: 0.9 for a housing elongated like a signal head (aspect >= ``tl_min_aspect``; every one of
+    them on the synthetic streets is one, docs/proposals.md), 0.4 for a
     squat one (seen edge-on or merged with something), lowered for components under 4 px across, raised
     slightly when the lamp cells differ in colour from the housing around them (lenses and visors).
     """
@@ -68,7 +69,7 @@ def propose(ctx: Context) -> list[Group]:
         cells = _cells(mask, vertical, p.tl_lamp_fraction)
         if any(not c.any() for c in cells):
             continue
-        conf = 0.8 if aspect >= p.tl_min_aspect else 0.4
+        conf = 0.9 if aspect >= p.tl_min_aspect else 0.4
         if min(h, w) < 4:
             conf -= 0.15
         img = ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32)

@@ -427,11 +427,14 @@ def propose(ctx: Context) -> list[Group]:
 
     Lamps sit in the upper part of the body's end face near both sides (``vehicle_lamp_rows`` /
     ``vehicle_lamp_cols`` fractions); a lamp box whose colour differs from the paint is snapped to
-    those pixels. Facing comes from colour: lamps redder than they are bright are rear lamps
-    (red by day), else front lamps. Confidence 0.75 with depth (0.55 without), +0.15 when both
-    lamps stand out from the paint, -0.3 when the face is narrower than 1 m (a side view).
+    those pixels. Facing comes from colour: lamps red by day, or departing from the paint towards
+    red (``vehicle_rear_red_share``: in shade, far away), are rear lamps, else front lamps. A lamp box
+    on a face receding from the camera (:func:`_on_side_face`) is dropped. Confidence 0.75 with
+    depth (0.55 without), +0.15 when both lamps stand out from the paint, -0.3 when the face is
+    narrower than 1 m (a side view).
     Panes: pixels of the cabin band darker than the paint, split into the end pane (windscreen
-    or rear window) and the side pane at the end face's edge; confidence 0.6, +0.2 when darker.
+    or rear window) and the side pane at the end face's edge; confidence 0.6, +0.2 when darker; when
+    fewer than 30 % of the band are darker (glass as light as the paint) the whole band, 0.55.
     """
     p = ctx.params
     fy = float(ctx.intrinsics.fy)
@@ -464,7 +467,10 @@ def propose(ctx: Context) -> list[Group]:
         if lamps:  # (none when the face is hidden: the panes may still show)
             lamp_px = np.concatenate([img[b] for b in lamps])
             r, g, bl = lamp_px.mean(0) if lamp_px.size else (0.0, 0.0, 0.0)
-            rear = r > 1.5 * max(g, bl) and r > 50
+            # Rear lamps are red by day; in shade or far away they only depart from the paint towards red.
+            dr, dg, db = float(r - paint[0]), float(g - paint[1]), float(bl - paint[2])
+            dn = float(np.sqrt(dr * dr + dg * dg + db * db))
+            rear = (r > 1.5 * max(g, bl) and r > 50) or (dn > 10.0 and dr - max(dg, db) > p.vehicle_rear_red_share * dn)
             moving = _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
             lamp_cls = (MOVING_REAR if rear else MOVING_FRONT) if moving else (PARKED_REAR if rear else PARKED_FRONT)
             members = [Light(lamp_cls, y0, x0, b, conf) for b in lamps]
@@ -483,7 +489,7 @@ def propose(ctx: Context) -> list[Group]:
         panes = cab & dark
         if panes.sum() < 0.3 * cab.sum():  # dark paint or bright reflections: the whole cabin band
             panes = cab
-            pane_conf = 0.45
+            pane_conf = 0.55
         else:
             pane_conf += 0.2
         end = np.zeros_like(m)
