@@ -605,14 +605,14 @@ def test_a_receding_row_of_crowns_stands_between_underside_and_inner_face(varian
 
 def test_a_single_crown_is_no_canopy_row():
     """Square seed 1 (256x128): two lone trees whose trunks rest on parked cars are left to the
-    per-column model (their inner-face depth spans less than ``canopy_ratio``): the slab would put
-    them 2-4x farther off (0.27 / 0.41 AbsRel at 512x256)."""
+    per-column model (their lower edge is level: no row receding along the street); placed by the
+    slab they would be 1.5x farther off or more (0.27 / 0.41 against 0.10 / 0.08 AbsRel at 512x256)."""
     s = street_variant("square", seed=1)
     est = estimate_geometry(s, "popup")
     ref = estimate_geometry(s, "popup", PopupParams(crowns="columns"))
     assert est.info.get("canopy_pixels", 0) == 0
     assert np.array_equal(np.nan_to_num(est.depth), np.nan_to_num(ref.depth))
-    slab_all = estimate_geometry(s, "popup", PopupParams(canopy_ratio=1.0))  # every crown as a row
+    slab_all = estimate_geometry(s, "popup", PopupParams(canopy_span=1.0, canopy_rise=0.0))  # every crown a row
     m = s.labels == VEGETATION
     assert (depth_metrics(slab_all.depth, s.depth_gt, m).abs_rel
             > 1.5 * depth_metrics(est.depth, s.depth_gt, m).abs_rel)

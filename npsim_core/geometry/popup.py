@@ -207,10 +207,12 @@ class PopupParams:
         crowns (``crowns="canopy"``): a 4-5 m sidewalk, trunks 1-1.5 m from the kerb, crowns of
         2.5-3 m radius over the parking strip -- about where the parked cars' street side is
         (``hidden_setback``).
-    canopy_ratio : float
-        A crown segment is a receding row (``crowns="canopy"``) when the depth of the inner-face
-        plane over its pixels spans more than this factor (5th to 95th percentile); a single crown
-        spans less.
+    canopy_span, canopy_rise : float
+        A crown segment is a receding row (``crowns="canopy"``) when its columns above the horizon
+        cover at least a tenth of the width, the outer half of them lies ``canopy_span`` times as far
+        from the vanishing column as the inner half (medians; the row spans about that ratio in
+        depth), and its lower edge rises toward the vanishing point by at least ``canopy_rise`` of
+        what that ratio implies for an edge receding along the street (a single crown's is level).
     """
 
     camera_height: float | None = None
@@ -240,7 +242,8 @@ class PopupParams:
     crown_base: float = 2.4
     crown_radius: float = 2.5
     crown_setback: float = 6.0
-    canopy_ratio: float = 1.75
+    canopy_span: float = 1.4
+    canopy_rise: float = 0.25
 
     def __post_init__(self) -> None:
         if self.camera_height is not None and not (math.isfinite(self.camera_height) and self.camera_height > 0):
@@ -265,8 +268,10 @@ class PopupParams:
                                   f"camera ({self.camera_height} m)")
         if self.crowns not in ("canopy", "columns", "segment"):
             raise NpsimInputError(f"PopupParams.crowns must be 'canopy', 'columns' or 'segment', got {self.crowns!r}")
-        if not (math.isfinite(self.canopy_ratio) and self.canopy_ratio >= 1):
-            raise NpsimInputError(f"PopupParams.canopy_ratio must be >= 1, got {self.canopy_ratio}")
+        if not (math.isfinite(self.canopy_rise) and self.canopy_rise >= 0):
+            raise NpsimInputError(f"PopupParams.canopy_rise must be >= 0, got {self.canopy_rise}")
+        if not (math.isfinite(self.canopy_span) and self.canopy_span >= 1):
+            raise NpsimInputError(f"PopupParams.canopy_span must be >= 1, got {self.canopy_span}")
         for name in ("crown_base", "crown_radius", "crown_setback"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -1310,8 +1315,9 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     the slab where it has crossed both, so each pixel takes the larger of the two depths (exact on
     undersides and inner faces; through a gap between crowns it sees a front face a little deeper),
     no deeper than the street line nor than ``z_cap`` (the farthest facade standing on its visible
-    foot: the street's end). Only segments that recede (their inner-face depth spans more than
-    ``canopy_ratio`` over their pixels) are placed so: a single crown's width says nothing of its depth.
+    foot: the street's end). Only segments that recede (``canopy_span``, ``canopy_rise``: wide, and a
+    lower edge rising toward the vanishing point) are placed so; a single crown or a small group near
+    the vanishing point keeps the per-column depth.
     Writes ``depth`` and ``normals`` in place; returns the pixels written.
     """
     H, W = seg.shape
@@ -1333,16 +1339,29 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
         z_bot = np.where(gr < -1e-6, (h - p.crown_base) / gr, np.nan)  # the undersides' plane (above the camera)
         z_side = np.where(np.abs(lr) > 1e-6, x_in / lr, np.nan)
         z_fac = np.where(np.abs(lr) > 1e-6, x_fac / lr, np.nan)
-    # which segments recede: the inner face's depth over the segment's pixels spans > canopy_ratio
+    # which segments recede: their lower edge (lowest pixel per column, above the horizon) rises toward
+    # the vanishing point as a row's outer bottom edge does, not level as a single crown's
     sid = seg[pv, pu]
-    inv_l = np.abs(lr) + 1e-9
-    order = np.argsort(sid, kind="stable")
-    s_sorted = sid[order]
-    st = np.flatnonzero(np.r_[True, s_sorted[1:] != s_sorted[:-1]])
+    key = sid.astype(np.int64) * W + pu
+    uniq, first = np.unique(key, return_index=True)
+    vb = np.full(uniq.size, -1.0)
+    np.maximum.at(vb, np.searchsorted(uniq, key), pv.astype(float))
+    ks, ku = uniq // W, (uniq % W).astype(float)
+    v_h = intr.cy - intr.fy * math.tan(math.asin(g[2]))
+    up, du = v_h - (vb + 0.5), np.abs(ku - float(fac_info["vanishing_column"]))
     recedes = np.zeros(int(seg.max()) + 1, dtype=bool)
-    for a, b in zip(st, np.r_[st[1:], s_sorted.size]):
-        q5, q95 = np.percentile(inv_l[order[a:b]], [5, 95])
-        recedes[s_sorted[a]] = q95 > p.canopy_ratio * q5  # depth ~ 1/|lr|
+    st = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    for i0, i1 in zip(st, np.r_[st[1:], ks.size]):
+        m = up[i0:i1] > 0.5
+        if m.sum() < max(6, 0.1 * W):  # a row spans a good part of the frame; a group near the VP: columns
+            continue
+        uu, dd = du[i0:i1][m], up[i0:i1][m]
+        outer = uu > np.median(uu)
+        if outer.all() or not outer.any():
+            continue
+        r_exp = np.median(uu[outer]) / max(np.median(uu[~outer]), 1.0)
+        r_obs = np.median(dd[outer]) / max(np.median(dd[~outer]), 0.5)
+        recedes[ks[i0]] = r_exp >= p.canopy_span and r_obs - 1.0 >= p.canopy_rise * (r_exp - 1.0)
     z = np.fmin(np.fmin(np.fmax(z_side, z_bot), z_fac), z_cap)
     ok = recedes[sid] & (z_side > 0) & (z_fac > 0) & np.isfinite(z)
     pv, pu = pv[ok], pu[ok]
