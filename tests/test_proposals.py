@@ -543,3 +543,21 @@ def test_a_dark_signal_head_and_a_cabin_band_pass_the_editors_default_slider():
     img[lab == CAR] = (40, 60, 140)                                  # the rear window painted over
     ann = propose_lights(img, lab, depth, intr, inst, params=FLAT).above(0.5)
     assert [i for i in ann.instance_ids() if class_of(i) == 2]
+
+
+def test_a_sign_on_a_facade_receding_along_the_street_is_an_advertisement():
+    """A 3 x 0.6 m red sign on a wall 5 m left of the camera, 31-34 m away, is 7 px wide (0.46 m of
+    image width at its depth): its area is measured along the wall (1.8 m^2), not across the image."""
+    img, lab = _canvas()
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    u = np.arange(200, dtype=np.float64)
+    z_wall = np.where(u < 95, -5.0 * 500.0 / np.minimum(u - 99.5, -1.0), 80.0)      # the wall at X = -5 m
+    depth = np.broadcast_to(z_wall, lab.shape).astype(np.float32).copy()
+    lab[:, :95] = BUILDING
+    img[:, :95] = (150, 140, 130)
+    cols = (u >= 99.5 - 2500.0 / 31.4) & (u <= 99.5 - 2500.0 / 34.4)
+    rows = slice(40, 49)                                                               # 0.6 m at ~33 m
+    img[rows, cols] = (200, 30, 25)
+    ann = propose_lights(img, lab, depth, intr, params=ProposalParams(categories=("ads",))).above(0.5)
+    ads = [i for i in ann.instance_ids() if class_of(i) == 10]
+    assert len(ads) == 1 and ann.mask(ads[0])[rows, cols].mean() > 0.8

@@ -152,3 +152,5 @@ class ProposalParams:
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.
     ad_min_saturation: float = 0.4
     ad_min_area_m2: float = 1.0
+    #: ... and its height (m; a shop's fascia sign is 0.3-0.8 m tall).
+    ad_min_height_m: float = 0.3
