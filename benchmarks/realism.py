@@ -3,7 +3,7 @@
 Usage::
 
     python -m benchmarks.realism [--size 2048x1024] [--seed 0] [--frames 1] [--dir DIR]
-        [--spp 16] [--variant default] [--figure docs/img/PNG] [--legacy]
+        [--spp 16] [--variant default] [--figure docs/img/PNG] [--legacy] [--set SECTION.FIELD=VALUE]
 
 On the Cityscapes-layout fixture with semi-global-matching stereo (``--stereo sgm``, the default;
 its exact depth written outside the dataset with ``--truth``), per frame:
@@ -100,6 +100,8 @@ def main(argv=None) -> int:
     ap.add_argument("--figure", default=None, help="write day | before | after | exact nights as a PNG")
     ap.add_argument("--legacy", action="store_true", help="also the night without the surface fits (before)")
     ap.add_argument("--save", default=None, help="folder for the nights' PNGs")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
+                    help="a chain parameter for every night (e.g. night.delight=true)")
     args = ap.parse_args(argv)
     from npsim_core.camera import normals_from_depth
     from npsim_core.chain import ChainParams
@@ -119,7 +121,7 @@ def main(argv=None) -> int:
     t_fixture = time.perf_counter() - t0
     scene = _frame(root, stem)
     truth = np.load(truth_dir / f"{stem}_depth.npy")
-    params = ChainParams()
+    params = ChainParams().with_sets(args.set)
     if args.spp:
         params = replace(params, night=replace(params.night, final_spp=int(args.spp)))
 
