@@ -126,6 +126,9 @@ DEFAULT_FRONTO_IDS = (17, 18, 19, 20, 24, 25, 32, 33)
 DEFAULT_CONTACT_IDS = (11, 12, 13, 14)
 #: The ground class raised by ``sidewalk_height`` above the road (sidewalk).
 SIDEWALK_ID = 8
+#: Metres: a crown cut by the frame's top and side whose lower edge (at ``crown_base``) is nearer than
+#: this is the near end of a row of street trees (``crowns="canopy"``).
+NEAR_CROWN_M = 15.0
 
 
 @dataclass(frozen=True)
@@ -1350,6 +1353,17 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     v_h = intr.cy - intr.fy * math.tan(math.asin(g[2]))
     up, du = v_h - (vb + 0.5), np.abs(ku - float(fac_info["vanishing_column"]))
     recedes = np.zeros(int(seg.max()) + 1, dtype=bool)
+    # a crown that leaves the frame at the top and at the side and whose lower edge (median row) at
+    # crown_base stands within NEAR_CROWN_M overhangs the camera's side of the street: the near end of a
+    # row, whose lower edge is one crown's and level (a farther one at the frame's corner has a trunk in view)
+    top = np.zeros_like(recedes)
+    top[seg[0][crown_seg[seg[0]]]] = True
+    edge = np.zeros_like(recedes)
+    for col in (seg[:, 0], seg[:, -1]):
+        edge[col[crown_seg[col]]] = True
+    for k in np.nonzero(top & edge)[0]:
+        dv = v_h - (float(np.median(vb[ks == k])) + 0.5)
+        recedes[k] = dv > 0.5 and p.crown_base > h and (p.crown_base - h) * intr.fy / dv < NEAR_CROWN_M
     st = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
     for i0, i1 in zip(st, np.r_[st[1:], ks.size]):
         m = up[i0:i1] > 0.5
@@ -1361,7 +1375,7 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
             continue
         r_exp = np.median(uu[outer]) / max(np.median(uu[~outer]), 1.0)
         r_obs = np.median(dd[outer]) / max(np.median(dd[~outer]), 0.5)
-        recedes[ks[i0]] = r_exp >= p.canopy_span and r_obs - 1.0 >= p.canopy_rise * (r_exp - 1.0)
+        recedes[ks[i0]] |= r_exp >= p.canopy_span and r_obs - 1.0 >= p.canopy_rise * (r_exp - 1.0)
     z = np.fmin(np.fmin(np.fmax(z_side, z_bot), z_fac), z_cap)
     ok = recedes[sid] & (z_side > 0) & (z_fac > 0) & np.isfinite(z)
     pv, pu = pv[ok], pu[ok]
