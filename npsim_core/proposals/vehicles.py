@@ -370,11 +370,14 @@ def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     edge onto something else) rather than on its end face: the depth of its columns (median over
     its rows) rises or falls by more than ``vehicle_lamp_max_slope`` metres per metre across it
     (between the median depths of its two halves, its outermost columns left out).
-    Boxes narrower than ``vehicle_lamp_slope_min_px`` are not judged (depth noise)."""
+    Boxes narrower than ``vehicle_lamp_slope_min_px`` (at 512 px image width, scaled with the
+    width: predicted depth is blurred over a share of the image) are not judged."""
     p = ctx.params
     h, w = lamp.shape
+    scale = max(1.0, ctx.shape[1] / 512.0)  # predicted depth bleeds over ~W/400 px at edges
+    min_px = int(round(p.vehicle_lamp_slope_min_px * scale))
     cols = np.flatnonzero(lamp.any(0))
-    if cols.size < p.vehicle_lamp_slope_min_px:
+    if cols.size < min_px:
         return False
     rows = np.flatnonzero(lamp.any(1))
     d = ctx.depth[y0 + rows.min():y0 + rows.max() + 1, x0 + cols]
@@ -382,9 +385,10 @@ def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     with warnings.catch_warnings():  # a column without valid depth stays NaN, left out below
         warnings.simplefilter("ignore", RuntimeWarning)
         zc = np.nanmedian(d, axis=0)
-    zc, cols = zc[1:-1], cols[1:-1]  # the outermost columns bleed into what lies beside the vehicle
+    trim = int(round(scale))  # the outermost columns bleed into what lies beside the vehicle
+    zc, cols = zc[trim:-trim], cols[trim:-trim]
     ok = np.isfinite(zc)
-    if ok.sum() < p.vehicle_lamp_slope_min_px:
+    if ok.sum() < min_px:
         return False
     zc, cols = zc[ok], cols[ok].astype(np.float64)
     z = float(np.median(zc))
