@@ -192,9 +192,10 @@ def _export_glb_plain(mesh: SceneMesh, path: Path, image: np.ndarray | None) -> 
     meshes, nodes = [], []
     offset = 0
 
-    def add(nbytes: int) -> int:
+    def add(nbytes: int, target: int | None = None) -> int:
         nonlocal offset
-        views.append({"buffer": 0, "byteOffset": offset, "byteLength": nbytes})
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": nbytes,
+                      **({} if target is None else {"target": target})})
         offset += nbytes + (-nbytes % 4)
         return len(views) - 1
 
@@ -203,13 +204,13 @@ def _export_glb_plain(mesh: SceneMesh, path: Path, image: np.ndarray | None) -> 
         nv, nf = p.n_vertices, p.n_faces
         lo, hi = p.vertices.min(0) * flip, p.vertices.max(0) * flip  # y, z flipped: min and max swap
         vmin, vmax = np.minimum(lo, hi), np.maximum(lo, hi)
-        accessors.append({"bufferView": add(12 * nv), "componentType": 5126, "count": nv, "type": "VEC3",
+        accessors.append({"bufferView": add(12 * nv, 34962), "componentType": 5126, "count": nv, "type": "VEC3",
                           "min": [float(x) for x in vmin], "max": [float(x) for x in vmax]})
         attr = {"POSITION": len(accessors) - 1}
         if image is not None:
-            accessors.append({"bufferView": add(8 * nv), "componentType": 5126, "count": nv, "type": "VEC2"})
+            accessors.append({"bufferView": add(8 * nv, 34962), "componentType": 5126, "count": nv, "type": "VEC2"})
             attr["TEXCOORD_0"] = len(accessors) - 1
-        accessors.append({"bufferView": add(12 * nf), "componentType": 5125, "count": 3 * nf, "type": "SCALAR"})
+        accessors.append({"bufferView": add(12 * nf, 34963), "componentType": 5125, "count": 3 * nf, "type": "SCALAR"})
         prim = {"attributes": attr, "indices": len(accessors) - 1, "mode": 4}
         if image is not None:
             prim["material"] = 0
