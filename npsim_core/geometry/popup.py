@@ -210,6 +210,11 @@ class PopupParams:
         crowns (``crowns="canopy"``): a 4-5 m sidewalk, trunks 1-1.5 m from the kerb, crowns of
         2.5-3 m radius over the parking strip -- about where the parked cars' street side is
         (``hidden_setback``).
+    crown_min : float
+        Metres: the lowest a crown's underside hangs (street trees clear pedestrians). A crown pixel
+        column whose lowest pixel is above the horizon stands no nearer than that height allows there
+        (``crowns="columns"``/``"canopy"``: a lower bound over the per-column and segment placements, e.g.
+        a tree across a square whose trunk hides behind a near parked car).
     canopy_span, canopy_rise : float
         A crown segment is a receding row (``crowns="canopy"``) when its columns above the horizon
         cover at least a tenth of the width, the outer half of them lies ``canopy_span`` times as far
@@ -245,6 +250,7 @@ class PopupParams:
     crown_base: float = 2.4
     crown_radius: float = 2.5
     crown_setback: float = 6.0
+    crown_min: float = 2.0
     canopy_span: float = 1.4
     canopy_rise: float = 0.25
 
@@ -275,7 +281,7 @@ class PopupParams:
             raise NpsimInputError(f"PopupParams.canopy_rise must be >= 0, got {self.canopy_rise}")
         if not (math.isfinite(self.canopy_span) and self.canopy_span >= 1):
             raise NpsimInputError(f"PopupParams.canopy_span must be >= 1, got {self.canopy_span}")
-        for name in ("crown_base", "crown_radius", "crown_setback"):
+        for name in ("crown_base", "crown_radius", "crown_setback", "crown_min"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise NpsimInputError(f"PopupParams.{name} must be >= 0 metres, got {v}")
@@ -1264,6 +1270,10 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
     with np.errstate(divide="ignore", invalid="ignore"):
         z_far = np.where((dv > 0.5) & (p.crown_base > h), (p.crown_base - h) * intr.fy / dv, np.nan)
     z_h = z_far - p.crown_radius
+    # every crown pixel is at least crown_min up: a crown whose lower edge is seen above the horizon stands
+    # no nearer than that height allows there (per segment, from the upper quartile of its columns' lowest
+    # rows: trunk columns reach lower)
+    z_lb = np.zeros(uniq.size)
     z_h = np.where(z_h > p.min_depth, z_h, np.nan)
     z = np.where(contact, z_contact, np.fmin(d_below, z_h))
     src = np.where(contact, 1, np.where(np.isfinite(d_below) & ~(z_h < d_below), 2, 3))
@@ -1279,6 +1289,9 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
         if contact[i0:i1].any():
             z[i0:i1] = np.nan  # a trunk shows: the segment keeps its depth at the trunk's contact
             continue
+        dv75 = float(np.percentile(dv[i0:i1], 75))
+        if dv75 > 0.5 and p.crown_min > h:
+            z_lb[i0:i1] = (p.crown_min - h) * intr.fy / dv75
         # one crown per run of columns whose lower edge stays level (a jump = another crown)
         br = np.nonzero((np.abs(np.diff(vb[i0:i1])) > jump) | (np.diff(ku[i0:i1]) > 1))[0] + 1
         for a, b in zip(np.r_[0, br], np.r_[br, zz.size]):
@@ -1300,7 +1313,7 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
     pv, pu, j = pv[hit], pu[hit], j[hit]
     # two guesses that fail differently -- this column's and the segment's own placement (half way
     # between the car in front and the facade behind): half way between them in log depth
-    depth[pv, pu] = np.sqrt(tbl[j] * depth[pv, pu])
+    depth[pv, pu] = np.fmax(np.sqrt(tbl[j] * depth[pv, pu]), np.clip(z_lb[j], 0.0, p.max_depth))
     done[pv, pu] = True
     kind_px[pv, pu] = src[j]
     return done, kind_px
