@@ -671,6 +671,19 @@ def test_cars_stand_on_their_wheels(variant):
         assert new <= 0.8 * old and new < 0.13, (seed, old, new)
 
 
+@pytest.mark.parametrize("variant, seed", [("square", 0), ("canopy", 2), ("receding", 0)])
+def test_a_car_stands_on_the_chain_below_its_contacts(variant, seed):
+    """A car's visible contacts (256x128) are replaced by the lower hull of each run of visible columns --
+    the wheels touch the ground, the underside between them is seen 0.3 m up, farther than the car --
+    not the running max over 5 % of the width, which a near car's wheel base outspans. Car AbsRel at most
+    0.7x and below 0.11. Measured: 0.157 -> 0.100, 0.118 -> 0.074, 0.130 -> 0.074."""
+    s = street_variant(variant, seed=seed)
+    car = s.labels == CAR
+    old = depth_metrics(estimate_geometry(s, "popup", PopupParams(car_hull=False)).depth, s.depth_gt, car).abs_rel
+    new = depth_metrics(estimate_geometry(s, "popup").depth, s.depth_gt, car).abs_rel
+    assert new <= 0.7 * old and new < 0.11, (old, new)
+
+
 def test_confidence_marks_where_the_prior_is_unsure():
     """The confidence map: in [0, 1] on every pixel with a depth, NaN on sky, carried through
     estimate_geometry; AbsRel where it is below 0.5 at least 3x that where it is not (hard2, canopy

@@ -193,6 +193,10 @@ class PopupParams:
         labelIds placed after the facades on their own contact lines (``facades="contact"``), their
         visible contacts replaced by the lower envelope over ``car_envelope`` x the width (wheels);
         ``()`` keeps the earlier model for them.
+    car_hull : bool
+        Cars' visible contacts are replaced by the lower hull of each run of consecutive visible
+        columns (the chain below every contact: the wheels touch the ground, the body's underside
+        between them is seen 0.3 m up) instead of the running maximum over ``car_envelope``.
     crowns : str
         ``"canopy"`` (default): as ``"columns"``, then crown segments that recede along the street
         (a row of street trees) are placed per pixel between the plane of crown undersides and
@@ -247,6 +251,7 @@ class PopupParams:
     crowns: str = "canopy"
     car_ids: tuple[int, ...] = (26,)
     car_envelope: float = 0.05
+    car_hull: bool = True
     crown_base: float = 2.4
     crown_radius: float = 2.5
     crown_setback: float = 6.0
@@ -733,6 +738,31 @@ class _GroundMap:
         return a[:, None] * self.e + b[:, None] * self.f + self.hgt * self.g
 
 
+def _lower_hull_runs(u: np.ndarray, v: np.ndarray, vis: np.ndarray) -> np.ndarray:
+    """Per run of consecutive visible columns, the chain below all points (largest rows) evaluated at each column."""
+    out = v.astype(np.float64).copy()
+    idx = np.flatnonzero(vis)
+    if idx.size == 0:
+        return out
+    br = np.flatnonzero(np.diff(u[idx]) > 1) + 1
+    for run in np.split(idx, br):
+        if run.size < 3:
+            continue
+        uu, vv = u[run].astype(np.float64), v[run].astype(np.float64)
+        hull: list[int] = []
+        for i in range(uu.size):  # monotone chain, keeping the points on the image-bottom side
+            while len(hull) >= 2:
+                a, b = hull[-2], hull[-1]
+                cross = (uu[b] - uu[a]) * (vv[i] - vv[a]) - (vv[b] - vv[a]) * (uu[i] - uu[a])
+                if cross >= 0:
+                    hull.pop()
+                else:
+                    break
+            hull.append(i)
+        out[run] = np.interp(uu, uu[hull], vv[hull])
+    return out
+
+
 def street_direction(u_vp: float, intr, g: np.ndarray) -> np.ndarray:
     """Unit direction ``(a, b)`` in plan (ground coordinates along ``e``, ``f``) of a street whose vanishing column is ``u_vp``."""
     ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
@@ -898,12 +928,17 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
     ng = next_ground[vbel, ku]
     if envelope > 0:
         # lower envelope of the visible contacts (a car's wheels; the body's underside is seen 0.3 m up,
-        # its contact row would be the ground behind it): running max of the rows per segment
+        # its contact row would be the ground behind it): the lower hull per run of visible columns
+        # (car_hull), else the running max of the rows per segment
         win = max(3, int(round(envelope * W)) | 1)
+        vb = vb.astype(np.float64)  # (the hull runs between rows)
         _, st_ = np.unique(ks, return_index=True)
         for i0, i1 in zip(st_, np.append(st_[1:], ks.size)):
-            vv = np.where(visible[i0:i1], vb[i0:i1], -1)
-            env = ndimage.maximum_filter1d(vv, size=win, mode="nearest")
+            if p.car_hull:  # the chain below every contact of a run: through the wheels, under the body
+                env = _lower_hull_runs(ku[i0:i1], vb[i0:i1], visible[i0:i1])
+            else:
+                vv = np.where(visible[i0:i1], vb[i0:i1], -1)
+                env = ndimage.maximum_filter1d(vv, size=win, mode="nearest")
             vb[i0:i1] = np.where(visible[i0:i1], env, vb[i0:i1])
     lo = vb + 0.5
     hi = np.where(visible, lo, np.where(at_bottom | unknown | (ng >= H), np.inf, ng - 0.5))
