@@ -1096,6 +1096,7 @@ def _place_facades(labels, seg, nseg, ground, invalid, is_contact_seg, walk_px, 
         side_line[side] = _Line(gm.image_line_of_plane(n3, -abs(X)), n3, -abs(X), "side")
     info["street_lines_m"] = {("left" if k < 0 else "right"): round(-v.c * k, 2) for k, v in side_line.items()}
     info["hidden_setback_m"] = {("left" if k < 0 else "right"): v for k, v in setbacks.items()}
+    info["occluder_feet_m"] = {("left" if k < 0 else "right"): round(v, 2) for k, v in feet.items()}
 
     def fallback_side(side, cols):
         """Street line behind the ground visible in ``cols`` (+ hidden_setback), when no facade shows its foot."""
@@ -1362,7 +1363,8 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
 
     A row of crowns seen from the road is bounded by two planes: the plane of their undersides,
     ``crown_base`` metres above the ground, and the vertical plane along the street of their inner
-    (road-side) faces, ``crown_setback`` metres in from that side's street line (facade). A ray meets
+    (road-side) faces, ``crown_setback`` metres in from that side's street line (facade) or at the feet
+    of what hides that side's facade bases (parked cars, people), whichever is nearer the axis. A ray meets
     the slab where it has crossed both, so each pixel takes the larger of the two depths (exact on
     undersides and inner faces; through a gap between crowns it sees a front face a little deeper),
     no deeper than the street line nor than ``z_cap`` (the farthest facade standing on its visible
@@ -1386,6 +1388,12 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     side = np.where(lr < 0, -1, 1)
     x_fac = np.where(side < 0, street.get("left", np.nan), street.get("right", np.nan))  # signed, m
     x_in = np.where(np.abs(x_fac) > p.crown_setback + 0.5, x_fac - side * p.crown_setback, side * 0.5)
+    # ... or the feet of what hides the facades' base on that side (parked cars' street side, people),
+    # whichever is nearer the axis: crowns overhang the parking strip, and a wide sidewalk moves the
+    # street line but not the trees at the kerb
+    feet = fac_info.get("occluder_feet_m", {})
+    x_ft = np.where(side < 0, feet.get("left", np.nan), feet.get("right", np.nan))
+    x_in = np.where(np.isfinite(x_ft) & (x_ft * side > 0) & (np.abs(x_ft) < np.abs(x_in)), x_ft, x_in)
     with np.errstate(divide="ignore", invalid="ignore"):
         z_bot = np.where(gr < -1e-6, (h - p.crown_base) / gr, np.nan)  # the undersides' plane (above the camera)
         z_side = np.where(np.abs(lr) > 1e-6, x_in / lr, np.nan)
