@@ -561,3 +561,19 @@ def test_a_sign_on_a_facade_receding_along_the_street_is_an_advertisement():
     ann = propose_lights(img, lab, depth, intr, params=ProposalParams(categories=("ads",))).above(0.5)
     ads = [i for i in ann.instance_ids() if class_of(i) == 10]
     assert len(ads) == 1 and ann.mask(ads[0])[rows, cols].mean() > 0.8
+
+
+def test_a_car_whose_lower_body_is_hidden_by_the_car_in_front_keeps_its_lamps_on_the_body():
+    """The car in front (6 m, nearer) hides the left 40 px of the body: the cabin rows are now wider
+    than what shows of the body, so the silhouette's fullest rows are the cabin's (top 1.3 m above
+    the ground, too high for a car's body): the lamps stay at the body's height, the visible
+    right-hand one on its truth."""
+    img, lab, depth, intr, inst, truth = _car_frame()
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    lab[row(1.4):row(1.3)], img[row(1.4):row(1.3)], inst[row(1.4):row(1.3)] = SKY, (150, 170, 200), SKY
+    hide = (slice(row(0.9), row(0.3) + 10), slice(40, 95))
+    lab[hide], img[hide], depth[hide], inst[hide] = CAR, (200, 200, 200), 6.0, CAR * 1000 + 1
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    mine = [i for i in lamps if (ann.mask(i) & truth[1]).any() or np.nonzero(ann.mask(i))[1].min() >= 95]
+    assert mine and all(np.nonzero(ann.mask(i))[0].min() >= row(0.9) for i in mine)
+    assert max(_iou(ann.mask(i), truth[1]) for i in mine) >= 0.5

@@ -86,7 +86,7 @@ class ProposalParams:
     #: (a red lamp in shade or seen far away; a white lamp on blue paint departs evenly in red and green).
     vehicle_rear_red_share: float = 0.2
     #: Plausible height (m above the ground) of a vehicle body's top edge.
-    vehicle_body_top_m: tuple[float, float] = (0.6, 1.4)
+    vehicle_body_top_m: tuple[float, float] = (0.6, 1.2)
     #: Typical body-top height (m), used where the silhouette cannot tell (narrow or occluded faces).
     vehicle_body_top_typical_m: float = 0.9
     #: End faces narrower than this (pixels) take the typical body top.
