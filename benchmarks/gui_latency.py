@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
                     "X_leftImg8bit.png with its gtFine labels) instead of the generated fixtures")
     ap.add_argument("--opens", type=int, default=0, help="memory per frame opened: step through the dataset root "
                     "of --frame (or of the fixture) this many times, RSS after each frame's mesh and night")
+    ap.add_argument("--memory-only", action="store_true", help="only the --opens measurement")
     args = ap.parse_args(argv)
     from PySide6.QtCore import QElapsedTimer, QPoint, Qt, QTimer
     from PySide6.QtTest import QTest
@@ -119,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
             root = base / f"cityscapes_{w}x{h}"
             stems = write_cityscapes_fixture(root, frames=2, size=(w, h), corrupt=0)
             runs.append((root / "leftImg8bit" / "val" / "synthcity" / f"{stems[0]}_leftImg8bit.png", w, h))
-    for image, w, h in runs:
+    for image, w, h in (runs if not args.memory_only else []):
 
         gaps: list[float] = []
         phase = ["start"]
@@ -158,6 +159,11 @@ def main(argv: list[str] | None = None) -> int:
         phase[0] = "after open: chain, 3D view, night"
         wait(lambda: win.results is not None and win.results_final and not win.pipeline_jobs.is_busy)
         t_pipe = time.perf_counter() - t0
+        app.processEvents()
+        if win.render_panel.night is None and not win.render_jobs.is_busy:
+            # the night renders only while its dock is on screen (a window manager may cover it)
+            print(f"  night preview not on screen ({win.night_preview_shown()}): F6", file=sys.stderr, flush=True)
+            win.render_now()
         wait(lambda: win.render_panel.night is not None and not win.render_jobs.is_busy)
         t_night = time.perf_counter() - t0
         peak = _rss_kib("VmHWM")
@@ -246,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     mem_rows = []
     if args.opens:
         # the dataset root above the frame's leftImg8bit/ folder (Cityscapes layout), else its folder
+        phase = ["memory per frame"]
         img = Path(runs[-1][0])
         root = next((p.parent for p in img.parents if p.name == "leftImg8bit"), img.parent)
         win = MainWindow()
@@ -258,6 +265,9 @@ def main(argv: list[str] | None = None) -> int:
             if k:
                 win.step_frame(+1 if k % 2 else -1)
             wait(lambda: win.results is not None and win.results_final and not win.pipeline_jobs.is_busy)
+            app.processEvents()
+            if win.render_panel.night is None and not win.render_jobs.is_busy:
+                win.render_now()  # the night renders only while its dock is on screen
             wait(lambda: win.render_panel.night is not None and not win.jobs_busy)
             mem_rows.append((k + 1, win.chain.scene.name, _rss_kib("VmRSS") / 2**20, _rss_kib("VmHWM") / 2**20))
         win.confirm_close = lambda: True
@@ -271,6 +281,8 @@ def main(argv: list[str] | None = None) -> int:
         for r in mem_rows:
             print(f"| {r[0]} | {r[1]} | {r[2]:.2f} | {r[3]:.2f} |")
         print()
+    if not rows:
+        return 0
     print("| frame | open → canvas shown (s) | open → full mesh (s) | open → night preview (s) | RSS before (GB) "
           "| peak RSS (GB) | last slider → full res (s) | longest stall (ms) | p99 stall (ms) | stalls > 100 ms |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -288,6 +300,8 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|")
     for r in brush_rows:
         print(f"| {r[0]} | {r[1] * 1000:.1f} | {r[2] * 1000:.1f} | {r[3]} |")
+    if not action_rows:
+        return 0
     print(f"\n| frame | action ({n_prop} proposals) | action → canvas (ms) | longest stall, action and the "
           "2 s after (ms) | lights after |")
     print("|---|---|---|---|---|")

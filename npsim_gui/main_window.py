@@ -1125,4 +1125,11 @@ class MainWindow(QMainWindow):
         self.pipeline_jobs.shutdown()  # workers stop at their next cancellation check
         if self.viewer is not None:
             self.viewer.close_viewer()
+        # let go of the frame's results: signal connections to lambdas keep a closed window's Python
+        # object alive (PySide cannot collect those cycles), which must not keep gigabytes with it
+        self.chain = self.proxy_chain = self.results = None
+        self._export_cache = None
+        self.editor.clear_proposals()
+        self.render_panel.clear_night()
+        release_free_memory()
         super().closeEvent(event)
