@@ -246,35 +246,13 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
             put(staging / f"{n}_normals_refined.npy", write_npy, nr)
             put(staging / f"{n}_normals_refined.png", write_normals_png, nr)
         put(staging / f"{n}_normals_refined_vis.png", write_image, normals_to_rgb(nr))
+        del nr  # 25 MB at 2048x1024, not kept through the nights
     mesh_info = {"faces": int(res.mesh.n_faces), "vertices": int(res.mesh.n_vertices),
                  "reduced_by_budget": res.mesh_result.reduced}
     if "mesh" in kinds and ex.mesh != "none":
-        from ..mesh.export import GLB_DRACO_MAX_FACES, GLB_MAX_ERROR_M, export_mesh
-        from .stages import lit_mesh
-
-        meshes = []
-        ann = chain.lights(params).annotation
-        if ex.mesh in ("reduced", "both"):
-            small, how = lit_mesh(res.mesh_result, ann, ex.mesh_tolerance, params.mesh.far_limit)
-            meshes.append((f"{n}_mesh", small))
-            mesh_info["written"] = {"faces": int(small.n_faces), "what": how}
-        if ex.mesh in ("full", "both"):
-            meshes.append((f"{n}_mesh" if ex.mesh == "full" else f"{n}_mesh_full", lit_mesh(res.mesh_result, ann)[0]))
-            if ex.mesh == "full":
-                mesh_info["written"] = {"faces": int(res.mesh.n_faces), "what": "the chain's mesh"}
-        for stem, m in meshes:
-            if "glb" in mesh_formats:
-                mesh_info.setdefault("glb", {})[f"{stem}.glb"] = (
-                    {"compression": "KHR_draco_mesh_compression", "max_position_error_m": GLB_MAX_ERROR_M,
-                     "texture": "JPEG quality 90"} if m.n_faces <= GLB_DRACO_MAX_FACES else
-                    {"compression": "none", "why": f"more than {GLB_DRACO_MAX_FACES} faces"})
-            # a Draco-compressed GLB up to GLB_DRACO_MAX_FACES (positions within GLB_MAX_ERROR_M:
-            # the reduced mesh of a 2048x1024 frame 19 -> 1.4 MB)
-            out = export_mesh(m, staging, stem=stem, formats=tuple(mesh_formats), image=s.image, glb_compress=True)
-            written += list(out.values())
-            if "obj" in out:  # its material and texture files beside it
-                written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{stem}_texture.png"))
-                            if p.exists()]
+        # in a function of its own: the written meshes are gone before the nights' peak
+        written += _write_meshes(chain, params, res, staging, mesh_formats, mesh_info)
+    release_free_memory()
     nights_info = []
     for k in range(n_nights):
         step(f"rendering night {k + 1}/{n_nights}")
@@ -328,6 +306,40 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
     if progress is not None:
         progress(1.0, f"exported {len(out)} files")
     return out
+
+
+def _write_meshes(chain: Chain, params: ChainParams, res: ChainResults, staging: Path, mesh_formats,
+                  mesh_info: dict) -> list[Path]:
+    """Write the frame's mesh(es) (``params.export.mesh``) into ``staging``; fills ``mesh_info``."""
+    from ..mesh.export import GLB_DRACO_MAX_FACES, GLB_MAX_ERROR_M, export_mesh
+    from .stages import lit_mesh
+
+    n, ex, written = chain.scene.name, params.export, []
+    meshes = []
+    ann = chain.lights(params).annotation
+    if ex.mesh in ("reduced", "both"):
+        small, how = lit_mesh(res.mesh_result, ann, ex.mesh_tolerance, params.mesh.far_limit)
+        meshes.append((f"{n}_mesh", small))
+        mesh_info["written"] = {"faces": int(small.n_faces), "what": how}
+    if ex.mesh in ("full", "both"):
+        meshes.append((f"{n}_mesh" if ex.mesh == "full" else f"{n}_mesh_full", lit_mesh(res.mesh_result, ann)[0]))
+        if ex.mesh == "full":
+            mesh_info["written"] = {"faces": int(res.mesh.n_faces), "what": "the chain's mesh"}
+    for stem, m in meshes:
+        if "glb" in mesh_formats:
+            mesh_info.setdefault("glb", {})[f"{stem}.glb"] = (
+                {"compression": "KHR_draco_mesh_compression", "max_position_error_m": GLB_MAX_ERROR_M,
+                 "texture": "JPEG quality 90"} if m.n_faces <= GLB_DRACO_MAX_FACES else
+                {"compression": "none", "why": f"more than {GLB_DRACO_MAX_FACES} faces"})
+        # a Draco-compressed GLB up to GLB_DRACO_MAX_FACES (positions within GLB_MAX_ERROR_M:
+        # the reduced mesh of a 2048x1024 frame 19 -> 1.4 MB)
+        out = export_mesh(m, staging, stem=stem, formats=tuple(mesh_formats), image=chain.scene.image,
+                          glb_compress=True)
+        written += list(out.values())
+        if "obj" in out:  # its material and texture files beside it
+            written += [p for p in (out["obj"].with_suffix(".mtl"), out["obj"].with_name(f"{stem}_texture.png"))
+                        if p.exists()]
+    return written
 
 
 def _lights_info(lights) -> dict:
