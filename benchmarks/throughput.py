@@ -15,7 +15,7 @@ on the same frames with the defaults (plus ``--set``) into a fresh folder and pr
 * ``img/min``: frames done per minute of wall clock (what a user waits for),
 * ``CPU s/img``: user + system CPU seconds per frame of this process and its workers -- far less
   sensitive to other jobs on the machine than the wall clock,
-* ``peak GB/worker``: the largest peak resident memory of a worker,
+* ``peak GiB/worker``: the largest peak resident memory of a worker,
 * ``MB/img``: bytes written per frame (the frame folders),
 * ``stages``: mean seconds per frame of geometry (the chain up to the mesh), night inputs (scene
   build, materials, guides), render and denoise, from the export manifests,
@@ -80,7 +80,7 @@ def run_one(sources, params, out: Path, workers: int, nights: int, log) -> dict:
 
 def format_table(rows: list[dict], size: str, what: str) -> str:
     lines = [f"Throughput, {size}, {what}; load = 1-minute average at the start -> end",
-             "", "| workers | frames | img/min | s/img (wall) | CPU s/img | peak GB/worker | MB/img (max) | "
+             "", "| workers | frames | img/min | s/img (wall) | CPU s/img | peak GiB/worker | MB/img (max) | "
                  "geometry s | night inputs s | render s | denoise s | load |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
