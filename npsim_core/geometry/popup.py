@@ -555,9 +555,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
                                                  pitch, p)
             normals[crown_px] = -f
             if p.crowns == "canopy":  # rows of crowns receding along the street: the slab overrides
-                seen = fac_seen == 2
-                z_cap = float(depth[seen].max()) if seen.any() else p.max_depth
-                slab = _canopy_slab(seg, crown_seg, depth, normals, rays, g, f, e, h, intr, fac_info, p, z_cap)
+                slab = _canopy_slab(seg, crown_seg, depth, normals, g, f, e, h, intr, fac_info, p, fac_seen)
                 crown_px |= slab
                 crown_kind[slab] = 4
 
@@ -1356,9 +1354,9 @@ def _place_crowns(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, gro
 
 
 
-def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, normals: np.ndarray, rays: np.ndarray,
+def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, normals: np.ndarray,
                  g: np.ndarray, f: np.ndarray, e: np.ndarray, h: float, intr, fac_info: dict,
-                 p: PopupParams, z_cap: float) -> np.ndarray:
+                 p: PopupParams, fac_seen: np.ndarray) -> np.ndarray:
     """Crowns of a row of street trees receding along the street, as one slab (docs/geometry.md, "Canopy").
 
     A row of crowns seen from the road is bounded by two planes: the plane of their undersides,
@@ -1367,8 +1365,8 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     of what hides that side's facade bases (parked cars, people), whichever is nearer the axis. A ray meets
     the slab where it has crossed both, so each pixel takes the larger of the two depths (exact on
     undersides and inner faces; through a gap between crowns it sees a front face a little deeper),
-    no deeper than the street line nor than ``z_cap`` (the farthest facade standing on its visible
-    foot: the street's end). Only segments that recede (``canopy_span``, ``canopy_rise``: wide, and a
+    no deeper than the street line nor than the farthest facade standing on its visible foot
+    (``fac_seen == 2``: the street's end). Only segments that recede (``canopy_span``, ``canopy_rise``: wide, and a
     lower edge rising toward the vanishing point) are placed so; a single crown or a small group near
     the vanishing point keeps the per-column depth.
     Writes ``depth`` and ``normals`` in place; returns the pixels written.
@@ -1380,32 +1378,20 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
         return done
     d = street_direction(float(fac_info["vanishing_column"]), intr, g)
     n_lat = d[1] * e - d[0] * f  # lateral unit vector, > 0 right of the street axis
-    pv, pu = np.nonzero(crown_seg[seg])
-    if pv.size == 0:
-        return done
-    r = rays[pv, pu]
-    gr, lr = r @ g, r @ n_lat
-    side = np.where(lr < 0, -1, 1)
-    x_fac = np.where(side < 0, street.get("left", np.nan), street.get("right", np.nan))  # signed, m
-    x_in = np.where(np.abs(x_fac) > p.crown_setback + 0.5, x_fac - side * p.crown_setback, side * 0.5)
-    # ... or the feet of what hides the facades' base on that side (parked cars' street side, people),
-    # whichever is nearer the axis: crowns overhang the parking strip, and a wide sidewalk moves the
-    # street line but not the trees at the kerb
-    feet = fac_info.get("occluder_feet_m", {})
-    x_ft = np.where(side < 0, feet.get("left", np.nan), feet.get("right", np.nan))
-    x_in = np.where(np.isfinite(x_ft) & (x_ft * side > 0) & (np.abs(x_ft) < np.abs(x_in)), x_ft, x_in)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z_bot = np.where(gr < -1e-6, (h - p.crown_base) / gr, np.nan)  # the undersides' plane (above the camera)
-        z_side = np.where(np.abs(lr) > 1e-6, x_in / lr, np.nan)
-        z_fac = np.where(np.abs(lr) > 1e-6, x_fac / lr, np.nan)
+    px = crown_seg[seg]
     # which segments recede: their lower edge (lowest pixel per column, above the horizon) rises toward
     # the vanishing point as a row's outer bottom edge does, not level as a single crown's
-    sid = seg[pv, pu]
-    key = sid.astype(np.int64) * W + pu
-    uniq, first = np.unique(key, return_index=True)
-    vb = np.full(uniq.size, -1.0)
-    np.maximum.at(vb, np.searchsorted(uniq, key), pv.astype(float))
-    ks, ku = uniq // W, (uniq % W).astype(float)
+    bot = px.copy()
+    bot[:-1] &= seg[1:] != seg[:-1]
+    bv, bu = np.nonzero(bot)
+    if bv.size == 0:
+        return done
+    key = seg[bv, bu].astype(np.int64) * W + bu
+    order = np.lexsort((-bv, key))  # per (segment, column) its lowest boundary row first
+    key, bv = key[order], bv[order]
+    first = np.r_[True, key[1:] != key[:-1]]
+    uniq, vb = key[first], bv[first].astype(np.float64)
+    ks, ku = uniq // W, (uniq % W).astype(np.float64)
     v_h = intr.cy - intr.fy * math.tan(math.asin(g[2]))
     up, du = v_h - (vb + 0.5), np.abs(ku - float(fac_info["vanishing_column"]))
     recedes = np.zeros(int(seg.max()) + 1, dtype=bool)
@@ -1432,8 +1418,30 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
         r_exp = np.median(uu[outer]) / max(np.median(uu[~outer]), 1.0)
         r_obs = np.median(dd[outer]) / max(np.median(dd[~outer]), 0.5)
         recedes[ks[i0]] |= r_exp >= p.canopy_span and r_obs - 1.0 >= p.canopy_rise * (r_exp - 1.0)
+    if not recedes.any():
+        return done
+    seen = fac_seen == 2
+    z_cap = float(depth[seen].max()) if seen.any() else p.max_depth
+    pv, pu = np.nonzero(px & recedes[seg])
+    # ray components from the pixel coordinates (no gather of the full ray array)
+    xr, yr = (pu - intr.cx) / intr.fx, (pv - intr.cy) / intr.fy
+    gr = xr * g[0] + yr * g[1] + g[2]
+    lr = xr * n_lat[0] + yr * n_lat[1] + n_lat[2]
+    side = np.where(lr < 0, -1, 1)
+    x_fac = np.where(side < 0, street.get("left", np.nan), street.get("right", np.nan))  # signed, m
+    x_in = np.where(np.abs(x_fac) > p.crown_setback + 0.5, x_fac - side * p.crown_setback, side * 0.5)
+    # ... or the feet of what hides the facades' base on that side (parked cars' street side, people),
+    # whichever is nearer the axis: crowns overhang the parking strip, and a wide sidewalk moves the
+    # street line but not the trees at the kerb
+    feet = fac_info.get("occluder_feet_m", {})
+    x_ft = np.where(side < 0, feet.get("left", np.nan), feet.get("right", np.nan))
+    x_in = np.where(np.isfinite(x_ft) & (x_ft * side > 0) & (np.abs(x_ft) < np.abs(x_in)), x_ft, x_in)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_bot = np.where(gr < -1e-6, (h - p.crown_base) / gr, np.nan)  # the undersides' plane (above the camera)
+        z_side = np.where(np.abs(lr) > 1e-6, x_in / lr, np.nan)
+        z_fac = np.where(np.abs(lr) > 1e-6, x_fac / lr, np.nan)
     z = np.fmin(np.fmin(np.fmax(z_side, z_bot), z_fac), z_cap)
-    ok = recedes[sid] & (z_side > 0) & (z_fac > 0) & np.isfinite(z)
+    ok = (z_side > 0) & (z_fac > 0) & np.isfinite(z)
     pv, pu = pv[ok], pu[ok]
     depth[pv, pu] = np.clip(z[ok], p.min_depth, p.max_depth)
     on_side = ~(z_bot[ok] > z_side[ok])
