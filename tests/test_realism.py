@@ -169,3 +169,24 @@ def test_gloss_only_where_the_geometry_is_smooth():
     smooth = estimate_materials(image, labels, normals=flat).roughness
     rough = estimate_materials(image, labels, normals=bumpy).roughness
     assert np.allclose(smooth, 0.25) and rough.mean() > 0.8   # paint stays glossy only when smooth
+
+
+def test_camera_shoulder_keeps_highlights_below_white_and_lamps_white():
+    """A hard clip at sensor white put every lit surface between 1x and 2x white at 255
+    (0.5 % of the fixture's night above 240 against real nights' 0.24 %); the camera's
+    highlight shoulder keeps their gradation, leaves the shadows and mid-tones bit-identical
+    and still puts lamps (far above white) at 255."""
+    from npsim_core.render.camera_post import CameraParams, apply_camera, linear_to_srgb
+
+    ramp = np.linspace(0.0, 4.0, 401, dtype=np.float32)
+    lin = np.repeat(ramp[None, :, None], 3, axis=2)
+    srgb, _ = apply_camera(lin, CameraParams(iso=None))
+    g = srgb[0, :, 0].astype(int)
+    over = (ramp >= 1.0) & (ramp <= 1.3)
+    assert (g[over] < 250).all() and (np.diff(g[(ramp >= 0.9) & (ramp <= 1.5)]) >= 0).all()
+    assert len(np.unique(g[over])) > 5                                # gradation, not one flat white
+    assert (g[ramp >= 2.0] == 255).all()                              # lamps stay white
+    low = ramp <= 0.5
+    np.testing.assert_array_equal(g[low], np.floor(linear_to_srgb(ramp[low]) * 255 + 0.5).astype(int))
+    hard, _ = apply_camera(lin, CameraParams(iso=None, highlight_knee=1.0))
+    assert (hard[0, over, 0] == 255).all()                            # the old camera clipped them

@@ -5,8 +5,10 @@ light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
 render -> optional horizontal motion blur of moving vehicles -> optional glare (bloom)
 around what exceeds sensor white -> heteroscedastic Gaussian noise
 ``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in linear units where
-1.0 = sensor white) -> white balance (per-channel gains) ->
-clip to [0, 1] -> sRGB encoding -> 8-bit quantisation (round half up). Labels
+1.0 = sensor white) -> white balance (per-channel gains) -> highlight shoulder (the
+camera's tone curve: linear below ``highlight_knee``, rolling off smoothly to white,
+:func:`highlight_shoulder`) -> clip to [0, 1] -> sRGB encoding -> 8-bit quantisation
+(round half up). Labels
 are never touched: the label map of a night is the day's, copied unchanged.
 
 ISO presets (:data:`ISO_PRESETS`): analogue gain g = ISO/100; shot-noise
@@ -62,6 +64,11 @@ class CameraParams:
     bloom_threshold : linear level above which light glares.
     bloom_radius : σ of the PSF's core as a fraction of the image width (the wider lobes are
         3x and 9x it), so a preview at a smaller scale shows the same halo.
+    highlight_knee : linear level (1.0 = sensor white) above which the tone curve rolls off to
+        white (:func:`highlight_shoulder`; 1.0 = a hard clip, the camera before the shoulder).
+        A camera's JPEG tone curve compresses highlights instead of clipping them: real night
+        photos have 0.24 % of their pixels above 240/255, a hard clip at 1.0 gave the fixture's
+        nights 0.5 % (docs/relight.md "Global statistics").
 
     The render's own Monte Carlo noise (fireflies, speckle) is removed before the camera by
     :func:`.denoise.denoise_night`, so the camera's physical noise is added to a clean image.
@@ -77,8 +84,11 @@ class CameraParams:
     bloom: float = 0.0
     bloom_threshold: float = 1.0
     bloom_radius: float = 0.002
+    highlight_knee: float = 0.5
 
     def __post_init__(self) -> None:
+        if not 0.0 < float(self.highlight_knee) <= 1.0:
+            raise NpsimInputError(f"highlight_knee must be in (0, 1] (1 = hard clip), got {self.highlight_knee}")
         if not 0.0 <= float(self.bloom) <= 1.0:
             raise NpsimInputError(f"bloom must be in [0, 1] (0 = off), got {self.bloom}")
         if not (float(self.bloom_threshold) >= 0 and float(self.bloom_radius) > 0):
@@ -97,6 +107,23 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB encoding of linear values (clipped to [0, 1])."""
     x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055).astype(np.float32)
+
+
+def highlight_shoulder(x: np.ndarray, knee: float = 0.5) -> np.ndarray:
+    """A camera tone curve's highlight shoulder on linear values (1.0 = sensor white).
+
+    Identity up to ``knee``; above it ``y = k + (1-k)·(1 - (1-t)^3)`` with
+    ``t = (x-k) / (3(1-k))``, which joins the identity with the same slope and reaches white
+    with zero slope at ``x = k + 3(1-k)`` (2.0 for the default 0.5); beyond, white. So what
+    a hard clip put at white between 1 and 2 keeps its gradation, and lamps (far above) stay
+    white. ``knee = 1`` is the hard clip.
+    """
+    x = np.asarray(x, dtype=np.float32)
+    k = float(knee)
+    if k >= 1.0:
+        return x
+    t = np.clip((x - k) / (3.0 * (1.0 - k)), 0.0, 1.0)
+    return np.where(x > k, k + (1.0 - k) * (1.0 - (1.0 - t) ** 3), x).astype(np.float32)
 
 
 def add_noise(linear: np.ndarray, beta1: float, beta2: float, rng: np.random.Generator) -> np.ndarray:
@@ -248,5 +275,5 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     if wb.size != 3 or not (wb > 0).all():
         raise NpsimInputError(f"white_balance must be three positive gains, got {params.white_balance}")
     x = x * wb
-    out = np.floor(linear_to_srgb(x) * 255.0 + 0.5).astype(np.uint8)
+    out = np.floor(linear_to_srgb(highlight_shoulder(x, params.highlight_knee)) * 255.0 + 0.5).astype(np.uint8)
     return out, x
