@@ -75,9 +75,10 @@ the sidewalk plane (and whatever stands on it) above the road.
 Hidden contacts (docs/geometry.md, "Hidden contacts"; default, ``facades="contact"``)
 -------------------------------------------------------------------------------------
 * Cars (``car_ids``) stand on their own contact lines after the facades, by the same
-  per-column model, their visible contacts replaced by the lower envelope over
-  ``car_envelope`` x the width: the wheels touch the ground, the body's underside (0.3 m
-  up) would put the car a third too far.
+  per-column model, their visible contacts replaced by the lower hull of each run of
+  visible columns (``car_hull``; else the running max over ``car_envelope`` x the width):
+  the wheels touch the ground, the body's underside (0.3 m up) would put the car a third
+  too far.
 * A contact piece wholly beyond ``vp_max_distance`` (buildings across a square) is not
   snapped to the vanishing point and gives no street line; feet more than 15 m off the
   street's axis give no hidden-foot street line either.
@@ -85,13 +86,20 @@ Hidden contacts (docs/geometry.md, "Hidden contacts"; default, ``facades="contac
   a depth per column from their lowest pixel: no farther than what is below it and no
   farther than a lower edge ``crown_base`` m up at that row allows (less ``crown_radius``);
   a run of columns whose lower edge stays level is one crown (median of its columns); the
-  pixel takes the geometric mean of that and its segment's own placement.
+  pixel takes the geometric mean of that and its segment's own placement, and no less than
+  a lower edge ``crown_min`` m up allows at the segment's lower edge.
+* A crown segment that recedes along the street (``crowns="canopy"``: a row of street
+  trees, or its near end cut by the frame) is a slab: each pixel takes the larger of the
+  depths of the undersides' plane (``crown_base`` up) and of the inner faces' vertical
+  plane (``crown_setback`` in from the street line, or the occluders' feet), no deeper than
+  the street line (docs/geometry.md, "Canopy rows").
 * A foot beyond the far limit is placed at the near end of its row's range (visible) or
   half way between the limit and the ground below its occluder (hidden); the far limit
   is a last resort, counted in ``info["far_limit_pixels"]`` and noted.
 * ``GeometryEstimate.confidence``: per pixel, how it was placed (ground 1, visible facade or
   car contact 0.9, on the ground 0.8, on other segments or a hidden facade or car foot 0.5,
-  crown over an occluder 0.45 / by its lower edge 0.35, nearest fill 0.2) divided
+  crown over an occluder 0.45 / by its lower edge 0.35 / in a canopy slab 0.4, nearest
+  fill 0.2) divided
   by ``1 + (z / (h fy)) / 0.1`` (one row's relative depth step at that depth); 0.05 at
   the far limit; NaN where invalid.
 
