@@ -161,8 +161,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", default="512x256,2048x1024", help="WxH list for --variants")
     ap.add_argument("--seeds", help="seed list for --variants (default: --seed)")
     ap.add_argument("--which", default=ALL_VARIANTS, help="street variants for --variants")
-    ap.add_argument("--priors", default="flat,default", help="prior settings for --variants: flat, segment (crowns as one segment), columns (crowns per column, "
-                         "no canopy slab), default")
+    ap.add_argument("--priors", default="flat,default",
+                    help="prior settings for --variants: flat, segment (crowns as one segment), "
+                         "columns (crowns per column, no canopy slab), default")
     args = ap.parse_args(argv)
     if args.variants:
         sizes = [tuple(int(x) for x in sz.lower().split("x")) for sz in args.sizes.split(",")]

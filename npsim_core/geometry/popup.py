@@ -770,7 +770,8 @@ def _lower_hull_runs(u: np.ndarray, v: np.ndarray, vis: np.ndarray) -> np.ndarra
 
 
 def street_direction(u_vp: float, intr, g: np.ndarray) -> np.ndarray:
-    """Unit direction ``(a, b)`` in plan (ground coordinates along ``e``, ``f``) of a street whose vanishing column is ``u_vp``."""
+    """Unit direction ``(a, b)`` in plan (ground coordinates along ``e``, ``f``) of the street whose
+    vanishing column is ``u_vp`` (pixels)."""
     ratio = (u_vp - intr.cx) * math.cos(math.asin(g[2])) / intr.fx
     return np.array([ratio, 1.0]) / math.hypot(ratio, 1.0)
 
