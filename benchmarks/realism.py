@@ -158,7 +158,7 @@ def main(argv=None) -> int:
 
     print("\nglobal statistics (grey at 1024 px wide; target within 15 % of real nights)")
     print(f"{'night':34s} {'mean':>6s} {'median':>6s} {'p99':>6s} {'%>240':>6s} {'R/B':>6s}")
-    print(f"{'real ACDC nights (SPEC §10)':34s} " + " ".join(f"{v:6.2f}" for v in REAL_NIGHT.values()))
+    print(f"{'real ACDC nights':34s} " + " ".join(f"{v:6.2f}" for v in REAL_NIGHT.values()))
     for name, (img, _, _) in rows.items():
         st = global_stats(img)
         print(f"{name:34s} " + " ".join(f"{st[k]:6.2f}" for k in REAL_NIGHT))

@@ -1,4 +1,4 @@
-"""Realism measures of a rendered night (SPEC §10, docs/relight.md "Realism"): what the manifest,
+"""Realism measures of a rendered night (docs/relight.md "Realism measures"): what the manifest,
 the batch report and the app's night panel show for every night.
 
 * **Structure ratio** -- mean |band-pass| (Gaussian σ 2 px minus σ 8 px) of log grey level of the
@@ -9,7 +9,7 @@ the batch report and the app's night panel show for every night.
   ``../shared/tools/night_artefacts.py`` (checked on the benchmark's 2048x1024 nights: the same digits).
 * **Global statistics** -- grey mean, median, 99th percentile, % of pixels > 240, R/B of the
   brightest 10 % (grey), at 1024 px wide; identical to ``../shared/tools/night_stats.py``.
-  :data:`REAL_NIGHT` holds the values of 5 real ACDC night photos (SPEC §10).
+  :data:`REAL_NIGHT` holds the values of 5 real ACDC night photos (docs/relight.md, "Realism measures").
 
 Images are sRGB uint8 (H, W, 3) in RGB order; labels are Cityscapes labelIds.
 """
@@ -27,7 +27,7 @@ CLASSES: dict[str, tuple[int, ...]] = {"road": (7,), "sidewalk": (8,), "building
                                        "car": (26,), "person+rider": (24, 25), "bicycle": (33, 32)}
 #: Every image is compared at this width.
 WIDTH = 1024
-#: Global statistics of 5 real ACDC night photos (SPEC §10).
+#: Global statistics of 5 real ACDC night photos (docs/relight.md, "Realism measures").
 REAL_NIGHT = {"mean": 43.8, "median": 35.8, "p99": 170.0, "pct_over_240": 0.24, "lit_rb": 1.61}
 
 

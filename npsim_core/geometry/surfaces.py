@@ -1,6 +1,6 @@
 """Render geometry from stereo: robust per-segment surface fits (docs/relight.md "Nights of real frames").
 
-Semi-global matching errs in structured ways (SPEC §10): streaks along rows, object edges
+Semi-global matching errs in structured ways (docs/relight.md, "Nights of real frames"): streaks along rows, object edges
 fattened toward the background, speckle islands, 1/16 px steps, wrong depth on weakly textured
 and glossy surfaces. Meshed as they are, they become streaked, melted surfaces in the night
 (the lamps' light lands on every facet differently). The labels say where a surface is simple,
