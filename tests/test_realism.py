@@ -190,3 +190,25 @@ def test_camera_shoulder_keeps_highlights_below_white_and_lamps_white():
     np.testing.assert_array_equal(g[low], np.floor(linear_to_srgb(ramp[low]) * 255 + 0.5).astype(int))
     hard, _ = apply_camera(lin, CameraParams(iso=None, highlight_knee=1.0))
     assert (hard[0, over, 0] == 255).all()                            # the old camera clipped them
+
+
+def test_sun_from_shadows_of_buildings_cut_by_the_frame_top(sgm_frame):
+    """The street's sun is high (~49°); the façades casting the ground's shadows go on above the
+    frame, so shadow rays that left the frame found nothing and the estimate picked a low sun
+    (17° elevation, 37° off the true direction, at every size). With what continues above the
+    frame's top edge (``above_frame_depth``) it is within 20°, and the sun/sky ratio near the
+    street's ~2.6 (was 7.5)."""
+    from npsim_core.camera import normals_from_depth
+    from npsim_core.render.materials import estimate_daylight
+    from npsim_core.synthetic.primitives import CameraPose
+    from npsim_core.synthetic.render import sun_direction_camera
+    from npsim_core.synthetic.street import build_street
+
+    scene, truth = sgm_frame
+    true = -sun_direction_camera(CameraPose(scene.camera_height, scene.camera_pitch), *build_street(0).sun)
+    light = estimate_daylight(scene.image, scene.labels, normals_from_depth(truth, scene.intrinsics), truth,
+                              scene.intrinsics, float(scene.camera_pitch))
+    s = np.asarray(light.sun) / np.linalg.norm(light.sun)
+    angle = np.degrees(np.arccos(np.clip(s @ (true / np.linalg.norm(true)), -1, 1)))
+    assert angle < 20, (light, true)
+    assert 1.5 < light.ratio < 4.0

@@ -54,7 +54,7 @@ class MaterialParams:
     vehicle_cap : on vehicles, albedo luminance is limited to this multiple of the median of
         its vehicle (instance): number plates, chrome and sky reflections in the day photo are
         small bright details that the headlights would otherwise turn into glowing white
-        rectangles (SPEC §10: plates do not glow). 0 = off.
+        rectangles (docs/relight.md, "Nights of real frames": plates do not glow). 0 = off.
     """
 
     contrast: float = 0.7
@@ -210,15 +210,39 @@ def _surface_segments(labels: np.ndarray, instances: np.ndarray | None) -> np.nd
 _SHADOW_PENALTY = 0.15
 
 
+#: Labels that go on above the frame where they touch its top row (building, wall, fence,
+#: vegetation, pole): :func:`above_frame_depth`.
+_TALL_CLASSES = (11, 12, 13, 17, 21)
+
+
+def above_frame_depth(depth: np.ndarray, labels: np.ndarray, rows: int = 3) -> np.ndarray:
+    """(W,) depth (m) of what continues above the frame per column, NaN where nothing does.
+
+    A façade, wall, tree or pole cut by the image's top edge goes on upward; a vertical
+    surface keeps its z-depth up a column, so the median depth of its top ``rows`` rows stands
+    for it. Without it, shadow rays toward a high sun leave the frame before they reach the
+    building that casts the shadow (its upper floors are out of view), and the sun estimate
+    preferred low suns whose rays hit visible geometry (docs/relight.md "De-lit textures").
+    """
+    top = np.asarray(depth, np.float64)[:rows]
+    tall = np.isin(np.asarray(labels)[:rows], _TALL_CLASSES) & np.isfinite(top) & (top > 0)
+    k = tall.sum(0)
+    d = np.sort(np.where(tall, top, np.inf), axis=0)  # finite values first, per column
+    med = d[np.clip((k - 1) // 2, 0, rows - 1), np.arange(top.shape[1])]
+    return np.where(k >= (rows + 1) // 2, med, np.nan)
+
+
 def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *,
                    steps: int = 24, min_dist: float = 0.5, max_dist: float = 40.0, thickness: float = 4.0,
-                   margin: float = 0.04) -> np.ndarray:
+                   margin: float = 0.04, above: np.ndarray | None = None) -> np.ndarray:
     """1 where camera-frame ``points`` (N, 3) see the sun along ``sun`` over the depth map, else 0.
 
     Screen-space shadow rays: ``steps`` points from ``min_dist`` to ``max_dist`` m (geometric)
     toward the sun are projected into the image; a point more than ``margin`` (relative, plus
     0.2 m) and up to ``thickness`` m behind the visible surface there is inside an object (the
     visible surface occludes it). The margins keep stereo depth noise from casting shadows.
+    ``above`` ((W,) m, :func:`above_frame_depth`): what continues above the frame's top edge
+    per column; a ray point projected above the frame is tested against it the same way.
     """
     H, W = depth.shape
     t = np.geomspace(min_dist, max_dist, steps)
@@ -229,6 +253,10 @@ def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intri
     v = np.rint(intrinsics.fy * q[..., 1] / np.where(front, z, 1) + intrinsics.cy).astype(np.int64)
     inside = front & (u >= 0) & (u < W) & (v >= 0) & (v < H)
     d = np.where(inside, depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)], np.nan)
+    if above is not None:
+        over = front & (u >= 0) & (u < W) & (v < 0)
+        d = np.where(over, np.asarray(above, np.float64)[np.clip(u, 0, W - 1)], d)
+        inside = inside | over
     with np.errstate(invalid="ignore"):
         hit = inside & np.isfinite(d) & (z > d * (1 + margin) + 0.2) & (z < d + thickness)
     return (~hit.any(axis=1)).astype(np.float32)
@@ -271,6 +299,7 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
         dark[m] = y[m] < 0.55 * np.percentile(y[m], 75)
     R_cw = np.array([[1.0, 0.0, 0.0], [0.0, -np.cos(pitch), -np.sin(pitch)], [0.0, -np.sin(pitch), np.cos(pitch)]])
     dmap = np.asarray(depth, np.float64)
+    above = above_frame_depth(dmap, labels)
     best = (-1.0, None, None, 0.0, 0.0)
 
     def search(elevations, azimuths) -> None:
@@ -281,7 +310,7 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
                 s = R_cw @ np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
                 f = n @ s > 0
                 vis = np.zeros(len(y), bool)
-                vis[f] = sun_visibility(pts[f], s, dmap, intrinsics) > 0
+                vis[f] = sun_visibility(pts[f], s, dmap, intrinsics, above=above) > 0
                 iou = float((~vis & dark).sum() / max((~vis | dark).sum(), 1))
                 if iou > best[0]:
                     best = (iou, s, vis, el_d, az_d)
@@ -348,10 +377,11 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     pts = backproject(np.nan_to_num(depth), intrinsics)[f // 2::f, f // 2::f].reshape(-1, 3).astype(np.float64)
     ns = n[f // 2::f, f // 2::f].reshape(-1, 3)
     vis = np.ones(len(pts), np.float32)
+    above = above_frame_depth(depth, labels)
     sel = np.flatnonzero((ns @ s > 0) & np.isfinite(small.ravel()))
     for i in range(0, len(sel), 20000):
         j = sel[i:i + 20000]
-        vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, np.asarray(depth, np.float64), intrinsics)
+        vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, np.asarray(depth, np.float64), intrinsics, above=above)
     vis = cv2.blur(vis.reshape(small.shape), (3, 3))
     vis = cv2.resize(vis, (W, H), interpolation=cv2.INTER_LINEAR) if f > 1 else vis
     shading = _shading(n, s, light.ratio, up, vis[:H, :W])
