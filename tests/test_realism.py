@@ -212,3 +212,27 @@ def test_sun_from_shadows_of_buildings_cut_by_the_frame_top(sgm_frame):
     angle = np.degrees(np.arccos(np.clip(s @ (true / np.linalg.norm(true)), -1, 1)))
     assert angle < 20, (light, true)
     assert 1.5 < light.ratio < 4.0
+
+
+def test_a_far_lamp_pole_keeps_its_stereo_depth():
+    """A pole whose stereo lies beyond the stereo's range (a lamp at a street's end, 100 m)
+    took the hole filling's depth (here 55 m: the lamp then lit the near road white, 2048x1024
+    fixture); it keeps its own stereo, and a thin pole near range keeps all of it, edges
+    included, rather than the few fattened pixels left after edge trimming."""
+    from npsim_core.camera import Intrinsics
+    from npsim_core.geometry.surfaces import fit_surfaces
+
+    W, H = 256, 128
+    intr = Intrinsics.cityscapes(W, H)
+    labels = np.full((H, W), 11, np.uint8)
+    stereo = np.full((H, W), 60.0)
+    labels[20:70, 100:103] = 17                                        # a pole 3 px wide at 100 m
+    stereo[20:70, 100:103] = 100.0
+    labels[20:70, 200:204] = 17                                        # a pole 4 px wide at 40 m,
+    stereo[20:70, 200:204] = 40.0                                      # its inner columns fattened
+    stereo[20:70, 201:203] = 25.0
+    valid = stereo <= 80.0
+    filled = np.where(valid, stereo, 55.0).astype(np.float32)
+    depth, _, _ = fit_surfaces(stereo, valid, filled, labels, intr)
+    assert abs(float(np.median(depth[20:70, 100:103])) - 100.0) < 1.0
+    assert float(np.median(depth[20:70, 200:204])) > 30.0

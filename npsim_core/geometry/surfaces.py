@@ -21,7 +21,9 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
    planes or smooth height fields), per instance for vehicles (``vehicle_sigma``), moderate for
    vegetation (``vegetation_sigma``), small for people, bicycles and motorcycles
    (``detail_sigma``); thin objects (poles, signs, traffic lights) get one robust depth per
-   component (a flat card at their depth: stereo on them is mostly holes and edge fattening).
+   component (a flat card at their depth: stereo on them is mostly holes and edge fattening;
+   the median of all their stereo, not trimmed at their edges since they are all edge, and
+   beyond the stereo's range when they have none within it).
    Bicycles are not cards: a card facing the ego low beams lit the wheels white (busy street,
    512x256: bicycle structure ratio 2.05, 6 % of its pixels at white; with the small window
    0.75 and none, exact depth 1.26).
@@ -247,7 +249,15 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
         if lab in THIN_CLASSES:
             sl = (slice(y0[s], y1[s] + 1), slice(x0[s], x1[s] + 1))
             ms = (seg[sl] == s)
-            qs = qfull[sl][ms & use[sl]]
+            # All of its stereo, not only what the edge trimming left (a pole a few pixels wide is
+            # all edge); and, if it has none within the stereo's range, its stereo beyond it: a
+            # lamp pole at the street's end (101 m) otherwise took the hole filling's 53-62 m
+            # and its lamp lit the near road white (2048x1024 fixture, docs/relight.md).
+            raw = ms & np.isfinite(depth[sl]) & (depth[sl] > 0) & ~speckle[sl]
+            ok_t = raw & valid[sl]
+            if ok_t.sum() < max(3, 0.05 * ms.sum()):
+                ok_t = raw
+            qs = 1.0 / depth[sl][ok_t]
             if qs.size >= max(3, 0.05 * ms.sum()):
                 qm = float(np.median(qs))
                 blk = out_q[sl]
