@@ -304,7 +304,7 @@ def test_night_cli_fast_final_settings(tmp_path):
     s = street_scene(96, 48)
     save_scene(s, tmp_path / "scene")
     args = ["night", str(tmp_path / "scene"), "--variants", "1", "--spp", "4", "--variant", "scalar_rgb",
-            "--iso", "0", "--full-outputs"]
+            "--iso", "0", "--full-outputs", "--set", "refine.steps=8"]  # the night settings are under test
     assert main(args + ["-o", str(tmp_path / "one"), "--max-depth", "3"]) == 0
     assert main(args + ["-o", str(tmp_path / "fast"), "--max-depth", "2", "--face-budget", "4000"]) == 0
     full = json.loads((tmp_path / "one" / f"{s.name}_export.json").read_text())
