@@ -368,6 +368,27 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
     """
     t0 = time.perf_counter()
     tm: dict[str, float] = {}
+    # The layers are built in their own function so that its full-frame temporaries (float64
+    # completions, run indices, masks) are freed before triangulation allocates the faces:
+    # at 4000x3000 that is what kept the peak above 4 GB (docs/mesh.md, "Export").
+    layers, counts = _sheet_layers(depth, intrinsics, labels, uncertain, light_ids, instance_ids, params,
+                                   normals, tm)
+    # Triangulate.
+    t = time.perf_counter()
+    parts = layers.full_parts(intrinsics)
+    tm["triangulate"] = time.perf_counter() - t
+    tm["total"] = time.perf_counter() - t0
+    counts.update(faces=sum(p.n_faces for p in parts), vertices=sum(p.n_vertices for p in parts))
+    mesh = SceneMesh(parts=parts, width=layers.shape[1], height=layers.shape[0],
+                     info={"stage": "postprocess", "params": asdict(params), "counts": counts, "timings": tm})
+    return PostprocessResult(mesh=mesh, layers=layers, counts=counts, timings=tm)
+
+
+def _sheet_layers(depth, intrinsics: Intrinsics, labels, uncertain, light_ids, instance_ids,
+                  params: PostprocessParams, normals, tm: dict[str, float]) -> tuple["SheetLayers", dict]:
+    """The background and foreground sheets of :func:`postprocess_mesh` (steps 1-3 and the step
+    cuts) and the counts; stage timings are added to ``tm``."""
+    t0 = time.perf_counter()
     depth, labels, light_ids = check_mesh_inputs(depth, intrinsics, labels, light_ids)
     U = np.asarray(uncertain)
     if U.shape != depth.shape:
@@ -514,20 +535,11 @@ def postprocess_mesh(depth: np.ndarray, intrinsics: Intrinsics, labels: np.ndarr
                          background_light=bg_light, foreground_depth=fg32, objects=obj,
                          object_classes=obj_class, labels=labels, light_ids=light_ids, steps=steps,
                          background_hidden=hidden)
-
-    # Triangulate.
-    t = time.perf_counter()
-    parts = layers.full_parts(intrinsics)
-    tm["triangulate"] = time.perf_counter() - t
-    tm["total"] = time.perf_counter() - t0
     counts = {"uncertain_pixels": int(U.sum()), "deleted_vertices": int((usable & U).sum()),
               "background_completed_rows": n_row, "background_completed_cols": n_col,
               "foreground_completed": int(fg_filled.sum()), "kept_consistent": n_kept, "objects": len(obj_class),
-              "cut_sides": steps[0].cut + steps[1].cut, "wall_faces": steps[0].n_walls + steps[1].n_walls,
-              "faces": sum(p.n_faces for p in parts), "vertices": sum(p.n_vertices for p in parts)}
-    mesh = SceneMesh(parts=parts, width=W, height=H,
-                     info={"stage": "postprocess", "params": asdict(params), "counts": counts, "timings": tm})
-    return PostprocessResult(mesh=mesh, layers=layers, counts=counts, timings=tm)
+              "cut_sides": steps[0].cut + steps[1].cut, "wall_faces": steps[0].n_walls + steps[1].n_walls}
+    return layers, counts
 
 
 def replaced_grid_faces(grid: MeshPart, layers: "SheetLayers", tol: float = 0.01) -> np.ndarray:
