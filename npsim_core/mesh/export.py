@@ -137,15 +137,17 @@ def export_obj(mesh: SceneMesh, path: str | Path, image: np.ndarray | None = Non
                 fh.write(f"o {p.name}\ng {p.name}\nusemtl scene\n")
                 # in blocks of rows: the whole text of a 28 M-face mesh (2 GB, and its Python lists)
                 # took 10.9 GB at once
+                # One %-format of a whole block (C-level) writes the same text as a per-row
+                # f-string in ~40 % of the time (4000x3000: ~90 s of export).
                 for k in range(0, p.n_vertices, OBJ_BLOCK):
-                    v = p.vertices[k:k + OBJ_BLOCK].astype(np.float64).tolist()
-                    fh.write("".join(f"v {x:.6g} {y:.6g} {z:.6g}\n" for x, y, z in v))
+                    v = p.vertices[k:k + OBJ_BLOCK].astype(np.float64)
+                    fh.write(("v %.6g %.6g %.6g\n" * len(v)) % tuple(v.ravel().tolist()))
                 for k in range(0, p.n_vertices, OBJ_BLOCK):
-                    uv = p.uv[k:k + OBJ_BLOCK].astype(np.float64).tolist()
-                    fh.write("".join(f"vt {s:.7g} {t:.7g}\n" for s, t in uv))
+                    uv = p.uv[k:k + OBJ_BLOCK].astype(np.float64)
+                    fh.write(("vt %.7g %.7g\n" * len(uv)) % tuple(uv.ravel().tolist()))
                 for k in range(0, p.n_faces, OBJ_BLOCK):
-                    f = (p.faces[k:k + OBJ_BLOCK].astype(np.int64) + off).tolist()
-                    fh.write("".join(f"f {a}/{a} {b}/{b} {c}/{c}\n" for a, b, c in f))
+                    f = np.repeat(p.faces[k:k + OBJ_BLOCK].astype(np.int64) + off, 2, axis=1)
+                    fh.write(("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(f.ravel().tolist()))
                 off += p.n_vertices
     lines = ["newmtl scene", "Ka 1 1 1", "Kd 1 1 1", "Ks 0 0 0", "d 1", "illum 1"]
     if image is not None:
