@@ -449,17 +449,21 @@ def keeps_input(input_depth: np.ndarray, result: np.ndarray, normals: np.ndarray
     camera as in the loss). The refinement keeps the input when the first is not larger."""
     from ..camera import normals_from_depth
 
-    N = np.asarray(normals, np.float64)
+    # float32 maps, float64 sums: at 4000x3000 float64 copies of the three normal maps set the
+    # refinement's memory peak.
+    N = np.asarray(normals, np.float32)
     with np.errstate(invalid="ignore", divide="ignore"):
         N = N / np.linalg.norm(N, axis=-1, keepdims=True)
-        flip = (N * intrinsics.pixel_rays(np.float64)).sum(-1) > 0
-    N = np.where(flip[..., None], -N, N)
-    a = normals_from_depth(input_depth, intrinsics).astype(np.float64)
-    b = normals_from_depth(result, intrinsics).astype(np.float64)
+        flip = np.einsum("hwc,hwc->hw", N, intrinsics.pixel_rays(np.float32)) > 0
+    N[flip] *= -1
+    a = normals_from_depth(input_depth, intrinsics)
+    b = normals_from_depth(result, intrinsics)
     ok = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & np.isfinite(N).all(-1)
     if not ok.any():
         return math.inf, math.inf
-    return float(((a[ok] - N[ok]) ** 2).sum(-1).mean()), float(((b[ok] - N[ok]) ** 2).sum(-1).mean())
+    Nk = N[ok]
+    return (float(((a[ok] - Nk) ** 2).sum(-1).mean(dtype=np.float64)),
+            float(((b[ok] - Nk) ** 2).sum(-1).mean(dtype=np.float64)))
 
 
 #: A refinement whose normal term (disagreement with the estimated normals) ends above this
