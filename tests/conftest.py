@@ -12,7 +12,7 @@ Environment:
                                   (``NPSIM_CACHE``) and the Mitsuba variant probe's cache (under
                                   ``XDG_CACHE_HOME``) stay out of the user's ``~/.cache/npsim``.
 
-Parallel runs (pytest-xdist, ``bash npsim.sh test`` uses ``-n 2 --dist loadfile``): the workers share
+Parallel runs (pytest-xdist: ``bash npsim.sh test -n 2 --dist loadfile``): the workers share
 the controller's caches, and ``loadfile`` keeps a file's tests (and its module fixtures) on one worker.
 """
 
