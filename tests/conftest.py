@@ -122,3 +122,31 @@ def cityscapes_layout(tmp_path_factory):
         return root, write_cityscapes_fixture(root, frames=frames, size=size, corrupt=corrupt)
 
     return make
+
+
+@pytest.fixture
+def settings(tmp_path, monkeypatch):
+    """Every QSettings of a GUI test and the annotations folder in a temporary folder: the
+    user's window layout and saved annotations are never touched. Returns the settings folder."""
+    from PySide6.QtCore import QSettings
+
+    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):
+        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(tmp_path / "settings"))
+    monkeypatch.setenv("NPSIM_ANNOTATIONS", str(tmp_path / "annotations"))
+    return tmp_path / "settings"
+
+
+@pytest.fixture(scope="module")
+def street():
+    """A 64x32 synthetic street (a module's CLI and hard-input tests share it)."""
+    from npsim_core.synthetic import street_scene
+
+    return street_scene(64, 32)
+
+
+@pytest.fixture(scope="module")
+def scene_dir(street, tmp_path_factory):
+    """``street`` saved as a scene folder."""
+    from npsim_core.scene import save_scene
+
+    return save_scene(street, tmp_path_factory.mktemp("scene") / "street")

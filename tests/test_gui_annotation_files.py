@@ -24,17 +24,6 @@ SIZE = (256, 128)
 
 
 @pytest.fixture
-def settings(tmp_path, monkeypatch):
-    """Fresh window layout and a private annotations folder per test (the user's untouched)."""
-    from PySide6.QtCore import QSettings
-
-    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):
-        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(tmp_path / "settings"))
-    monkeypatch.setenv("NPSIM_ANNOTATIONS", str(tmp_path / "annotations"))
-    yield
-
-
-@pytest.fixture
 def dataset(tmp_path):
     from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
 

@@ -11,16 +11,6 @@ from PySide6.QtGui import QFontMetrics, QKeySequence
 SIZE = (256, 128)
 
 
-@pytest.fixture
-def settings(tmp_path, monkeypatch):
-    from PySide6.QtCore import QSettings
-
-    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):
-        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(tmp_path / "settings"))
-    monkeypatch.setenv("NPSIM_ANNOTATIONS", str(tmp_path / "annotations"))
-    yield
-
-
 def _window(qtbot):
     from npsim_core.chain import ChainParams
     from npsim_gui.main_window import MainWindow

@@ -19,16 +19,6 @@ from npsim_core.synthetic.cityscapes import fixture_image
 W, H = 128, 64
 
 
-@pytest.fixture
-def settings(tmp_path):
-    """Fresh window layout per test (the user's settings untouched)."""
-    from PySide6.QtCore import QSettings
-
-    for fmt in (QSettings.Format.NativeFormat, QSettings.Format.IniFormat):
-        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(tmp_path / "settings"))
-    yield
-
-
 def _window(qtbot, *, with_3d: bool = False):
     from npsim_gui.main_window import MainWindow
 

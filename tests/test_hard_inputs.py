@@ -26,16 +26,6 @@ FAST = ["--set", "refine.steps=10", "--spp", "1"]
 QUICK = ChainParams().with_value("refine", "steps", 10).with_value("night", "final_spp", 1)
 
 
-@pytest.fixture(scope="module")
-def street():
-    return street_scene(64, 32)
-
-
-@pytest.fixture(scope="module")
-def scene_dir(street, tmp_path_factory):
-    return save_scene(street, tmp_path_factory.mktemp("scene") / "street")
-
-
 def _snapshot(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 

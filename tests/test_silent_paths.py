@@ -22,16 +22,6 @@ from npsim_core.synthetic import street_scene
 FAST = ["--set", "refine.steps=5", "--spp", "1"]
 
 
-@pytest.fixture(scope="module")
-def street():
-    return street_scene(64, 32)
-
-
-@pytest.fixture(scope="module")
-def scene_dir(street, tmp_path_factory):
-    return save_scene(street, tmp_path_factory.mktemp("scene") / "street")
-
-
 # 7 ------------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["mesh", "scene"], ["batch", "d", "-o", "o",
                                                                                      "--workers", "x"]])

@@ -8,7 +8,7 @@
 * :mod:`.export`  -- one writer for every output kind, nights included, and the manifest.
 """
 
-from importlib import import_module
+from ..lazy import lazy_exports
 
 #: Public names and their modules, imported on first use (PEP 562): the command line imports
 #: ``.params`` to build its parser and must not pay for the stages' imports.
@@ -19,8 +19,4 @@ _EXPORTS = {"Chain": "chain", "ChainResults": "chain", "NightFrame": "chain", "D
             "load_frame": "session", "scaled_frame": "session"}
 __all__ = list(_EXPORTS)
 
-
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -8,7 +8,7 @@
 The cached chain filter -> uncertain -> refine is :class:`npsim_core.chain.Chain`.
 """
 
-from importlib import import_module
+from ..lazy import lazy_exports
 
 #: Public names and their modules, imported on first use (PEP 562): :mod:`.optimize` imports
 #: torch, which the command line's start must not pay for.
@@ -18,8 +18,4 @@ _EXPORTS = {"FilterParams": "bilateral", "cross_bilateral": "bilateral", "cross_
             "RefineResult": "optimize", "refine_depth": "optimize"}
 __all__ = list(_EXPORTS)
 
-
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_exports(__name__, _EXPORTS)
