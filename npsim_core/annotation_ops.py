@@ -86,20 +86,39 @@ class PixelDiff:
         return self.index.nbytes + self.old.nbytes + self.new.nbytes
 
 
+#: ``LightAnnotation.meta`` entries keyed by light or group id (``str(id)``): a signal lamp's colour, a
+#: signal head's state and direction, a window's kind (docs/proposals.md). Commands that create lights
+#: from another annotation (accepting proposals) carry them in their :class:`Structure`.
+ID_META_KEYS = ("lamp_colours", "traffic_light_states", "traffic_light_direction", "light_kinds")
+
+
 @dataclass(frozen=True)
 class Structure:
-    """Groups and registered lights at one moment (small; copied per command)."""
+    """Groups and registered lights at one moment (small; copied per command), and optionally the
+    per-id meta entries (:data:`ID_META_KEYS`) as ``((key, ((id, value), ...)), ...)``; ``None``
+    leaves the annotation's meta alone (every command but an acceptance of proposals)."""
 
     groups: tuple[GroupInstance, ...]
     extra_ids: frozenset[int]
+    id_meta: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] | None = None
 
     @classmethod
-    def of(cls, ann: LightAnnotation) -> "Structure":
-        return cls(tuple(ann.groups[g] for g in sorted(ann.groups)), frozenset(ann.extra_ids))
+    def of(cls, ann: LightAnnotation, *, with_meta: bool = False) -> "Structure":
+        meta = None
+        if with_meta:
+            meta = tuple((k, tuple(sorted((str(i), str(v)) for i, v in dict(ann.meta.get(k) or {}).items())))
+                         for k in ID_META_KEYS)
+        return cls(tuple(ann.groups[g] for g in sorted(ann.groups)), frozenset(ann.extra_ids), meta)
 
     def apply(self, ann: LightAnnotation) -> None:
         ann.groups = {g.id: g for g in self.groups}
         ann.extra_ids = set(self.extra_ids)
+        if self.id_meta is not None:
+            for key, items in self.id_meta:
+                if items:
+                    ann.meta[key] = dict(items)
+                else:
+                    ann.meta.pop(key, None)
 
     def ids(self) -> frozenset[int]:
         out = set(self.extra_ids)

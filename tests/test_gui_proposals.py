@@ -127,3 +127,34 @@ def test_propose_runs_in_a_worker_and_can_be_cancelled(qtbot, scene):
     qtbot.wait(100)
     assert ed.proposal_book is None and ed.propose_btn.isEnabled()
     ed.shutdown()
+
+
+def test_accepting_a_signal_head_keeps_its_state_and_lamp_colours(editor, proposals):
+    """The state a proposal read from the day photo (meta.traffic_light_states) and its lamps' colours
+    survive accepting (re-keyed to the annotation's ids), so the night lights that lamp; undo takes
+    them away with the lights. The old book dropped them: the night drew a random state."""
+    import copy
+
+    from npsim_core.render.lights import load_light_table, traffic_light_states
+    from npsim_gui.editor.proposals import ProposalBook
+
+    props = copy.deepcopy(proposals)
+    gid = next(g for g, grp in sorted(props.annotation.groups.items()) if grp.class_id == 20)
+    green = next(m for m in props.ids_in_group(gid) if props.annotation.meta["lamp_colours"][str(m)] == "green")
+    props.annotation.meta["traffic_light_states"] = {str(gid): "green"}
+    s = editor.session
+    book = ProposalBook(props)
+    new = book.accept(s, [], [gid])
+    assert len(new) == 3
+    ngid = book.accepted[gid]
+    assert s.ann.meta["traffic_light_states"] == {str(ngid): "green"}
+    assert s.ann.meta["lamp_colours"][str(book.accepted[green])] == "green"
+    table = load_light_table()
+    for seed in (0, 1, 2):  # whatever the night's draw, the head shows what the day photo showed
+        lit = traffic_light_states(s.ann, table, seed)
+        assert {m: st for m, (col, st) in lit.items()} == dict.fromkeys(new, "green")
+        assert lit[book.accepted[green]][0] == "green"
+    s.undo()
+    assert "traffic_light_states" not in s.ann.meta and "lamp_colours" not in s.ann.meta
+    s.redo()
+    assert s.ann.meta["traffic_light_states"] == {str(ngid): "green"}

@@ -181,7 +181,7 @@ class ProposalBook:
         order = np.argsort(idx, kind="stable")
         idx = idx[order].astype(np.int32 if flat.size < 2**31 else np.int64)
         diff = PixelDiff(idx, flat[idx].copy(), np.concatenate(values)[order])
-        before = Structure.of(ann)
+        before = Structure.of(ann, with_meta=True)
         ids_now = existing | set(new)
         gmap = dict(ann.groups)
         touched = set(groups) | {self.group_of[p] for p in todo if p in self.group_of and
@@ -197,11 +197,27 @@ class ProposalBook:
             ngid = next_id(class_of(gid))
             gmap[ngid] = GroupInstance(ngid, members)
             accepted[gid] = ngid
-        after = Structure(tuple(gmap[k] for k in sorted(gmap)), frozenset(before.extra_ids | set(new)))
+        after = Structure(tuple(gmap[k] for k in sorted(gmap)), frozenset(before.extra_ids | set(new)),
+                          self._carried_meta(before, accepted, ids_now | set(gmap)))
         session.apply(EditCommand(f"accept {len(new)} proposals", diff, before, after))
         self.accepted = accepted
         self.rejected -= set(todo)
         return new
+
+    def _carried_meta(self, before: Structure, accepted: dict[int, int], alive: set[int]):
+        """``before``'s per-id meta plus the proposals' entries (a signal head's state, its lamps'
+        colours, a window's kind) of the proposals accepted as ids in ``alive``, re-keyed to the
+        annotation's ids: a night lights the state the proposal read from the day photo."""
+        pmeta = self.proposals.annotation.meta or {}
+        out = []
+        for key, items in before.id_meta or ():
+            d = dict(items)
+            for pid, value in dict(pmeta.get(key) or {}).items():
+                nid = accepted.get(int(pid))
+                if nid is not None and nid in alive:
+                    d[str(nid)] = str(value)
+            out.append((key, tuple(sorted(d.items()))))
+        return tuple(out)
 
     def accept_above(self, session, threshold: float) -> list[int]:
         """Accept every pending proposal with confidence >= ``threshold`` (one undo step), grouped as
