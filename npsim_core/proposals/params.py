@@ -147,6 +147,18 @@ class ProposalParams:
     window_block_height: float = 0.5
     #: Box of the fine local wall estimate, as a fraction of the image width (the coarse box is 4x).
     window_wall_kernel_frac: float = 0.02
+    #: Facades (wall planes) of a building region, with depth: wall directions binned by this many
+    #: degrees (seen from above); a new wall where the plane's offset steps by this many metres (+1 %
+    #: of the depth) or the wall colour by ``window_block_lum`` / ``window_block_chroma``.
+    window_facade_angle_deg: float = 30.0
+    window_facade_step_m: float = 0.3
+    #: A cell of a wall's window lattice is proposed when this share of it shows that wall.
+    window_cell_min_visible: float = 0.8
+    #: No window larger than this many times the median window of its wall (area on the wall).
+    window_max_median_ratio: float = 1.5
+    #: ... unless its top is at most this high (m above the ground): ground-floor glazing larger than
+    #: the windows above is a shop front (kind ``shop``; cars often hide its lower part).
+    window_shop_max_top_m: float = 3.2
 
     # --- advertisements
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.

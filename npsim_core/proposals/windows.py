@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import cv2
 import numpy as np
 
@@ -175,7 +177,7 @@ def _columns(boxes: list[tuple[int, int, int, int]]) -> list[tuple[float, float,
 
 def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray, B: np.ndarray,
                bld: np.ndarray, rejects: list | None = None) -> list:
-    """Windows as a facade grid, per building region (docs/proposals.md "Building windows").
+    """Windows as a facade grid, per wall (:func:`facades`; docs/proposals.md "Building windows").
 
     Each window gets a kind (:func:`_kind`: shop front, office floor band or window). The windows
     of a region form floors (centre heights within ``window_floor_tol_m``; the top and bottom rows
@@ -192,10 +194,15 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
     * every cell of a floor with at least three windows and a bay that holds no window and looks
       faintly like one (``window_cell_min_share`` of its pixels beyond half the window thresholds,
       mostly building pixels) is proposed (confidence 0.55);
-    * the windows of a region cover at most ``window_max_lit_share`` of it: the least confident
+    * windows larger than 1.5x the median of their wall and floor are dropped, or on the ground
+      floor called shop fronts (:func:`_median_rule`); then every cell of the wall's window lattice
+      in view that looks faintly like a window and holds none is proposed (:func:`lattice_cells`,
+      confidence 0.55), and windows spanning two or more of its cells are replaced by the cells;
+    * the windows of a wall cover at most ``window_max_lit_share`` of it: the least confident
       beyond that are dropped (a lit facade is lit per room, not as a whole).
 
-    ``found``: [building id, level, level tolerance, Light] per window; returns the new list.
+    ``found``: [wall id, level, level tolerance, Light] per window; ``bld``: the wall ids
+    (:func:`facades`); returns the new list.
     """
     p = ctx.params
     t = -np.log(p.window_dark_ratio)
@@ -340,7 +347,71 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl.kind = "window"
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have.append((r0, r1, a0, a1))
-        out.extend(_cap_lit(p, kept, float((bld == b_id).sum())) + other)
+        fm = bld == b_id
+        kept = _median_rule(ctx, kept, fm)  # before the grid: the cells stand in for what it drops
+        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma)
+        if cells:
+            kept = [f for i, f in enumerate(kept) if i not in merged]
+            have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
+                    for f in kept]
+            for ya, xa, m in cells:
+                yb, xb = ya + m.shape[0] - 1, xa + m.shape[1] - 1
+                if any(min(yb, q[1]) >= max(ya, q[0]) and min(xb, q[3]) >= max(xa, q[2]) for q in have):
+                    continue
+                nl = Light(WINDOW_BUILDING, ya, xa, m, 0.55)
+                nl.kind = "window"
+                kept.append([b_id, fl_level(ctx, nl), p.window_floor_tol_m if ctx.depth is not None
+                             else max(2.0, m.shape[0] / 2.0), nl])
+        out.extend(_cap_lit(p, kept, float(fm.sum())) + other)
+    return out
+
+
+def _median_rule(ctx: Context, wins: list, fm: np.ndarray) -> list:
+    """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
+    (``fm``, HxW bool; three windows at least) and of their floor (three windows at least): a merged
+    row, a gable or an awning, never one pane.
+    Areas on the wall up to a common factor: height (m) x width along the wall (the span in the
+    projective column coordinate of :func:`lattice_cells` for a receding wall, metres for one facing
+    the camera), each one pixel smaller across and down than in the image (quantisation)."""
+    p = ctx.params
+    if len(wins) < 3 or ctx.depth is None:
+        return wins
+    u_vp = _wall_vp(ctx, fm)
+    K = ctx.intrinsics
+    area = []
+    for f in wins:
+        li = f[3]
+        h, w = li.mask.shape
+        z = _median_depth(ctx, li)
+        if z is None:
+            area.append(np.nan)
+            continue
+        # one pixel less either way: a pane 1.4 px wide is 1 or 2 px in the image, not twice the size
+        w, h = max(w - 1, 1), max(h - 1, 1)
+        if u_vp is not None:
+            wa, wb = 1.0 / (li.x0 - u_vp), 1.0 / (li.x0 + w - u_vp)
+            width = abs(wb - wa)
+        else:
+            width = w * z / float(K.fx)
+        area.append(width * h * z / float(K.fy))
+    a = np.asarray(area)
+    if np.isfinite(a).sum() < 3:
+        return wins
+    med = float(np.nanmedian(a))
+    lev = np.array([f[1] for f in wins])
+    out = []
+    for f, ai in zip(wins, a):
+        # ... and of its floor (a gable's or a dormer row's windows are smaller than the main floors')
+        row = a[(np.abs(lev - f[1]) <= f[2]) & np.isfinite(a)]
+        ref = max(med, float(np.median(row))) if row.size >= 3 else med
+        if not (np.isfinite(ai) and ai > p.window_max_median_ratio * ref):
+            out.append(f)
+            continue
+        li = f[3]
+        z = _median_depth(ctx, li)
+        if z is not None and float(ctx.height_above_ground(li.y0 - 0.5, z)) <= p.window_shop_max_top_m:
+            li.kind = "shop"  # ground-floor glazing larger than the windows above: a shop front
+            out.append(f)
     return out
 
 
@@ -442,7 +513,7 @@ def propose(ctx: Context) -> list[Group]:
     cand = inner & _differs(feat, ref, p)
     cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((2, 2), np.uint8)).astype(bool) \
         if min(H, W) >= 512 else cand
-    bld_n, bld = cv2.connectedComponents(B.astype(np.uint8), connectivity=4)
+    bld = facades(ctx, B, feat, cand)  # wall planes: grids, floors and the lit cap are per wall
     fy = float(ctx.intrinsics.fy)
     found = []  # [building id, centre height or row, floor tolerance, Light]
 
@@ -554,3 +625,375 @@ def propose(ctx: Context) -> list[Group]:
         members.sort(key=lambda li: (li.x0, li.y0))
         out.append(Group(WINDOWS_GROUP, members, float(np.mean([li.confidence for li in members]))))
     return out
+
+
+def _runs_cut(score: np.ndarray, thr: float) -> np.ndarray:
+    """Indices where a 1-D jump ``score`` exceeds ``thr``, one per run (its maximum)."""
+    over = score > thr
+    if not over.any():
+        return np.zeros(0, int)
+    d = np.diff(np.r_[0, over.astype(np.int8), 0])
+    return np.array([a + int(np.argmax(score[a:b])) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))],
+                    int)
+
+
+def _side_median(prof: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per gap j (between columns j and j+1) the nan-medians of ``prof`` over the ``r`` columns left
+    (j-r+1..j) and right (j+1..j+r) of it; ``prof``: (n,) or (n, C)."""
+    n = prof.shape[0]
+    pad = np.concatenate([np.full((r,) + prof.shape[1:], np.nan), prof, np.full((r,) + prof.shape[1:], np.nan)])
+    win = np.lib.stride_tricks.sliding_window_view(pad, r, axis=0)  # (n + r + 1, ..., r)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows (columns hidden by a tree): NaN, no cut
+        med = np.nanmedian(win, axis=-1)
+    return med[1:n], med[r + 1:r + n]
+
+
+def _fill_nearest(ids: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Building pixels without an id take the id of the nearest pixel that has one."""
+    miss = B & (ids == 0)
+    if not miss.any() or not (ids > 0).any():
+        return ids
+    _, lab = cv2.distanceTransformWithLabels((ids == 0).astype(np.uint8), cv2.DIST_L2, 3,
+                                             labelType=cv2.DIST_LABEL_PIXEL)
+    ys, xs = np.nonzero(ids > 0)
+    lut = np.zeros(lab.max() + 1, np.int32)
+    lut[lab[ys, xs]] = ids[ys, xs]
+    out = ids.copy()
+    out[miss] = lut[lab[miss]]
+    return out
+
+
+def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> np.ndarray:
+    """Wall planes of the building pixels (HxW int32 ids, 0 off building; docs/proposals.md "Building windows").
+
+    A connected building region holds many walls: neighbouring buildings set back from each other,
+    each in its own colour, walls facing the camera beside walls receding along the street, gables
+    and dormers set back on the roof. With depth, each building pixel is seen from above (its
+    sideways and forward position in metres, smoothed down the column: walls are vertical); the
+    horizontal direction of the wall through it comes from how that point moves along the image
+    row, binned by ``window_facade_angle_deg``. Each connected piece of one direction is cut into
+    column ranges where the median offset of the wall plane jumps by more than
+    ``window_facade_step_m`` (+1 % of the depth) or the median wall colour (pixels not window-like,
+    ``cand``) by ``window_block_lum`` / ``window_block_chroma``; pixels more than
+    ``window_facade_step_m`` off their column's plane (dormers, balconies, awnings) form their own
+    walls; pieces too small to judge join their nearest wall. Computed at about 512 px wide.
+    Without depth: the connected building regions.
+    """
+    p = ctx.params
+    H, W = B.shape
+    n0, bld = cv2.connectedComponents(B.astype(np.uint8), connectivity=4)
+    if ctx.depth is None or n0 <= 1:
+        return bld.astype(np.int32)
+    f = max(1, W // 512)
+    h, w = max(1, H // f), max(1, W // f)
+    K = ctx.intrinsics
+    if f > 1:
+        Bs = cv2.resize(B.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+        z = cv2.resize(ctx.depth, (w, h), interpolation=cv2.INTER_NEAREST)
+        fs = cv2.resize(feat, (w, h), interpolation=cv2.INTER_AREA)
+        cs = cv2.resize(cand.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+        sx, sy = w / W, h / H
+        fx, fy_, cx, cy = K.fx * sx, K.fy * sy, (K.cx + 0.5) * sx - 0.5, (K.cy + 0.5) * sy - 0.5
+    else:
+        Bs, z, fs, cs = B, ctx.depth, feat, cand
+        fx, fy_, cx, cy = K.fx, K.fy, K.cx, K.cy
+    valid = Bs & np.isfinite(z)
+    zz = np.where(valid, z, 0.0).astype(np.float32)
+    u = np.arange(w, dtype=np.float32)[None, :]
+    v = np.arange(h, dtype=np.float32)[:, None]
+    X = (u - np.float32(cx)) * zz / np.float32(fx)
+    Yc = (v - np.float32(cy)) * zz / np.float32(fy_)
+    pitch = float(p.camera_pitch_rad)
+    Zw = zz * np.float32(np.cos(pitch)) - Yc * np.float32(np.sin(pitch))
+    # Smoothed down the column (walls are vertical), barely across it (wall edges stay sharp).
+    wv = valid.astype(np.float32)
+    kv = max(5, (h // 16) | 1)
+    num_x = cv2.blur(X * wv, (3, kv), borderType=cv2.BORDER_REPLICATE)
+    num_z = cv2.blur(Zw * wv, (3, kv), borderType=cv2.BORDER_REPLICATE)
+    den = np.maximum(cv2.blur(wv, (3, kv), borderType=cv2.BORDER_REPLICATE), 1e-6)
+    Xs, Zs = num_x / den, num_z / den
+    r = 3
+    dX = np.zeros_like(Xs)
+    dZ = np.zeros_like(Zs)
+    dX[:, r:-r], dZ[:, r:-r] = Xs[:, 2 * r:] - Xs[:, :-2 * r], Zs[:, 2 * r:] - Zs[:, :-2 * r]
+    ang = np.degrees(np.arctan2(dZ, dX)) % 180.0
+    step = float(p.window_facade_angle_deg)
+    nb = max(1, int(round(180.0 / step)))
+    bins = (np.floor((ang + step / 2.0) / step).astype(np.int32) % nb).astype(np.uint8)
+    bins = cv2.medianBlur(np.where(valid, bins + 1, 0).astype(np.uint8), 5)  # 0: no depth
+    bins[~valid] = 0
+    out = np.zeros((h, w), np.int32)
+    nxt = 1
+    rc = 3  # columns either side of a cut compared
+    min_px = max(16, (h * w) // 2000)
+    lum_t, chroma_t = float(p.window_block_lum), float(p.window_block_chroma)
+    for o in range(1, nb + 1):
+        nc, lab, st, _ = cv2.connectedComponentsWithStats((bins == o).astype(np.uint8), connectivity=4)
+        t = np.radians((o - 1) * step)
+        for c in range(1, nc):
+            x0, y0, ww, hh, area = (int(q) for q in st[c])
+            if area < min_px:
+                continue  # joins its nearest wall below
+            sl = (slice(y0, y0 + hh), slice(x0, x0 + ww))
+            m = lab[sl] == c
+            d = np.where(m, -np.sin(t) * X[sl] + np.cos(t) * Zw[sl], np.nan)   # plane offset (m)
+            zc = np.where(m, zz[sl], np.nan)
+            fm = np.where((m & ~cs[sl])[..., None], fs[sl], np.nan)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # columns without depth or wall: NaN
+                col_d = np.nanmedian(d, axis=0)
+                col_z = np.nanmedian(zc, axis=0)
+                col_f = np.nanmedian(fm, axis=0)
+            if ww > 2 * rc:
+                ld, rd = _side_median(col_d, rc)
+                lf, rf = _side_median(col_f, rc)
+                zref = np.nan_to_num(np.fmin(col_z[:-1], col_z[1:]), nan=0.0)
+                jump = np.nan_to_num(np.abs(ld - rd) / (p.window_facade_step_m + 0.01 * zref))
+                cj = np.nan_to_num(np.maximum(np.abs(lf[:, 0] - rf[:, 0]) / lum_t,
+                                              np.hypot(lf[:, 1] - rf[:, 1], lf[:, 2] - rf[:, 2]) / chroma_t))
+                cuts = _runs_cut(np.maximum(jump, cj), 1.0)
+            else:
+                cuts = np.zeros(0, int)
+            edges = np.r_[0, cuts + 1, ww]
+            colid = np.zeros(ww, np.int32)
+            seg_d = np.full(len(edges) - 1, np.nan)
+            for i in range(len(edges) - 1):
+                colid[edges[i]:edges[i + 1]] = i
+                seg = col_d[edges[i]:edges[i + 1]]
+                if np.isfinite(seg).any():
+                    seg_d[i] = np.nanmedian(seg)
+            with np.errstate(invalid="ignore"):
+                off = np.abs(d - seg_d[colid][None, :]) > p.window_facade_step_m + 0.01 * zz[sl]
+            ids = colid[None, :] * 2 + off.astype(np.int32)
+            for q in np.unique(ids[m]):
+                sel = m & (ids == q)
+                if q % 2 == 0:
+                    out[sl][sel] = nxt
+                    nxt += 1
+                    continue
+                n2, lab2, st2, _ = cv2.connectedComponentsWithStats(sel.astype(np.uint8), connectivity=4)
+                for c2 in range(1, n2):  # off-plane pieces: each its own wall when large enough
+                    if st2[c2, 4] >= min_px:
+                        out[sl][lab2 == c2] = nxt
+                        nxt += 1
+    out = _fill_nearest(out, Bs)
+    if f > 1:
+        out = cv2.resize(out, (W, H), interpolation=cv2.INTER_NEAREST)
+        out = _fill_nearest(np.where(B, out, 0), B)
+    return np.where(B, out, 0).astype(np.int32)
+
+
+def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
+    """Image column of the vanishing point of a wall's horizontal direction (``fm``: HxW bool, the
+    wall's pixels), from depth seen from above; None when the wall faces the camera (its bays are
+    evenly spaced in the image), is too short to tell, or without depth."""
+    if ctx.depth is None:
+        return None
+    ys, xs = np.nonzero(fm)
+    if ys.size < 8:
+        return None
+    step = max(1, ys.size // 4000)
+    ys, xs = ys[::step], xs[::step]
+    z = ctx.depth[ys, xs].astype(np.float64)
+    ok = np.isfinite(z)
+    if ok.sum() < 8:
+        return None
+    ys, xs, z = ys[ok], xs[ok], z[ok]
+    K, pitch = ctx.intrinsics, float(ctx.params.camera_pitch_rad)
+    X = (xs - K.cx) * z / K.fx
+    Zw = z * np.cos(pitch) - (ys - K.cy) * z / K.fy * np.sin(pitch)
+    evals, evecs = np.linalg.eigh(np.cov(np.stack([X, Zw])))
+    tx, tz = evecs[:, 1]
+    if np.sqrt(max(evals[1], 0.0)) < 0.5 or abs(tz) < 0.15 * abs(tx):
+        return None
+    u_vp = K.fx * tx / (tz * np.cos(pitch)) + K.cx
+    W = ctx.shape[1]
+    if not -3 * W < u_vp < 4 * W:
+        return None
+    # every pixel of the wall must lie on one side of it (else it is not a receding plane)
+    side = np.sign(xs - u_vp)
+    if abs(side.mean()) < 0.98:
+        return None
+    return float(u_vp)
+
+
+def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float, float, float] | None:
+    """Period, phase and fit (P, phi, score) of centres ``c`` lying on phi + k P (bays).
+
+    Candidate periods are the pairwise differences wider than 1.4 windows (a pane fills at most ~70 %
+    of its bay); each is scored by how close the centres lie to its lattice (sum of
+    max(0, 1 - (r / ``tol``)^2), r the distance in periods: a finer lattice halves the tolerance in
+    pixels, so it does not win by fitting everything loosely), the best refined by least squares.
+    None without three centres on it.
+    """
+    n = c.size
+    if n < 3:
+        return None
+    d = np.abs(c[:, None] - c[None, :])[np.triu_indices(n, 1)]
+    d = np.sort(d[d > 1.4 * width])
+    if d.size == 0:
+        return None
+    d = d[np.r_[True, np.diff(np.log(d)) > 0.01]][:300]  # distinct to 1 %
+
+    def score(P, phi):
+        r = (c - phi) / P
+        r = r - np.round(r)
+        return np.maximum(0.0, 1.0 - (r / tol) ** 2), r
+
+    best = None
+    for P in d:
+        phi = np.angle(np.exp(2j * np.pi * c / P).mean()) * P / (2 * np.pi)
+        sc, _ = score(P, phi)
+        if best is None or sc.sum() > best[0]:
+            best = (float(sc.sum()), P, phi)
+    _, P, phi = best
+    for _ in range(2):
+        sc, r = score(P, phi)
+        inl = sc > 0
+        if inl.sum() < 3:
+            return None
+        k = np.round((c[inl] - phi) / P)
+        if np.ptp(k) > 0:
+            P, phi = np.polyfit(k, c[inl], 1)
+    sc, _ = score(P, phi)
+    if (sc > 0).sum() < max(3, 0.5 * n):
+        return None
+    return float(P), float(phi), float(sc.sum())
+
+
+def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, chroma: np.ndarray) -> tuple[
+        list[tuple[int, int, np.ndarray]], set[int]]:
+    """The facade grid of one wall (docs/proposals.md "Building windows"): every cell of it in view.
+
+    ``wins``: the wall's windows as [wall id, level, level tolerance, Light]. Bays are a lattice in
+    the wall's projective column coordinate (w = 1 / (u - u_vp) for a wall receding to the vanishing
+    column u_vp, :func:`_wall_vp`, u for a wall facing the camera: evenly spaced along the wall, so
+    the lattice is evenly spaced in w) fitted to the windows' centres (:func:`_fit_lattice`); the
+    window width is their median width in w. Floors are the windows' levels (within the level
+    tolerance) with two windows at least; a floor's top and bottom are lines through the wall's
+    vanishing point on the horizon (their median slopes), or rows for a wall facing the camera.
+    A cell is kept when ``window_cell_min_visible`` of it is this wall's pixels and it looks faintly
+    like a window (``window_cell_min_share`` of it beyond half the window thresholds in ``ratio``, the
+    log luminance against the wall, or ``chroma``). Returns the cells
+    (y0, x0, local mask) and the indices of ``wins`` that span two or more cells (merged panes,
+    replaced by the cells).
+    """
+    p = ctx.params
+    H, W = fm.shape
+    if len(wins) < 3:
+        return [], set()
+    u0 = _wall_vp(ctx, fm)
+    K = ctx.intrinsics
+    v_h = float(K.cy - K.fy * np.tan(p.camera_pitch_rad))  # the horizon row
+
+    edges_u = np.array([[f[3].x0 - 0.5, f[3].x0 + f[3].mask.shape[1] - 0.5] for f in wins], float)
+
+    def to_w(u, u_vp):
+        u = np.asarray(u, float)
+        return 1.0 / (u - u_vp) if u_vp is not None else u
+
+    def lattice(u_vp):
+        wab = np.sort(to_w(edges_u, u_vp), axis=1)
+        width = float(np.median(wab[:, 1] - wab[:, 0]))
+        return _fit_lattice(wab.mean(1), width), width, wab
+
+    # The vanishing column from depth is a few pixels off (depth is warped); the bays' regularity
+    # fixes it: the column near it whose lattice fits the windows best.
+    best = None
+    cands = [None] if u0 is None else [u0 + d * W for d in np.linspace(-0.06, 0.06, 25)]
+    for u_vp in cands:
+        if u_vp is not None and not (np.all(edges_u > u_vp + 0.5) or np.all(edges_u < u_vp - 0.5)):
+            continue
+        fit, width, wab = lattice(u_vp)
+        if fit is not None and (best is None or fit[2] > best[1][2]):
+            best = (u_vp, fit, width, wab)
+    if best is None:
+        return [], set()
+    u_vp, (P, phi, _), width, wab = best
+
+    def to_u(w):
+        w = np.asarray(w, float)
+        return u_vp + 1.0 / w if u_vp is not None else w
+
+    box = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1,
+            wab[i, 0], wab[i, 1]) for i, f in enumerate(wins)]
+    bx = np.array(box, float)
+    if width >= 0.9 * abs(P):
+        return [], set()
+    # floors: windows whose levels lie within the tolerance
+    order = sorted(range(len(wins)), key=lambda i: wins[i][1])
+    floors: list[list[int]] = []
+    for i in order:
+        if floors and wins[i][1] - wins[floors[-1][-1]][1] <= wins[i][2]:
+            floors[-1].append(i)
+        else:
+            floors.append([i])
+    uc = (bx[:, 2] + bx[:, 3]) / 2.0
+    rows = []
+    for fl in floors:
+        if len(fl) < 2:
+            continue
+        t, b = bx[fl, 0], bx[fl, 1]
+        if u_vp is not None:
+            du = uc[fl] - u_vp
+            ok = np.abs(du) > 1.0
+            if not ok.any():
+                continue
+            at, ab = np.median((t[ok] - v_h) / du[ok]), np.median((b[ok] - v_h) / du[ok])
+            rows.append((lambda u, a=at: v_h + a * (u - u_vp), lambda u, a=ab: v_h + a * (u - u_vp)))
+        else:
+            rows.append((lambda u, a=float(np.median(t)): a + 0.0 * u, lambda u, a=float(np.median(b)): a + 0.0 * u))
+    if not rows:
+        return [], set()
+    ys, xs = np.nonzero(fm)
+    col = np.bincount(xs, minlength=W) > 0
+    cols = np.flatnonzero(col)
+    wr = to_w(np.array([cols.min() - 0.5, cols.max() + 0.5]), u_vp)
+    k0, k1 = sorted(((wr - phi) / P).tolist())
+    cells = []
+    merged = set()
+    grid = []
+    for k in range(int(np.ceil(k0)), int(np.floor(k1)) + 1):
+        wa, wb = phi + k * P - width / 2.0, phi + k * P + width / 2.0
+        ua, ub = sorted(to_u([wa, wb]).tolist())
+        if not np.isfinite(ua) or not np.isfinite(ub) or ub < -0.5 or ua > W - 0.5:
+            continue
+        ca, cb = int(np.ceil(ua)), int(np.floor(ub))
+        if cb < ca:
+            ca = cb = int(round((ua + ub) / 2.0))
+        ca, cb = max(ca, 0), min(cb, W - 1)
+        if cb < ca:
+            continue
+        us = np.arange(ca, cb + 1, dtype=float)
+        for top, bot in rows:
+            t, b = np.round(top(us)).astype(int), np.round(bot(us)).astype(int)
+            ya, yb = int(max(t.min(), 0)), int(min(b.max(), H - 1))
+            if yb - ya < 1:
+                continue
+            rr = np.arange(ya, yb + 1)[:, None]
+            m = (rr >= t[None, :]) & (rr <= b[None, :])
+            grid.append((ya, ca, m))
+    # windows spanning two or more cells: merged panes, replaced by the cells
+    for i, q in enumerate(box):
+        n_in = 0
+        for ya, xa, m in grid:
+            h, w = m.shape
+            oy = min(q[1], ya + h - 1) - max(q[0], ya) + 1
+            ox = min(q[3], xa + w - 1) - max(q[2], xa) + 1
+            if oy > 0 and ox > 0 and oy * ox >= 0.5 * m.sum():
+                n_in += 1
+        if n_in >= 2:
+            merged.add(i)
+    t = -np.log(p.window_dark_ratio)
+    for ya, xa, m in grid:
+        h, w = m.shape
+        vis = fm[ya:ya + h, xa:xa + w] & m
+        if vis.sum() < p.window_cell_min_visible * m.sum():
+            continue
+        # looks faintly like a window: half the window thresholds on enough of it
+        odd = (np.abs(ratio[ya:ya + h, xa:xa + w]) > 0.5 * t) | (chroma[ya:ya + h, xa:xa + w] > 0.5 * p.window_chroma_delta)
+        if (odd & vis).sum() < p.window_cell_min_share * vis.sum():
+            continue
+        cells.append((ya, xa, m))
+    return cells, merged

@@ -1,0 +1,158 @@
+"""Window proposals as facade grids (issue #26; docs/proposals.md "Building windows").
+
+Small painted facades facing the camera at a known depth: the wall, dark panes at metric positions,
+sky above and road below. Pinhole 150 px focal length at 256x128, camera 1.22 m high, level.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from npsim_core.camera import Intrinsics
+from npsim_core.proposals import ProposalParams, propose_lights
+
+W, H = 256, 128
+K = Intrinsics(150.0, 150.0, 127.5, 63.5, W, H)
+PARAMS = ProposalParams(categories=("windows",), camera_pitch_rad=0.0)
+WALL, GLASS = (172, 152, 128), (38, 48, 60)
+
+
+def _v(h_m: float, z: float) -> float:
+    """Image row of a point ``h_m`` above the ground at depth ``z`` (level camera)."""
+    return K.cy - K.fy * (h_m - PARAMS.camera_height_m) / z
+
+
+def _u(x_m: float, z: float) -> float:
+    return K.cx + K.fx * x_m / z
+
+
+def _canvas():
+    rng = np.random.default_rng(0)
+    img = np.zeros((H, W, 3), np.uint8)
+    img[:] = (150, 180, 215)                       # sky
+    labels = np.full((H, W), 23, np.uint8)
+    depth = np.full((H, W), np.nan, np.float32)
+    noise = rng.integers(-4, 5, (H, W, 1))
+    return img, labels, depth, noise
+
+
+def _wall(img, labels, depth, x0_m, x1_m, top_m, z):
+    """A wall facing the camera from x0_m to x1_m (m, sideways), ground to ``top_m``, at depth z."""
+    u0, u1 = int(round(_u(x0_m, z))), int(round(_u(x1_m, z)))
+    v0 = int(round(_v(top_m, z)))
+    g = int(round(_v(0.0, z)))
+    img[v0:g, u0:u1] = WALL
+    labels[v0:g, u0:u1] = 11
+    depth[v0:g, u0:u1] = z
+    labels[g:] = 7
+    img[g:] = (90, 90, 95)
+
+
+def _pane(img, gt, k, x0_m, x1_m, y0_m, y1_m, z):
+    """A dark pane (metres on the wall); ``gt[k]`` its true pixel mask (pixel centres inside)."""
+    uu = np.arange(W)[None, :]
+    vv = np.arange(H)[:, None]
+    m = (uu >= _u(x0_m, z)) & (uu < _u(x1_m, z)) & (vv >= _v(y1_m, z)) & (vv < _v(y0_m, z))
+    img[m] = GLASS
+    gt[k] = m
+
+
+def _windows(props):
+    """Proposed window masks of kind ``window`` (id -> HxW bool) and the windows_groups' members."""
+    ann = props.above(0.5)
+    kinds = ann.meta.get("light_kinds", {})
+    m = ann.instance_map
+    wins = {int(i): m == i for i in np.unique(m) if i // 1000 == 1 and kinds.get(str(int(i)), "window") == "window"}
+    groups = [set(g.members) for g in ann.groups.values() if g.class_id == 13]
+    return wins, groups
+
+
+def _iou(a, b):
+    return (a & b).sum() / max((a | b).sum(), 1)
+
+
+def _run(img, labels, depth, noise):
+    img = np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8)
+    return propose_lights(img, labels, depth, K, None, PARAMS)
+
+
+def test_grid_one_window_per_cell_and_none_across_cells():
+    img, labels, depth, noise = _canvas()
+    z = 30.0
+    _wall(img, labels, depth, -9.0, 9.0, 14.0, z)
+    gt = {}
+    for f, sill in enumerate((4.9, 8.1, 11.3)):
+        for b in range(5):
+            x = -7.5 + 3.0 * b
+            _pane(img, gt, (f, b), x, x + 1.2, sill, sill + 1.5, z)
+    # two panes of the middle floor joined by a dark lintel band: one blob over two cells
+    img[int(_v(9.6, z)):int(_v(9.2, z)) + 1, int(_u(-4.5, z)):int(_u(-2.3, z))] = GLASS
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    for key, g in gt.items():
+        matched = [i for i, w in wins.items() if _iou(g, w) >= 0.5]
+        assert len(matched) == 1, f"cell {key}: {len(matched)} windows"
+    for i, w in wins.items():
+        cells = [key for key, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
+        assert len(cells) <= 1, f"window {i} spans cells {cells}"
+    assert len(wins) == len(gt)
+
+
+def test_gable_with_six_windows_gives_six():
+    img, labels, depth, noise = _canvas()
+    z = 36.0
+    _wall(img, labels, depth, -6.0, 6.0, 10.0, z)
+    gt = {}
+    for f, sill in enumerate((4.9,)):
+        for b in range(4):
+            _pane(img, gt, ("main", b), -5.1 + 3.0 * b, -3.9 + 3.0 * b, sill, sill + 1.5, z)
+    uu, vv = np.arange(W)[None, :], np.arange(H)[:, None]
+    for step in range(3):  # stepped gable: 3 steps of 2 m on the roof line, 3 + 2 + 1 windows
+        half = 6.0 * (1.0 - step / 3.0)
+        y0 = 10.0 + 2.0 * step
+        m = (uu >= _u(-half, z)) & (uu < _u(half, z)) & (vv >= _v(y0 + 2.0, z)) & (vv < _v(y0, z))
+        img[m], labels[m], depth[m] = WALL, 11, z
+        cnt = 3 - step
+        for j in range(cnt):
+            c = -half + (j + 0.5) * 2 * half / cnt
+            _pane(img, gt, ("gable", step, j), c - 0.4, c + 0.4, y0 + 0.45, y0 + 1.65, z)
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    gable = {k: g for k, g in gt.items() if k[0] == "gable"}
+    assert len(gable) == 6
+    hit = sum(1 for g in gable.values() if sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1)
+    assert hit == 6
+    in_gable = [i for i, w in wins.items() if w[: int(_v(10.0, z)) + 1].any()]
+    assert len(in_gable) == 6
+
+
+def test_two_walls_of_one_building_region_get_separate_grids():
+    """One connected building region, two walls facing the camera 30 m and 40 m away, the same colour,
+    floors at the same heights: each wall's floors are their own windows_groups (the old proposers
+    took the region as one facade and grouped each floor across both walls)."""
+    img, labels, depth, noise = _canvas()
+    za, zb = 30.0, 40.0
+    _wall(img, labels, depth, -12.0, 0.0, 14.0, za)
+    xb0 = 0.0 * zb / za  # the far wall starts where the near one ends in the image
+    _wall(img, labels, depth, xb0, 16.0, 14.0, zb)
+    assert (labels == 11).any()
+    gt = {}
+    for f, sill in enumerate((4.9, 8.1, 11.3)):
+        for b in range(4):
+            x = -11.0 + 3.0 * b
+            _pane(img, gt, ("a", f, b), x, x + 1.2, sill, sill + 1.5, za)
+        for b in range(6):
+            x = xb0 + 0.8 + 2.5 * b
+            _pane(img, gt, ("b", f, b), x, x + 1.0, sill, sill + 1.5, zb)
+    import cv2
+    n, _ = cv2.connectedComponents((labels == 11).astype(np.uint8), connectivity=4)
+    assert n == 2  # one building region
+    wins, groups = _windows(_run(img, labels, depth, noise))
+    wall_of = {}
+    for i, w in wins.items():
+        d = depth[w]
+        wall_of[i] = "a" if np.nanmedian(d) < 35 else "b"
+    assert {wall_of[i] for i in wins} == {"a", "b"}
+    for g in groups:
+        walls = {wall_of[i] for i in g if i in wall_of}
+        assert len(walls) <= 1, "a windows_group spans two walls"
+    matched = sum(1 for g in gt.values() if any(_iou(g, w) >= 0.5 for w in wins.values()))
+    assert matched >= 0.9 * len(gt)
