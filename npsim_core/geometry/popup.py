@@ -93,12 +93,17 @@ Hidden contacts (docs/geometry.md, "Hidden contacts"; default, ``facades="contac
   depths of the undersides' plane (``crown_base`` up) and of the inner faces' vertical
   plane (``crown_setback`` in from the street line, or the occluders' feet), no deeper than
   the street line (docs/geometry.md, "Canopy rows").
+* A facade segment that shows no foot anywhere and is seen only under such a slab (a bus shelter
+  behind a van, labelled building) stands no deeper than where the ray over its top edge enters the
+  slab, when that is nearer than half its street-line depth and behind what hides its foot
+  (``under_canopy``; docs/geometry.md, "Under a canopy").
 * A foot beyond the far limit is placed at the near end of its row's range (visible) or
   half way between the limit and the ground below its occluder (hidden); the far limit
   is a last resort, counted in ``info["far_limit_pixels"]`` and noted.
 * ``GeometryEstimate.confidence``: per pixel, how it was placed (ground 1, visible facade or
   car contact 0.9, on the ground 0.8, on other segments or a hidden facade or car foot 0.5,
-  crown over an occluder 0.45 / by its lower edge 0.35 / in a canopy slab 0.4, nearest
+  crown over an occluder 0.45 / by its lower edge 0.35 / in a canopy slab 0.4, a facade pulled
+  under a canopy 0.35, nearest
   fill 0.2) divided
   by ``1 + (z / (h fy)) / 0.1`` (one row's relative depth step at that depth); 0.05 at
   the far limit; NaN where invalid.
@@ -134,6 +139,12 @@ DEFAULT_FRONTO_IDS = (17, 18, 19, 20, 24, 25, 32, 33)
 DEFAULT_CONTACT_IDS = (11, 12, 13, 14)
 #: The ground class raised by ``sidewalk_height`` above the road (sidewalk).
 SIDEWALK_ID = 8
+#: A hidden-foot facade column seen under a canopy slab is pulled to where its top edge's ray enters the
+#: slab only when that is nearer than this fraction of its depth (``PopupParams.under_canopy``): crowns and
+#: the gaps between them are about as long, so a wall seen through a gap stands up to about twice as deep
+#: as the entry (the far blocks near the vanishing point: 0.53-0.76 on the street variants; the bus
+#: shelters behind vans: 0.37).
+UNDER_CANOPY_RATIO = 0.5
 #: Metres: a crown cut by the frame's top and side whose lower edge (at ``crown_base``) is nearer than
 #: this is the near end of a row of street trees (``crowns="canopy"``).
 NEAR_CROWN_M = 15.0
@@ -227,6 +238,11 @@ class PopupParams:
         column whose lowest pixel is above the horizon stands no nearer than that height allows there
         (``crowns="columns"``/``"canopy"``: a lower bound over the per-column and segment placements, e.g.
         a tree across a square whose trunk hides behind a near parked car).
+    under_canopy : bool
+        A facade column whose foot is hidden and whose top edge is seen right under a canopy slab
+        (``crowns="canopy"``) stands no deeper than where the ray over its top edge enters the slab --
+        a farther wall would be hidden by the crowns there -- and no nearer than what hides its foot
+        (a bus shelter behind a van; docs/geometry.md, "Under a canopy"). ``False``: the street line.
     canopy_span, canopy_rise : float
         A crown segment is a receding row (``crowns="canopy"``) when its columns above the horizon
         cover at least a tenth of the width, the outer half of them lies ``canopy_span`` times as far
@@ -266,6 +282,7 @@ class PopupParams:
     crown_min: float = 2.0
     canopy_span: float = 1.4
     canopy_rise: float = 0.25
+    under_canopy: bool = True
 
     def __post_init__(self) -> None:
         if self.camera_height is not None and not (math.isfinite(self.camera_height) and self.camera_height > 0):
@@ -555,6 +572,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     # --- tree crowns resting on other segments: a depth per column from what is below it
     crown_px = np.zeros((H, W), dtype=bool)
     crown_kind = np.zeros((H, W), dtype=np.int8)
+    under_canopy = np.zeros((H, W), dtype=bool)
     if p.crowns in ("columns", "canopy") and p.facades == "contact" and nseg:
         crown_seg = np.isin(seg_label, p.thin_ids) & ~seg_fronto & ~seg_facade & (how == 2)
         crown_seg[0] = False
@@ -563,9 +581,17 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
                                                  pitch, p)
             normals[crown_px] = -f
             if p.crowns == "canopy":  # rows of crowns receding along the street: the slab overrides
-                slab = _canopy_slab(seg, crown_seg, depth, normals, g, f, e, h, intr, fac_info, p, fac_seen)
+                slab, slab_geom = _canopy_slab(seg, crown_seg, depth, normals, g, f, e, h, intr, fac_info, p,
+                                               fac_seen)
                 crown_px |= slab
                 crown_kind[slab] = 4
+                if p.under_canopy and slab_geom is not None:
+                    lut[:] = False
+                    lut[list(p.contact_ids)] = True
+                    lut_c = lut[seg_label]
+                    lut_c[0] = False
+                    under_canopy = _under_canopy(seg, lut_c, slab, depth, fac_seen, slab_geom, g, h, intr,
+                                                 fac_info, p)
 
     # --- whatever is still unplaced: nearest placed depth, fronto-parallel normal
     rest = vertical & ~placed[seg]
@@ -594,6 +620,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
     conf_how = np.array([0.2, 0.8, 0.5])[how[seg]]  # unplaced (nearest fill), on the ground, on segments
     conf_how = np.where(fac_seen == 2, 0.9, np.where(fac_seen == 1, 0.5, conf_how))
     conf_how = np.where(crown_px, np.array([0.5, 0.5, 0.45, 0.35, 0.4])[crown_kind], conf_how)
+    conf_how = np.where(under_canopy, 0.35, conf_how)
     conf_how = np.where(rest, 0.2, np.where(ground, 1.0, conf_how))
     with np.errstate(invalid="ignore"):
         row_err = depth / (h * intr.fy)  # relative depth step of one image row at this depth (on the ground)
@@ -613,6 +640,7 @@ def estimate_popup(scene: Scene, params: PopupParams | None = None) -> GeometryE
             "on_segments": int(np.sum(how[seg_ids] == 2)),
             "unplaced_pixels": int(rest.sum()), "line_fits": int(fitted[seg_ids].sum()), "rounds": int(rounds),
             "far_limit_pixels": far_px, "crown_columns_pixels": int(crown_px.sum()),
+            "under_canopy_pixels": int(under_canopy.sum()),
             "mean_confidence": round(float(np.nanmean(confidence)), 3) if np.isfinite(confidence).any() else None,
             "seconds": round(time.perf_counter() - t0, 4), **fac_info}
     if notes:
@@ -1384,7 +1412,7 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     done = np.zeros((H, W), dtype=bool)
     street = fac_info.get("street_lines_m", {})
     if "vanishing_column" not in fac_info or not street:
-        return done
+        return done, None
     d = street_direction(float(fac_info["vanishing_column"]), intr, g)
     n_lat = d[1] * e - d[0] * f  # lateral unit vector, > 0 right of the street axis
     px = crown_seg[seg]
@@ -1394,7 +1422,7 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
     bot[:-1] &= seg[1:] != seg[:-1]
     bv, bu = np.nonzero(bot)
     if bv.size == 0:
-        return done
+        return done, None
     key = seg[bv, bu].astype(np.int64) * W + bu
     order = np.lexsort((-bv, key))  # per (segment, column) its lowest boundary row first
     key, bv = key[order], bv[order]
@@ -1428,12 +1456,103 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
         r_obs = np.median(dd[outer]) / max(np.median(dd[~outer]), 0.5)
         recedes[ks[i0]] |= r_exp >= p.canopy_span and r_obs - 1.0 >= p.canopy_rise * (r_exp - 1.0)
     if not recedes.any():
-        return done
+        return done, None
     seen = fac_seen == 2
     z_cap = float(depth[seen].max()) if seen.any() else p.max_depth
     pv, pu = np.nonzero(px & recedes[seg])
+    z, ok, on_side, side = _slab_depth(pv.astype(np.float64), pu.astype(np.float64), g, n_lat, h, intr, fac_info,
+                                       p, z_cap)
+    pv, pu = pv[ok], pu[ok]
+    depth[pv, pu] = np.clip(z[ok], p.min_depth, p.max_depth)
+    normals[pv, pu] = np.where(on_side[ok][:, None], -side[ok][:, None] * n_lat[None, :], g[None, :])
+    done[pv, pu] = True
+    fac_info["canopy_pixels"] = int(ok.sum())
+    return done, (n_lat, z_cap)
+
+
+def _under_canopy(seg: np.ndarray, is_contact_seg: np.ndarray, slab: np.ndarray, depth: np.ndarray,
+                  fac_seen: np.ndarray, slab_geom: tuple, g: np.ndarray, h: float, intr, fac_info: dict,
+                  p: PopupParams) -> np.ndarray:
+    """Facade columns with a hidden foot seen right under a canopy slab: no deeper than the slab allows.
+
+    Candidates: the columns of a contact segment that shows no foot anywhere (``fac_seen == 1`` in all
+    its columns) and whose top edge lies under the slab (>= 90 % of its topmost pixels have a slab
+    pixel right above them; a segment also seen above or beside the crowns is a taller wall). Were such
+    a column on its street line, the ray over its top edge would have entered the slab (the crowns'
+    undersides or inner faces) in front of it, unless the crowns leave a gap there. So when that entry
+    is nearer than ``UNDER_CANOPY_RATIO`` x the column's depth and still behind what hides the column's
+    foot (the segment below its lowest pixel), the column's plane is scaled along the rays to the
+    entry's depth: a bus shelter, a kiosk or a low wall under the trees (docs/geometry.md, "Under a
+    canopy"). Writes ``depth`` in place; returns the pixels moved.
+    """
+    H, W = seg.shape
+    moved = np.zeros((H, W), dtype=bool)
+    # (only segments without any visible foot: one that shows its foot elsewhere is a wall, seen under
+    # the crowns through a gap between them)
+    shows = np.zeros(is_contact_seg.size, dtype=bool)
+    shows[seg[fac_seen == 2]] = True
+    cpx0 = is_contact_seg[seg]
+    # ... and whose whole top edge is under the slab: a segment seen above or beside the crowns too (sky,
+    # another segment, the frame's top) is a taller wall, seen under them through a gap
+    top_all = cpx0.copy()
+    top_all[1:] &= seg[:-1] != seg[1:]
+    under = np.zeros((H, W), dtype=bool)
+    under[1:] = slab[:-1]
+    n_top = np.bincount(seg[top_all], minlength=is_contact_seg.size)
+    n_under = np.bincount(seg[top_all & under], minlength=is_contact_seg.size)
+    low = n_under >= 0.9 * np.maximum(n_top, 1)
+    cpx = (is_contact_seg & ~shows & low)[seg] & (fac_seen == 1)
+    top = np.zeros((H, W), dtype=bool)
+    top[1:] = cpx[1:] & slab[:-1]
+    tv, tu = np.nonzero(top)
+    if tv.size == 0:
+        return moved
+    # lowest pixel of each candidate (segment, column) and the depth of what stands below it
+    bot = cpx.copy()
+    bot[:-1] &= seg[1:] != seg[:-1]
+    bv, bu = np.nonzero(bot)
+    bkey = seg[bv, bu].astype(np.int64) * W + bu
+    o = np.lexsort((-bv, bkey))
+    bkey, bv, bu = bkey[o], bv[o], bu[o]
+    first = np.r_[True, bkey[1:] != bkey[:-1]]
+    bkey, bv, bu = bkey[first], bv[first], bu[first]
+    tkey = seg[tv, tu].astype(np.int64) * W + tu
+    j = np.clip(np.searchsorted(bkey, tkey), 0, max(bkey.size - 1, 0))
+    has = bkey[j] == tkey
+    vb = bv[j]
+    below = np.minimum(vb + 1, H - 1)
+    z_occ = np.where(has & (vb + 1 < H) & (seg[below, tu] > 0), depth[below, tu], np.nan)
+    n_lat, z_cap = slab_geom
+    z_in, ok, _, _ = _slab_depth(tv - 0.5, tu.astype(np.float64), g, n_lat, h, intr, fac_info, p, z_cap)
+    z_top = depth[tv, tu]
+    with np.errstate(invalid="ignore"):
+        pull = ok & np.isfinite(z_occ) & (z_in < UNDER_CANOPY_RATIO * z_top) & (z_in > z_occ)
+    if not pull.any():
+        return moved
+    # one factor per (segment, column): the nearest entry over its tops
+    key, fac = tkey[pull], z_in[pull] / z_top[pull]
+    o = np.lexsort((fac, key))
+    key, fac = key[o], fac[o]
+    first = np.r_[True, key[1:] != key[:-1]]
+    key, fac = key[first], fac[first]
+    pv, pu = np.nonzero(cpx)
+    pkey = seg[pv, pu].astype(np.int64) * W + pu
+    j = np.clip(np.searchsorted(key, pkey), 0, key.size - 1)
+    hit = key[j] == pkey
+    pv, pu = pv[hit], pu[hit]
+    depth[pv, pu] = np.clip(depth[pv, pu] * fac[j[hit]], p.min_depth, p.max_depth)
+    moved[pv, pu] = True
+    fac_info["under_canopy_columns"] = int(key.size)
+    return moved
+
+
+def _slab_depth(v: np.ndarray, u: np.ndarray, g: np.ndarray, n_lat: np.ndarray, h: float, intr, fac_info: dict,
+                p: PopupParams, z_cap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Depth (m) at which the rays through pixel coordinates ``(v, u)`` (rows, columns; fractional allowed)
+    enter the canopy slab of :func:`_canopy_slab`; returns ``(z, ok, on_inner_face, side)``."""
+    street = fac_info.get("street_lines_m", {})
     # ray components from the pixel coordinates (no gather of the full ray array)
-    xr, yr = (pu - intr.cx) / intr.fx, (pv - intr.cy) / intr.fy
+    xr, yr = (u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy
     gr = xr * g[0] + yr * g[1] + g[2]
     lr = xr * n_lat[0] + yr * n_lat[1] + n_lat[2]
     side = np.where(lr < 0, -1, 1)
@@ -1451,10 +1570,4 @@ def _canopy_slab(seg: np.ndarray, crown_seg: np.ndarray, depth: np.ndarray, norm
         z_fac = np.where(np.abs(lr) > 1e-6, x_fac / lr, np.nan)
     z = np.fmin(np.fmin(np.fmax(z_side, z_bot), z_fac), z_cap)
     ok = (z_side > 0) & (z_fac > 0) & np.isfinite(z)
-    pv, pu = pv[ok], pu[ok]
-    depth[pv, pu] = np.clip(z[ok], p.min_depth, p.max_depth)
-    on_side = ~(z_bot[ok] > z_side[ok])
-    normals[pv, pu] = np.where(on_side[:, None], -side[ok][:, None] * n_lat[None, :], g[None, :])
-    done[pv, pu] = True
-    fac_info["canopy_pixels"] = int(ok.sum())
-    return done
+    return z, ok, ~(z_bot > z_side), side
