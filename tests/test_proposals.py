@@ -577,3 +577,22 @@ def test_a_car_whose_lower_body_is_hidden_by_the_car_in_front_keeps_its_lamps_on
     mine = [i for i in lamps if (ann.mask(i) & truth[1]).any() or np.nonzero(ann.mask(i))[1].min() >= 95]
     assert mine and all(np.nonzero(ann.mask(i))[0].min() >= row(0.9) for i in mine)
     assert max(_iou(ann.mask(i), truth[1]) for i in mine) >= 0.5
+
+
+def test_no_lamp_on_a_far_car_of_which_only_a_strip_beside_the_car_in_front_shows():
+    """Far down a row of parked cars only a strip of a car's side shows beside the nearer car in front
+    (5 px at 30 m here, receding): its end face is hidden, so it gets no lamp. The old code laid the
+    face out from the occluder's edge as if that were the car's own and put a lamp on the strip."""
+    img, lab = _canvas()
+    lab[95:], img[95:] = ROAD, (70, 70, 75)
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    depth = np.full(lab.shape, 80.0, np.float32)
+    inst = lab.astype(np.int32)
+    row = lambda h, z: int(round(59.5 + (1.22 - h) * 500.0 / z))  # noqa: E731
+    near = (slice(row(1.4, 15.0), 101), slice(100, 150))                    # the car in front, 15 m
+    lab[near], img[near], depth[near], inst[near] = CAR, (160, 40, 40), 15.0, CAR * 1000
+    strip = (slice(row(1.4, 30.0), row(0.3, 30.0)), slice(150, 155))          # the far car's side, 30-31 m
+    lab[strip], img[strip], inst[strip] = CAR, (40, 60, 140), CAR * 1000 + 1
+    depth[strip] = 30.0 + 0.25 * (np.arange(150, 155) - 150)
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert not any((ann.mask(i) & (inst == CAR * 1000 + 1)).any() for i in lamps)

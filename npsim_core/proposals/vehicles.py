@@ -177,9 +177,12 @@ def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float 
 
 
 def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
-              ) -> tuple[int, int, int, int, float | None] | None:
+              ) -> tuple[int, int, int, int, float | None, bool] | None:
     """Box (r0, r1, c0, c1 inclusive, local; c0/c1 may lie outside the mask's box when the face is cut
-    by the image border or an occluder) of the body's end face the camera sees, and its depth (m).
+    by the image border or an occluder) of the body's end face the camera sees, its depth (m), and
+    whether it is placed (False: cut by a nearer object beside it -- the car in front in a row of
+    parked cars -- with no inner edge found, so the box is laid out from the occluder's edge and the
+    lamps behind it are hidden: no lamps are proposed on it).
 
     Columns: the end face is a vertical plane across the vehicle, so it starts at the silhouette's
     nearer side (with depth: the side whose columns are nearer; without: the side away from the
@@ -221,6 +224,7 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     # Is the outer edge the vehicle's own? Not at the image border, nor beside a nearer object.
     outer_g = x0 - 1 if left_side else x0 + w
     cut = not 0 <= outer_g < W
+    at_border = cut
     if not cut and ctx.depth is not None and z is not None:
         beside = ctx.depth[y0 + r0:y0 + r1 + 1, outer_g]
         beside = beside[np.isfinite(beside)]
@@ -240,12 +244,16 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
         j = _step_column(ctx, y0, x0, m, r0, r1, lo, hi)
         if j is not None:
             inner = j if left_side else j + 1
+    found = inner
     if cut and inner is not None:
         outer = inner - face_w + 1 if left_side else inner + face_w - 1
     elif inner is None or not 0.6 * face_w <= abs(inner - outer) + 1 <= 1.3 * face_w:
         inner = outer + face_w - 1 if left_side else outer - face_w + 1
     c0, c1 = (outer, inner) if left_side else (inner, outer)
-    return r0, r1, c0, c1, z
+    # Cut by a nearer object beside it and no inner edge found: the face's place is a guess laid out
+    # from the occluder's edge, where the lamps are hidden (the car in front) -- say so.
+    placed = not (cut and not at_border and found is None)
+    return r0, r1, c0, c1, z, placed
 
 
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
@@ -448,7 +456,7 @@ def propose(ctx: Context) -> list[Group]:
         face = _end_face(ctx, cls, y0, x0, m)
         if face is None:
             continue
-        r0, r1, c0, c1, z = face
+        r0, r1, c0, c1, z, placed = face
         fh, fw = r1 - r0 + 1, c1 - c0 + 1
         if fh < 2 or fw < 3:
             continue
@@ -461,7 +469,7 @@ def propose(ctx: Context) -> list[Group]:
         conf = 0.75 if z is not None else 0.55
         if z is not None and fw * z / fy < 1.0:
             conf -= 0.3
-        lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z)
+        lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z) if placed else ([], 0)
         if z is not None:
             lamps = [b for b in lamps if not _on_side_face(ctx, y0, x0, b)]
         if distinct == len(lamps) == 2:
