@@ -15,7 +15,8 @@ placed at the far limit (``far``) and of those the ones with a visible ground co
 below them (``far|contact``, should be 0), the share of pixels the prior's confidence
 map puts below 0.5 and the AbsRel there and elsewhere, and the prior's time (best of
 ``--repeat``). ``--priors flat,default``: rows for
-``PopupParams(facades="flat", sidewalk_height=0)`` (the first prior) and the default.
+``PopupParams(facades="flat", sidewalk_height=0)`` (the first prior) and the default (``street_line``:
+the default without ``under_canopy``, the prior before the bus-shelter fix).
 The scenes are the exact ground truth and labels of ``make_street_scene`` without the
 render (the prior reads only labels and camera).
 """
@@ -43,7 +44,8 @@ def _row(name, seconds, depth, normals, scene):
 
 VARIANT_CLASSES = (("road", 7), ("sidewalk", 8), ("building", 11), ("vegetation", 21), ("car", 26))
 BEFORE = {"facades": "flat", "sidewalk_height": 0.0}
-PRIORS = {"flat": BEFORE, "segment": {"crowns": "segment"}, "columns": {"crowns": "columns"}, "default": {}}
+PRIORS = {"flat": BEFORE, "segment": {"crowns": "segment"}, "columns": {"crowns": "columns"},
+          "street_line": {"under_canopy": False}, "default": {}}
 ALL_VARIANTS = "default,receding,occluded_base,corner,clutter,hard,busy,canopy,square,shopfront,hard2"
 
 
@@ -94,13 +96,15 @@ def class_abs_rel(depth: np.ndarray, scene) -> dict[str, float]:
     return out
 
 
-def confidence_split(est, scene, threshold: float = 0.5) -> tuple[float, float, float]:
+def confidence_split(est, scene, threshold: float | None = None) -> tuple[float, float, float]:
     """Share of the pixels with ground truth whose confidence is below ``threshold``, and AbsRel below / at or above it.
 
     NaN when the estimate has no confidence map.
     """
+    from npsim_core.geometry import LOW_CONFIDENCE
     from npsim_core.metrics import depth_metrics
 
+    threshold = LOW_CONFIDENCE if threshold is None else threshold
     conf = est.confidence
     if conf is None:
         return float("nan"), float("nan"), float("nan")
@@ -163,7 +167,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--which", default=ALL_VARIANTS, help="street variants for --variants")
     ap.add_argument("--priors", default="flat,default",
                     help="prior settings for --variants: flat, segment (crowns as one segment), "
-                         "columns (crowns per column, no canopy slab), default")
+                         "columns (crowns per column, no canopy slab), street_line (no under_canopy: a "
+                         "footless facade under the crowns on its street line), default")
     args = ap.parse_args(argv)
     if args.variants:
         sizes = [tuple(int(x) for x in sz.lower().split("x")) for sz in args.sizes.split(",")]

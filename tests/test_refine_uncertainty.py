@@ -132,3 +132,64 @@ def test_fast_map_matches_brute_force_definition():
                 expect[y:y + l, x:x + l] = True
     np.testing.assert_array_equal(U, expect)
     assert 0.05 < U.mean() < 0.95
+
+
+# --------------------------------------------------------------------------- the input's confidence
+def test_low_confidence_boundary_is_uncertain_even_without_a_depth_step():
+    """A guessed placement (the pop-up prior's crown or facade at a depth its hidden contact allows)
+    may show no step against its neighbours where the scene has one: a region holding a pixel of
+    confidence below ``confidence_below`` counts as spread, so a foreground boundary there is in U.
+    The guessed area away from foreground boundaries is not (the semantic condition still holds)."""
+    d, lab = car_on_road()
+    d[:] = 12.0  # the car placed at the road's depth: no spread anywhere
+    assert not uncertain_map(d, lab).any()
+    conf = np.ones(d.shape, np.float32)
+    conf[8:22, 10:32] = 0.3  # the car and a rim: guessed
+    conf[30:, :] = 0.3       # guessed road far from any foreground
+    conf[0, 0] = np.nan      # (NaN: no confidence there)
+    U = uncertain_map(d, lab, confidence=conf)
+    ys, xs = np.nonzero(U)
+    assert (ys.min(), ys.max(), xs.min(), xs.max()) == (3, 26, 5, 36)  # the band around the car, as with a step
+    assert not U[30:].any()
+    # sure everywhere, the confidence off, or no confidence at all: the thesis's U
+    assert not uncertain_map(d, lab, confidence=np.ones(d.shape, np.float32)).any()
+    assert not uncertain_map(d, lab, UncertaintyParams(confidence_below=0.0), confidence=conf).any()
+    with pytest.raises(NpsimInputError, match="confidence_below"):
+        uncertain_map(d, lab, UncertaintyParams(confidence_below=1.5), confidence=conf)
+    with pytest.raises(NpsimInputError, match="confidence map has shape"):
+        uncertain_map(d, lab, confidence=conf[:-1])
+
+
+def test_the_chain_reads_the_priors_confidence_and_not_for_other_sources():
+    """The geometry stage carries the pop-up prior's confidence (NaN where the depth is invalid), says
+    the share of guessed pixels in the depth source sentence and the provenance (the manifest's), and
+    the uncertain stage reads it: U grows by the guessed foreground boundaries. A frame with its own
+    depth (files; stereo alike) has no confidence and keeps the thesis's U bit for bit (128x64: at
+    64x32 the thesis's U already covers three quarters of the frame)."""
+    from dataclasses import replace
+
+    from npsim_core.chain.chain import Chain
+    from npsim_core.chain.params import ChainParams
+    from npsim_core.synthetic import street_scene
+
+    street = street_scene(128, 64)
+
+    p = ChainParams()
+    prior = replace(p, depth=replace(p.depth, source="prior"))
+    off = replace(prior, uncertainty=replace(p.uncertainty, confidence_below=0.0))
+    ch = Chain(street)
+    geo = ch.engine.run(("geometry",), prior).results["geometry"]
+    assert geo.confidence is not None and geo.confidence.shape == street.labels.shape
+    assert np.array_equal(np.isfinite(geo.confidence), np.isfinite(geo.scene.depth))
+    share = float(np.mean(geo.confidence[np.isfinite(geo.confidence)] < 0.5))
+    assert 0.05 < share < 0.6
+    assert "guessed (confidence < 0.5)" in ch.compute(prior, until="uncertain").depth_source
+    assert geo.scene.provenance["confidence"]["low_share"] == pytest.approx(share, abs=1e-4)
+    U_on = ch.compute(prior, until="uncertain").uncertain
+    U_off = ch.compute(off, until="uncertain").uncertain
+    assert (U_on >= U_off).all() and U_on.sum() > U_off.sum()
+    files = Chain(street.with_(depth=geo.scene.depth, normals=geo.scene.normals))
+    fp = replace(p, depth=replace(p.depth, source="files"))
+    geo_f = files.engine.run(("geometry",), fp).results["geometry"]
+    assert geo_f.confidence is None and "confidence" not in geo_f.scene.provenance
+    assert np.array_equal(files.compute(fp, until="uncertain").uncertain, U_off)

@@ -40,10 +40,13 @@ __all__ = ["GeometryResult", "LightsResult", "lights_stage", "lights_needs", "Me
 @dataclass
 class GeometryResult:
     """The frame as the refinement reads it: intrinsics (or the FOV override), input depth and
-    normals. ``source`` says where the depth came from."""
+    normals. ``source`` says where the depth came from; ``confidence`` is the input depth's
+    per-pixel confidence when its source gives one (the pop-up prior; NaN where the depth is
+    invalid), read by the uncertain map (docs/geometry.md, "Confidence in the chain")."""
 
     scene: Scene
     source: str
+    confidence: np.ndarray | None = None
 
 
 @dataclass
@@ -104,8 +107,8 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     hfov = float(camera.hfov_deg or 0.0)
     intr = Intrinsics.from_fov(s.width, s.height, hfov) if hfov > 0 else s.intrinsics
     s = s.with_(intrinsics=intr, provenance=dict(s.provenance, hfov_override=hfov or None))
-    s, source = input_geometry(s, src)
-    from ..geometry import DepthLimits, limit_depth
+    s, source, conf = input_geometry(s, src, with_confidence=True)
+    from ..geometry import DepthLimits, confidence_summary, limit_depth
 
     near = min(float(src.near_limit), far_limit / 2)
     d, lim = limit_depth(s.depth, near, far_limit)  # every source, the pixels dropped counted
@@ -120,12 +123,24 @@ def geometry_stage(inputs: dict, params, ctx) -> GeometryResult:
     if lim.dropped:
         source += f"; {lim.sentence()}"
         s = s.with_(depth=d, provenance=dict(s.provenance, depth_limits=lim.to_json()))
-    return GeometryResult(s, source)
+    if conf is not None:  # (the manifest's provenance and the log say how much of the depth was guessed)
+        conf = np.where(np.isfinite(d), conf, np.float32(np.nan)).astype(np.float32)
+        summ = confidence_summary(conf)
+        source += f"; {summ['sentence']}"
+        s = s.with_(provenance=dict(s.provenance, confidence={k: v for k, v in summ.items() if k != "sentence"}))
+    return GeometryResult(s, source, conf)
 
 
-def input_geometry(s: Scene, src) -> tuple[Scene, str]:
+def input_geometry(s: Scene, src, *, with_confidence: bool = False):
     """``s`` with its input depth and normals from the source ``src`` (:class:`~.params.DepthSource`)
-    chose, and a sentence saying which (docs/method.md §2.2)."""
+    chose, and a sentence saying which (docs/method.md §2.2); with ``with_confidence`` also the
+    depth's per-pixel confidence (the pop-up prior's; None for files, stereo and networks)."""
+    out = _input_geometry(s, src)
+    return out if with_confidence else out[:2]
+
+
+def _input_geometry(s: Scene, src) -> tuple[Scene, str, np.ndarray | None]:
+    """:func:`input_geometry` with the confidence."""
     from ..geometry import estimate_geometry
 
     kind = src.source
@@ -138,8 +153,8 @@ def input_geometry(s: Scene, src) -> tuple[Scene, str]:
                                   "'npsim estimate', or choose --depth auto|stereo|prior|network")
         if s.normals is None:
             return s.with_(normals=normals_from_depth(s.depth, s.intrinsics)), "files: the frame's depth (normals " \
-                                                                               "from it)"
-        return s, "files: the frame's depth and normals"
+                                                                               "from it)", None
+        return s, "files: the frame's depth and normals", None
     if kind == "stereo":
         from ..geometry.stereo import StereoParams, without_holdout
 
@@ -157,15 +172,16 @@ def input_geometry(s: Scene, src) -> tuple[Scene, str]:
             out, fit = stereo_surfaces(s, out, src.stereo_max_m)
             note += (f"; surfaces fitted on {100 * fit['fitted_fraction']:.1f} % of pixels "
                      f"({fit['segments']} segments, {100 * fit['speckle_fraction']:.2f} % speckle dropped)")
-        return out, note
+        return out, note, None
     if kind == "network":
         from ..geometry.network import NetworkParams
 
         if not src.checkpoint:
             raise NpsimInputError("--depth network needs --checkpoint DIR (a local checkpoint folder)")
         return estimate_geometry(s, "network", NetworkParams(checkpoint=src.checkpoint)).apply(s), \
-            f"network: {src.checkpoint}"
-    return estimate_geometry(s, "popup").apply(s), "prior: semantic pop-up"
+            f"network: {src.checkpoint}", None
+    est = estimate_geometry(s, "popup")
+    return est.apply(s), "prior: semantic pop-up", est.confidence
 
 
 def stereo_surfaces(frame: Scene, est: Scene, max_depth: float) -> tuple[Scene, dict]:
@@ -196,7 +212,8 @@ def uncertain_stage(inputs: dict, params, ctx) -> np.ndarray:
     """Uncertain map U of the *filtered* depth (docs/method.md §3.2); (H, W) bool."""
     from ..refine.uncertainty import uncertain_map
 
-    return uncertain_map(inputs["filter"], inputs["geometry"].scene.labels, params)
+    geo: GeometryResult = inputs["geometry"]
+    return uncertain_map(inputs["filter"], geo.scene.labels, params, confidence=geo.confidence)
 
 
 def refine_stage(inputs: dict, params, ctx):
@@ -447,9 +464,9 @@ def guides_stage(inputs: dict, params, ctx):
 
 # --------------------------------------------------------------------------- the graph
 STAGES: tuple[Stage, ...] = (
-    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=4),
+    Stage("geometry", geometry_stage, ("frame",), lambda p: (p.camera, float(p.mesh.far_limit), p.depth), version=5),
     Stage("filter", filter_stage, ("geometry",), lambda p: p.filter),
-    Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty),
+    Stage("uncertain", uncertain_stage, ("geometry", "filter"), lambda p: p.uncertainty, version=2),
     Stage("refine", refine_stage, ("geometry", "filter", "uncertain"), lambda p: p.refine, version=2),
     Stage("lights", lights_stage, ("frame", "annotation", "geometry"), lambda p: p.lights, needs=lights_needs),
     Stage("mesh", mesh_stage, ("geometry", "lights", "uncertain", "filter", "refine"),

@@ -161,6 +161,25 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None,
     return GeometryEstimate(depth, normals, est.method, {**est.info, "depth_limits": lim.to_json()}, conf)
 
 
+#: Confidence below which a pixel of an estimate's confidence map counts as guessed: the pop-up
+#: prior's hidden feet, crowns over occluders, nearest fills and far-limit placements fall below it,
+#: its visible contacts and the ground above (docs/geometry.md, "Confidence"). The uncertain map's
+#: default (``UncertaintyParams.confidence_below``) and the manifest's share use it.
+LOW_CONFIDENCE = 0.5
+
+
+def confidence_summary(confidence: np.ndarray, threshold: float = LOW_CONFIDENCE) -> dict:
+    """Share of the pixels with a confidence (finite) below ``threshold``, their mean confidence, the
+    count, and a sentence for the log (e.g. "31.0 % of the depth's pixels guessed (confidence < 0.5)")."""
+    c = np.asarray(confidence)
+    ok = np.isfinite(c)
+    n = int(ok.sum())
+    low = float((c[ok] < threshold).mean()) if n else 0.0
+    return {"low_share": round(low, 4), "threshold": float(threshold),
+            "mean": round(float(c[ok].mean()), 4) if n else None, "pixels": n,
+            "sentence": f"{100 * low:.1f} % of the depth's pixels guessed (confidence < {threshold:g})"}
+
+
 def invalid_label_mask(labels: np.ndarray, invalid_ids: tuple[int, ...]) -> np.ndarray:
     """True where the label is one of ``invalid_ids`` (sky, ego vehicle, borders)."""
     lut = np.zeros(256, dtype=bool)
@@ -169,4 +188,4 @@ def invalid_label_mask(labels: np.ndarray, invalid_ids: tuple[int, ...]) -> np.n
 
 
 __all__ = ["GeometryEstimate", "estimate_geometry", "METHODS", "invalid_label_mask", "limit_depth", "DepthLimits",
-           "DEPTH_NEAR_M", "DEPTH_FAR_M"]
+           "DEPTH_NEAR_M", "DEPTH_FAR_M", "LOW_CONFIDENCE", "confidence_summary"]

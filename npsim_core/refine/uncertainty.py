@@ -13,6 +13,15 @@ smaller than l work). It is *uncertain* when
 A pixel is uncertain when any uncertain region contains it, i.e. U is the
 region-start mask dilated by an l x l box toward the bottom-right.
 
+Confidence (``confidence=``, the pop-up prior's per-pixel confidence,
+docs/geometry.md): a region holding a pixel whose confidence is below
+``confidence_below`` counts as spread in (1) whatever its depth says -- the prior
+puts a crown over a hidden trunk, or a facade behind parked cars, at a guessed
+depth that may show no step against its neighbours where the scene has one. The
+semantic condition (2) still applies, so only foreground boundaries among guessed
+pixels are added, not the guessed area itself. Sources without a confidence map
+(files, stereo, networks) pass ``None`` and get the thesis's U unchanged.
+
 The input depth is the *filtered* depth (thesis eq. 3.3 writes d(·), the
 output of the cross-bilateral filter eq. 3.2, not the raw prediction d̂).
 
@@ -43,6 +52,7 @@ import numpy as np
 
 from ..camera import valid_depth_mask
 from ..errors import NpsimInputError
+from ..geometry import LOW_CONFIDENCE
 from ..labels import cityscapes
 from ._inputs import as_depth, as_labels, check_positive
 
@@ -67,6 +77,11 @@ class UncertaintyParams:
         Relative variance threshold (dimensionless).
     foreground : frozenset of int
         labelIds of the foreground classes (default: Cityscapes' foreground set, docs/method.md §1.4).
+    confidence_below : float
+        A region holding a pixel of the input's confidence map below this counts as spread
+        (module doc); 0 = the confidence is ignored. Default ``LOW_CONFIDENCE`` (0.5): the pop-up prior's guessed
+        placements (hidden feet, crowns over occluders, nearest fills, the far limit) are below
+        it, its visible contacts and the ground above (docs/geometry.md, "Confidence").
     """
 
     l: int = 8
@@ -74,6 +89,7 @@ class UncertaintyParams:
     mu_v: float = 0.001
     tau: float = 1e-3
     foreground: frozenset = field(default_factory=_default_foreground)
+    confidence_below: float = LOW_CONFIDENCE
 
     def validate(self) -> None:
         if int(self.l) < 1:
@@ -82,6 +98,9 @@ class UncertaintyParams:
             raise NpsimInputError(f"UncertaintyParams.mode must be 'relative' or 'absolute', got {self.mode!r}")
         check_positive(self.mu_v, "UncertaintyParams.mu_v", allow_zero=True)
         check_positive(self.tau, "UncertaintyParams.tau", allow_zero=True)
+        if not 0 <= float(self.confidence_below) <= 1:
+            raise NpsimInputError(f"UncertaintyParams.confidence_below must be in [0, 1] (0 = off), "
+                                  f"got {self.confidence_below}")
 
 
 def _box_sum(x: np.ndarray, lh: int, lw: int) -> np.ndarray:
@@ -110,7 +129,7 @@ def region_variance(depth: np.ndarray, l: int) -> tuple[np.ndarray, np.ndarray, 
     return n, m + shift, var
 
 
-def uncertain_map(depth, labels, params: UncertaintyParams | None = None) -> np.ndarray:
+def uncertain_map(depth, labels, params: UncertaintyParams | None = None, confidence=None) -> np.ndarray:
     """Uncertain map U (HxW bool) from (filtered) depth and semantic labels.
 
     Parameters
@@ -120,6 +139,9 @@ def uncertain_map(depth, labels, params: UncertaintyParams | None = None) -> np.
     labels : (H, W) integer
         Cityscapes labelIds.
     params : UncertaintyParams
+    confidence : (H, W) real in [0, 1], optional
+        The input depth's confidence (NaN = none there): regions holding a pixel below
+        ``params.confidence_below`` count as spread (module doc). None = ignored.
 
     Returns
     -------
@@ -138,6 +160,14 @@ def uncertain_map(depth, labels, params: UncertaintyParams | None = None) -> np.
         spread = var > params.mu_v
     else:
         spread = _relative_spread(d, lh, lw, float(params.tau))
+    if confidence is not None and params.confidence_below > 0:
+        c = np.asarray(confidence)
+        if c.shape != d.shape:
+            raise NpsimInputError(f"confidence map has shape {c.shape}, depth {d.shape}; pass matching arrays")
+        with np.errstate(invalid="ignore"):
+            low = (c < float(params.confidence_below)).view(np.uint8)  # NaN: False
+        kernel1 = np.ones((lh, lw), np.uint8)
+        spread |= cv2.dilate(low, kernel1, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
     # Semantic change and foreground presence as max/min filters on uint8 (OpenCV morphology over the
     # window [p, p + l - 1], anchored at its upper-left; out-of-image pixels ignored via neutral borders).
     kernel = np.ones((lh, lw), np.uint8)
