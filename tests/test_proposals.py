@@ -491,16 +491,21 @@ def test_the_lights_street_signals_are_read_as_shown_and_lit_alone_at_night(seed
     from npsim_core.synthetic import street_scene
 
     scene = street_scene(256, 128, seed, "lights")
-    truth = set(scene.provenance["layout"]["traffic_light_states"].values())
+    layout = scene.provenance["layout"]
+    ped = layout["pedestrian_signals"]                                 # one pedestrian signal, its own state
+    truth = {v for g, v in layout["traffic_light_states"].items() if g not in ped}
     ann = propose_for_scene(scene).above(0.5)
     seen = ann.meta.get("traffic_light_states", {})
-    assert len(truth) == 1 and seen and set(seen.values()) == truth
+    direction = ann.meta.get("traffic_light_direction", {})
+    assert len(truth) == 1 and len(ped) == 1 and seen
+    assert {v for g, v in seen.items() if direction.get(g) != "pedestrian"} == truth
     act = activate_lights(ann, load_light_table(), 7, image=scene.image)
-    heads = [g for g in ann.groups.values() if g.class_id == 20]
-    assert heads
-    for g in heads:
+    heads = {gid: g for gid, g in ann.groups.items() if g.class_id == 20}
+    assert sorted(len(g.members) for g in heads.values()) == [2, 3, 3]
+    for gid, g in heads.items():
+        want = set(ped.values()) if direction.get(str(gid)) == "pedestrian" else truth
         lit = [ann.meta["lamp_colours"][str(m)] for m in g.members if act.lights[m].on]
-        assert lit == list(truth)
+        assert lit == list(want)
 
 
 def test_no_lamp_on_a_vehicle_side_that_recedes_from_the_camera():
@@ -596,3 +601,33 @@ def test_no_lamp_on_a_far_car_of_which_only_a_strip_beside_the_car_in_front_show
     depth[strip] = 30.0 + 0.25 * (np.arange(150, 155) - 150)
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     assert not any((ann.mask(i) & (inst == CAR * 1000 + 1)).any() for i in lamps)
+
+
+def test_a_pedestrian_signal_is_proposed_as_such():
+    """Beside a vehicle signal (0.4 x 1.0 m housing, 2.5 m up, three lamps) a pedestrian signal (0.32 x
+    0.68 m, two lamps, its green figure lit by day), both at 20 m: two lamps, red over green, its group
+    marked ``pedestrian`` (its own state) and its state read; the vehicle head keeps three lamps. The
+    old proposer gave it three lamps in the vehicles' direction."""
+    img, lab = _canvas()
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    depth = np.full(lab.shape, 60.0, np.float32)
+    row = lambda h: int(round(59.5 + (1.22 - h) * 25))  # noqa: E731  (20 m: 25 px per metre)
+    car = (slice(row(3.5), row(2.5)), slice(40, 50))                # vehicle head, 25 x 10 px
+    ped = (slice(row(2.78), row(2.1)), slice(140, 148))             # pedestrian head, 17 x 8 px
+    for hs in (car, ped):
+        lab[hs], img[hs], depth[hs] = TRAFFIC_LIGHT, (15, 15, 15), 20.0
+    for k, col in enumerate(((60, 10, 10), (60, 45, 5), (20, 60, 40))):
+        img[row(3.5) + 1 + 8 * k:row(3.5) + 7 + 8 * k, 42:48] = col
+    img[row(2.73):row(2.49), 141:147] = (60, 10, 10)                # red figure, dark
+    img[row(2.39):row(2.15), 141:147] = (40, 250, 150)              # green figure, lit
+    ann = propose_lights(img, lab, depth, intr, params=FLAT).above(0.5)
+    heads = {g: ann.groups[g].members for g in ann.groups if class_of(g) == 20}
+    assert sorted(len(m) for m in heads.values()) == [2, 3]
+    (gid,) = [g for g, m in heads.items() if len(m) == 2]
+    assert ann.meta["traffic_light_direction"] == {str(gid): "pedestrian"}
+    lamps = sorted(heads[gid], key=lambda i: np.nonzero(ann.mask(i))[0].mean())
+    assert [ann.meta["lamp_colours"][str(i)] for i in lamps] == ["red", "green"]
+    assert ann.meta["traffic_light_states"][str(gid)] == "green"
+    truth_green = np.zeros(lab.shape, bool)
+    truth_green[row(2.39):row(2.15), 141:147] = True
+    assert _iou(ann.mask(lamps[1]), truth_green) >= 0.5

@@ -94,6 +94,9 @@ class Group:
     confidence: float
     #: Signal heads: the lamp the day photo shows lit, saved as ``meta.traffic_light_states``.
     state: str | None = None
+    #: Signal heads: ``"pedestrian"`` for a pedestrian signal (its own state), saved as
+    #: ``meta.traffic_light_direction``; None: the vehicles' direction ("ahead").
+    direction: str | None = None
 
 
 @dataclass
@@ -201,6 +204,7 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
     colours: dict[str, str] = {}
     states: dict[str, str] = {}
     kinds: dict[str, str] = {}
+    directions: dict[str, str] = {}
 
     def new_id(cls: int) -> int | None:
         k = counters.get(cls, 0) + 1
@@ -245,8 +249,10 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
         conf[gid] = float(np.clip(it.confidence, 0.0, 1.0))
         if it.state:
             states[str(gid)] = it.state
-    meta = {k: v for k, v in (("lamp_colours", colours), ("traffic_light_states", states), ("light_kinds", kinds))
-            if v}
+        if it.direction:
+            directions[str(gid)] = it.direction
+    meta = {k: v for k, v in (("lamp_colours", colours), ("traffic_light_states", states), ("light_kinds", kinds),
+                              ("traffic_light_direction", directions)) if v}
     return LightProposals(LightAnnotation(m, groups, meta=meta), conf)
 
 

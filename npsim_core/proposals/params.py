@@ -32,6 +32,8 @@ class ProposalParams:
     #: A lamp cell whose brightest linear channel (mean) is this many times every other cell's is lit
     #: by day (the signal's state).
     tl_lit_ratio: float = 2.5
+    #: With depth, a vertical housing at most this tall (m) is a pedestrian signal (two lamps).
+    tl_pedestrian_max_h_m: float = 0.85
 
     # --- street lamps
     #: Smallest pole component (pixels) examined for a lamp head.

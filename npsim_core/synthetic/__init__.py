@@ -42,6 +42,9 @@ __all__ = ["make_street_scene", "street_scene", "PredictionErrors", "simulate_pr
 #: every third street light is a post-top lantern (street_light_LT).
 #: Version 7: Cityscapes instance ids (``Scene.instances``, ``<name>_instanceIds.png``).
 SCENE_VERSION = 7
+#: Revisions of one variant's content within a scene version (part of its cache key), so a change to
+#: one variant does not re-render every cached street. lights 2: a pedestrian signal (issue #26).
+VARIANT_REVISION = {"lights": 2}
 CAMERA_HEIGHT = 1.22
 CAMERA_PITCH = 0.038
 #: Exposure applied to the linear render before sRGB encoding.
@@ -212,7 +215,8 @@ def cache_dir() -> Path:
 def _cache_name(width: int, height: int, seed: int, variant: str) -> str:
     """Cache folder name without the version: the default street keeps its historical name."""
     tag = "" if variant == "default" else f"_{variant}"
-    return f"street_{width}x{height}_s{int(seed)}{tag}"
+    rev = VARIANT_REVISION.get(variant)
+    return f"street_{width}x{height}_s{int(seed)}{tag}{'' if rev is None else f'r{rev}'}"
 
 
 def _prune_old_versions(root: Path, width: int, height: int, seed: int, variant: str = "default") -> None:

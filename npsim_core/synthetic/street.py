@@ -300,8 +300,9 @@ def build_street(seed: int = 0, variant: str = "default") -> StreetLayout:
         _clutter(P, xr, facades, far_z, cross)
     busy = _busy(P, xr, far_z) if hard.busy else {}
     if hard.lights:
-        busy.update(_light_extras(P, xr, ids, groups, pole_zs, tl_z, tl_state))
-        busy["traffic_light_states"] = {str(g): tl_state for g, m in groups.items() if g // 1000 == TRAFFIC_LIGHT_GROUP}
+        busy.update(_light_extras(P, xr, ids, groups, pole_zs + [(1, sign_z)], tl_z, tl_state))
+        busy["traffic_light_states"] = {str(g): busy.get("pedestrian_signals", {}).get(str(g), tl_state)
+                                        for g, m in groups.items() if g // 1000 == TRAFFIC_LIGHT_GROUP}
         busy["light_kinds"] = {str(k): v for k, v in sorted(kinds.items())}
     if hard.shopfront:
         busy["shop_people"] = _shopfront(P, xr, facades, far_z, cross)
@@ -843,15 +844,25 @@ def _styled_facade(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups
 def _light_extras(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, pole_zs: list,
                   tl_z: float, tl_state: str) -> dict:
     """The lights variant's road users and signals: a car driving ahead in the ego lane (moving_rear
-    lamps toward the camera), an oncoming car in the left lane (moving_front), both with plates, and
-    a second signal on the left sidewalk showing the same state as the right one (one direction)."""
+    lamps toward the camera), an oncoming car in the left lane (moving_front), both with plates, a
+    second signal on the left sidewalk showing the same state as the right one (one direction), and a
+    pedestrian signal at the right kerb 7-9 m before or after the right one (its own direction: red
+    while the vehicles' signal is green or amber, green while it is red; placed without a random
+    draw, so the variant's other objects are unchanged)."""
     _car(P, rng, ids, groups, x_lo=-0.55, x_hi=1.65, z0=float(rng.uniform(11.0, 22.0)),
          length=float(rng.uniform(4.0, 4.6)), forward=True, plate=rng, lamp_classes=(MOVING_FRONT, MOVING_REAR))
     _car(P, rng, ids, groups, x_lo=-3.65, x_hi=-1.45, z0=float(rng.uniform(26.0, 40.0)),
          length=float(rng.uniform(4.0, 4.6)), forward=False, plate=rng, lamp_classes=(MOVING_FRONT, MOVING_REAR))
     z2 = _free_z(rng, pole_zs, -1, (24.0, 40.0))
     groups[ids.new(TRAFFIC_LIGHT_GROUP)] = _traffic_light(P, ids, LEFT_WALK_X[1] - 0.45, z2, state=tl_state)
-    return {"moving_cars": 2, "traffic_lights": 2, "traffic_light_state": tl_state}
+    zp = next((z for z in (tl_z - 9.0, tl_z - 7.0, tl_z + 9.0)  # apart from the signal in the image too
+               if all(abs(z - tz) > 1.5 for s_, tz in pole_zs if s_ == 1)), tl_z - 9.0)
+    ped_state = "green" if tl_state == "red" else "red"
+    ped = ids.new(TRAFFIC_LIGHT_GROUP)
+    groups[ped] = _pedestrian_signal(P, ids, RIGHT_WALK_X[0] + 0.3, zp, state=ped_state)
+    return {"moving_cars": 2, "traffic_lights": 3, "traffic_light_state": tl_state,
+            "pedestrian_signals": {str(ped): ped_state}}
+
 
 def _car(P: PrimitiveList, rng: np.random.Generator, ids: _Ids, groups: dict, *, x_lo: float, x_hi: float,
          z0: float, length: float, forward: bool, plate: np.random.Generator | None = None,
@@ -964,6 +975,21 @@ def _traffic_light(P: PrimitiveList, ids: _Ids, x: float, z: float, state: str |
     for yc, col in zip((3.33, 3.0, 2.67), cols):
         lid = ids.new(INFERRED)
         P.rect(2, z - 0.14, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid, -1)
+        members.append(lid)
+    return members
+
+
+def _pedestrian_signal(P: PrimitiveList, ids: _Ids, x: float, z: float, state: str) -> list[int]:
+    """Post + a pedestrian signal head facing the camera (-z): a 0.32 x 0.68 m housing 2.1 m up with a
+    red (top) and a green lamp (class 'inferred', 0.24 m squares, plain: no walking figure is drawn);
+    ``state``'s lamp is lit by day (:data:`SIGNAL_LIT`)."""
+    P.box((x - 0.05, KERB, z - 0.05), (x + 0.05, 2.1, z + 0.05), POLE, (0.25, 0.26, 0.27), "metal")
+    P.box((x - 0.16, 2.1, z - 0.1), (x + 0.16, 2.78, z + 0.1), TRAFFIC_LIGHT, (0.05, 0.05, 0.05), "metal")
+    members = []
+    for yc, name in ((2.61, "red"), (2.27, "green")):
+        lid = ids.new(INFERRED)
+        col = (SIGNAL_LIT if name == state else SIGNAL_DARK)[name]
+        P.rect(2, z - 0.1, (x - 0.12, yc - 0.12), (x + 0.12, yc + 0.12), TRAFFIC_LIGHT, col, "lamp", lid, -1)
         members.append(lid)
     return members
 
