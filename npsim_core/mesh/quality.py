@@ -71,7 +71,8 @@ EDGE_ON_AREA = 1e-3
 #: 0.6-0.9, 0.09-0.22 at 0.2-0.5 (docs/geometry.md, "Confidence in the chain").
 CONFIDENCE_SPREAD = 0.2
 
-__all__ = ["depth_error_bound", "CONFIDENCE_SPREAD", "edge_on_faces", "Raster", "rasterize", "project", "stretched_faces", "count_holes", "open_mask",
+__all__ = ["depth_error_bound", "CONFIDENCE_SPREAD",
+           "edge_on_faces", "Raster", "rasterize", "project", "stretched_faces", "count_holes", "open_mask",
            "reprojection_error", "normal_error", "MeshQuality", "mesh_quality"]
 
 
