@@ -2,6 +2,7 @@
 
     .venv/bin/python -m benchmarks.geometry [--size 512x256] [--seed 0] [--checkpoint DIR]
     .venv/bin/python -m benchmarks.geometry --variants [--sizes 512x256,2048x1024] [--seed 0]
+    .venv/bin/python -m benchmarks.geometry --chain [--size 512x256] [--seeds 0] [--which canopy,hard2]
 
 Rows: the semantic pop-up prior, a constant-depth baseline (median of the
 ground truth, fronto-parallel normals), the scene's simulated network
@@ -19,6 +20,8 @@ map puts below 0.5 and the AbsRel there and elsewhere, and the prior's time (bes
 the default without ``under_canopy``, the prior before the bus-shelter fix).
 The scenes are the exact ground truth and labels of ``make_street_scene`` without the
 render (the prior reads only labels and camera).
+
+``--chain``: :func:`chain_table`, what the prior's confidence changes through the chain.
 """
 
 from __future__ import annotations
@@ -154,6 +157,66 @@ def variants_table(sizes: list[tuple[int, int]], seeds: list[int], repeat: int, 
     return rows
 
 
+def chain_table(size: tuple[int, int], seeds: list[int], variants: list[str]) -> list[dict]:
+    """Print (and return) what wiring the prior's confidence into the chain changes, per variant and seed.
+
+    ``Chain.compute`` with ``depth.source=prior`` on the variant's exact labels (a label-colour image
+    for the filter), ``uncertainty.confidence_below`` 0 (off, "before") and the default (on, "after"):
+    the uncertain map's share of the pixels with ground truth, AbsRel of the input, of the refined depth
+    (``refine.keep_input`` on and off) and of the ray-cast mesh, the share of pixels below
+    ``LOW_CONFIDENCE``, and the share of pixels where the mesh is within 1 % of the true depth and within
+    its :func:`~npsim_core.mesh.quality.depth_error_bound` (docs/geometry.md, "Confidence in the chain").
+    """
+    from dataclasses import replace
+
+    from npsim_core.chain.chain import Chain
+    from npsim_core.chain.params import ChainParams
+    from npsim_core.geometry import LOW_CONFIDENCE
+    from npsim_core.mesh.quality import depth_error_bound, rasterize, reprojection_error
+    from npsim_core.metrics import depth_metrics
+
+    W, H = size
+    palette = np.random.default_rng(0).integers(30, 230, (256, 3)).astype(np.uint8)
+    print(f"the prior's confidence in the chain, {W}x{H}; load {os.getloadavg()[0]:.2f} (1-min average, "
+          f"{os.cpu_count()} cores)")
+    print("| variant | seed | U share | input AbsRel | refined | refined, keep_input off | mesh (ray-cast) "
+          "| low-conf share | mesh within 1 % / within bound of the truth |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for variant in variants:
+        for seed in seeds:
+            scene = variant_scene(W, H, seed, variant)
+            scene = scene.with_(image=palette[scene.labels])
+            valid = np.isfinite(scene.depth_gt)
+            r: dict = {}
+            for tag, below in (("before", 0.0), ("after", LOW_CONFIDENCE)):
+                for keep in (True, False):
+                    p = ChainParams()
+                    p = replace(p, depth=replace(p.depth, source="prior"),
+                                uncertainty=replace(p.uncertainty, confidence_below=below),
+                                refine=replace(p.refine, keep_input=keep))
+                    chain = Chain(scene)
+                    res = chain.compute(p, until="mesh" if keep else "refine")
+                    r[tag, keep] = depth_metrics(res.depth, scene.depth_gt).abs_rel
+                    if keep:
+                        ras = rasterize(res.mesh, res.intrinsics)
+                        conf = chain.engine.run(("geometry",), p).results["geometry"].confidence
+                        r[tag, "U"] = float(res.uncertain[valid].mean())
+                        r[tag, "mesh"] = depth_metrics(ras.depth, scene.depth_gt).abs_rel
+                        r["input"] = depth_metrics(res.depth_in, scene.depth_gt).abs_rel
+                        r["low"] = float(np.mean(conf[np.isfinite(conf)] < LOW_CONFIDENCE))
+                        r["within"] = (reprojection_error(ras, scene.depth_gt, scene.labels)["within_tol"],
+                                       reprojection_error(ras, scene.depth_gt, scene.labels,
+                                                          tol=depth_error_bound(conf))["within_tol"])
+            rows.append({"variant": variant, "seed": seed, **{str(k): v for k, v in r.items()}})
+            print(f"| {variant} | {seed} | {r['before', 'U']:.3f} -> {r['after', 'U']:.3f} | {r['input']:.4f} "
+                  f"| {r['before', True]:.4f} -> {r['after', True]:.4f} | {r['before', False]:.4f} -> "
+                  f"{r['after', False]:.4f} | {r['before', 'mesh']:.4f} -> {r['after', 'mesh']:.4f} | {r['low']:.2f} "
+                  f"| {r['within'][0]:.3f} / {r['within'][1]:.3f} |", flush=True)
+    print(f"load after: {os.getloadavg()[0]:.2f}")
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", default="512x256", help="WxH of the synthetic scene")
@@ -169,7 +232,14 @@ def main(argv: list[str] | None = None) -> int:
                     help="prior settings for --variants: flat, segment (crowns as one segment), "
                          "columns (crowns per column, no canopy slab), street_line (no under_canopy: a "
                          "footless facade under the crowns on its street line), default")
+    ap.add_argument("--chain", action="store_true",
+                    help="the prior's confidence in the chain (uncertain map, refinement, mesh) before/after, "
+                         "per variant at --size")
     args = ap.parse_args(argv)
+    if args.chain:
+        seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else [args.seed]
+        chain_table(tuple(int(x) for x in args.size.lower().split("x")), seeds, args.which.split(","))
+        return 0
     if args.variants:
         sizes = [tuple(int(x) for x in sz.lower().split("x")) for sz in args.sizes.split(",")]
         seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else [args.seed]
