@@ -631,3 +631,22 @@ def test_a_pedestrian_signal_is_proposed_as_such():
     truth_green = np.zeros(lab.shape, bool)
     truth_green[row(2.39):row(2.15), 141:147] = True
     assert _iou(ann.mask(lamps[1]), truth_green) >= 0.5
+
+
+def test_a_far_pole_whose_arm_the_labels_lost_gets_its_lamp_at_the_head_beside_its_top():
+    """An 8 m pole at 100 m (2 px per metre): the 0.12 m arm is under a pixel and not labelled, so the
+    head is a speck of pole 1.8 m beside the trunk's top. The lamp is that speck (the old proposer put
+    a low-confidence lamp on the bare trunk top and skipped the speck)."""
+    img, lab = _canvas(H=200, W=200)
+    lab[150:, :] = ROAD
+    depth = np.full((200, 200), 100.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
+    foot = int(round(99.5 + 1.22 * 2))
+    top = foot - 16
+    lab[top:foot, 60], img[top:foot, 60] = POLE, (80, 80, 85)          # the trunk, 1 px
+    lab[top + 1:top + 2, 63:66], img[top + 1:top + 2, 63:66] = POLE, (200, 200, 190)   # the head
+    props = propose_lights(img, lab, depth, intr, params=FLAT)
+    ann, lamps = _lights(props, (8, 9))
+    assert len(lamps) == 1 and class_of(lamps[0]) == 8
+    ys, xs = np.nonzero(ann.mask(lamps[0]))
+    assert (ys.min(), ys.max(), xs.min(), xs.max()) == (top + 1, top + 1, 63, 65)

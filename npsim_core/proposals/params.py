@@ -48,6 +48,11 @@ class ProposalParams:
     lamp_min_arm_m: float = 0.6
     #: A pole top at least this many times wider than the trunk is a lantern.
     lamp_lantern_min_widening: float = 1.6
+    #: A pole top without an arm takes a speck of pole (``lamp_speck_min_px`` pixels up to
+    #: ``pole_min_area_px``) at its top ``lamp_min_arm_m`` to this far (m) sideways as its head (far
+    #: away the arm is under a pixel and the labels lose it).
+    lamp_max_arm_m: float = 2.6
+    lamp_speck_min_px: int = 2
 
     # --- vehicles
     #: Smallest vehicle instance (pixels) that gets lamps and panes.

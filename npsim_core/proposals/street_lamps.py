@@ -19,6 +19,21 @@ def _pole_depth(ctx: Context, y0: int, x0: int, mask: np.ndarray) -> float | Non
     return float(np.percentile(d, 20)) if d.size else None
 
 
+def _speck_head(specks: list, taken: set[int], top: int, trunk: int, band: int, mpp: float, p) -> int | None:
+    """Index of the speck of pole (a component smaller than ``pole_min_area_px`` or under 4 px tall, at
+    least as wide as tall) that is the lamp head of the trunk whose top is at global row ``top``, column ``trunk``: its
+    rows within the head band (``band`` px below the top, a pixel above), its centre ``lamp_min_arm_m``
+    to ``lamp_max_arm_m`` sideways (``mpp`` metres per pixel at the trunk); the nearest such, else None."""
+    best, best_d = None, np.inf
+    for k, (sy, sx, m) in enumerate(specks):
+        if k in taken or sy + m.shape[0] - 1 < top - 1 or sy > top + band:
+            continue
+        d = abs(sx + (m.shape[1] - 1) / 2.0 - trunk) * mpp
+        if p.lamp_min_arm_m <= d <= p.lamp_max_arm_m and d < best_d:
+            best, best_d = k, d
+    return best
+
+
 def propose(ctx: Context) -> list[Light]:
     """One street_light_HT/LT per pole component carrying a head.
 
@@ -35,6 +50,11 @@ def propose(ctx: Context) -> list[Light]:
     p = ctx.params
     out: list[Light] = []
     fy = float(ctx.intrinsics.fy)
+    # Far away the arm is thinner than a pixel and the labels lose it: the head is a separate speck of
+    # pole beside the trunk's top (docs/proposals.md).
+    specks = [(y0, x0, m) for y0, x0, m, a in components(ctx.labels == POLE, p.lamp_speck_min_px)
+              if (a < p.pole_min_area_px or m.shape[0] < 4) and m.shape[1] >= m.shape[0]]
+    taken: set[int] = set()
     for y0, x0, mask, area in components(ctx.labels == POLE, p.pole_min_area_px):
         h, w = mask.shape
         if h < 4:
@@ -73,6 +93,12 @@ def propose(ctx: Context) -> list[Light]:
             below_arm = head & (np.arange(h)[:, None] >= top + arm_h)
             lamp = below_arm if below_arm.sum() >= max(1, head.sum() // 3) else head
             conf = 0.75
+        elif (k := _speck_head(specks, taken, y0 + top, x0 + trunk, band, mpp, p)) is not None:
+            sy, sx, lamp = specks[k]
+            taken.add(k)
+            out.append(Light(STREET_LIGHT_HT if high else STREET_LIGHT_LT, sy, sx, lamp,
+                             float(np.clip(0.75 - (0.15 if z is None else 0.0), 0, 1))))
+            continue
         else:
             # No arm: a lantern on a post top is wider than the post; a bare pole top is not.
             rows = in_band.sum(1)
