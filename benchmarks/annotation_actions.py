@@ -39,6 +39,11 @@ import numpy as np
 
 MATCH_IOU = 0.5
 TOUCH_UP_IOU = 0.7
+#: What the actions are spent on: light classes and group classes -> the category printed in the breakdown.
+CATEGORY_OF_CLASS = {1: "windows", 13: "windows", 2: "vehicles", 3: "vehicles", 4: "vehicles", 5: "vehicles",
+                     6: "vehicles", 7: "vehicles", 14: "vehicles", 15: "vehicles", 16: "vehicles", 17: "vehicles",
+                     18: "vehicles", 19: "vehicles", 8: "street lamps", 9: "street lamps", 12: "signals",
+                     20: "signals", 10: "other", 11: "other", 21: "other"}
 
 
 def match_lights(gt, ann) -> dict[int, tuple[int, float]]:
@@ -61,11 +66,21 @@ def match_lights(gt, ann) -> dict[int, tuple[int, float]]:
     return out
 
 
-def finish_by_hand(session, gt, counts: dict[str, int]) -> None:
+def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None
+                   ) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
-    actions of the module doc into ``counts``."""
+    actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
+    group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
+
+    if by_category is None:
+        by_category = {}
+
+    def count(kind: str, n: int, cls: int) -> None:
+        counts[kind] += n
+        key = (kind, CATEGORY_OF_CLASS.get(cls, "other"))
+        by_category[key] = by_category.get(key, 0) + n
 
     def do(cmd):
         if isinstance(cmd, tuple):
@@ -76,15 +91,15 @@ def finish_by_hand(session, gt, counts: dict[str, int]) -> None:
     matched_p = {b for b, _ in match.values()}
     for pid in [i for i in session.ann.instance_ids() if i not in matched_p]:
         do(delete_instance(session.ann, pid))
-        counts["remove"] += 2
+        count("remove", 2, class_of(pid))
     for g, (p, iou) in list(match.items()):
         if class_of(p) != class_of(g):
             cmd, nid = change_class(session.ann, p, class_of(g))
             do(cmd)
             match[g] = (nid, iou)
-            counts["class fix"] += 3
+            count("class fix", 3, class_of(g))
         if iou < TOUCH_UP_IOU:
-            counts["touch up"] += 1
+            count("touch up", 1, class_of(g))
     drawn_classes = set()
     for g in gt.instance_ids():
         if g in match:
@@ -93,9 +108,10 @@ def finish_by_hand(session, gt, counts: dict[str, int]) -> None:
         do(cmd)
         do(paint(session.ann, gt.instance_map == g, nid, overwrite=True))
         match[g] = (nid, 1.0)
-        counts["draw"] += 1
+        count("draw", 1, class_of(g))
         drawn_classes.add(class_of(g))
-    counts["class keys"] += len(drawn_classes)
+    for c in drawn_classes:
+        count("class keys", 1, c)
     wanted = {frozenset(match[m][0] for m in grp.members): grp.class_id for grp in gt.groups.values()}
     have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
     for members, cls in wanted.items():
@@ -103,15 +119,15 @@ def finish_by_hand(session, gt, counts: dict[str, int]) -> None:
         if best == (members, cls):
             continue  # an accepted proposal group is this ground-truth group already
         if best[0] and best[0] <= members:  # a part of it: click the group, Shift+click the rest, Ctrl+G
-            counts["group"] += 2 + len(members - best[0]) + (3 if best[1] != cls else 0)
+            count("group", 2 + len(members - best[0]) + (3 if best[1] != cls else 0), cls)
         else:
             first = min(members)
-            counts["group"] += len(members) + 1 + (DEFAULT_GROUP_FOR_LIGHT.get(class_of(first)) != cls)
+            count("group", len(members) + 1 + (DEFAULT_GROUP_FOR_LIGHT.get(class_of(first)) != cls), cls)
         do(group_lights(session.ann, members, cls))
     for gid, grp in list(session.ann.groups.items()):  # proposal groups left over
         if wanted.get(frozenset(grp.members)) != grp.class_id:
             do(ungroup(session.ann, gid))
-            counts["ungroup"] += 2
+            count("ungroup", 2, grp.class_id)
 
 
 def check_equal(gt, ann) -> None:
@@ -158,19 +174,20 @@ def main(argv: list[str] | None = None) -> int:
                 s = EditorSession()
                 s.load(scene.image, scene.labels, None)
                 counts = dict.fromkeys(kinds, 0)
+                by_cat: dict[tuple[str, str], int] = {}
                 if t is not None:
                     book = ProposalBook(props)
                     book.accept_above(s, t)
                     counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
-                finish_by_hand(s, gt, counts)
+                finish_by_hand(s, gt, counts, by_cat)
                 check_equal(gt, s.ann)
                 s.shutdown()
-                rows.append((variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop))
+                rows.append((variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat))
     load = os.getloadavg()[0]
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
-    for variant, seed, t, c, n, ng, _ in rows:
+    for variant, seed, t, c, n, ng, *_ in rows:
         print(f"| {variant} | {seed} | {n} | {ng} | {'no proposals' if t is None else f'{t:.2f}'} | "
               + " | ".join(str(c[k]) for k in kinds) + f" | {sum(c.values())} |")
     print("\n| variant | without proposals (mean actions) | " +
@@ -181,6 +198,19 @@ def main(argv: list[str] | None = None) -> int:
                for t in [None] + thresholds}
         print(f"| {variant} | {tot[None]:.1f} | " + " | ".join(
             f"{tot[t]:.1f} ({100 * (1 - tot[t] / tot[None]):.0f} % fewer)" for t in thresholds) + " |")
+    # What the actions are spent on: mean per frame, per kind of action and category of light or group.
+    cats = ("windows", "vehicles", "street lamps", "signals", "other")
+    spent = ("draw", "group", "remove", "touch up", "class fix", "ungroup")
+    print("\nWhat the actions are spent on (mean per frame, each cell windows / vehicles / street lamps / "
+          "signals / other; draw = missed lights, group = grouping and completing groups, remove = false "
+          "lights, ungroup = proposed groups not kept):\n")
+    print("| variant | accepted ≥ | " + " | ".join(spent) + " |")
+    print("|---|---|" + "---|" * len(spent))
+    for variant in dict.fromkeys(r[0] for r in rows):
+        for t in [None] + thresholds:
+            sel = [r[7] for r in rows if r[0] == variant and r[2] == t]
+            print(f"| {variant} | {'none' if t is None else f'{t:.2f}'} | " + " | ".join(
+                " / ".join(f"{np.mean([b.get((k, c), 0) for b in sel]):.0f}" for c in cats) for k in spent) + " |")
     return 0
 
 
