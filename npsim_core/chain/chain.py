@@ -272,7 +272,7 @@ class Chain:
         from ..render.camera_post import CameraParams, apply_camera
         from ..render.denoise import denoise_night
 
-        from ..render.camera_post import auto_exposure
+        from ..render.camera_post import auto_exposure, auto_white_balance
         from ..render.ego import composite_ego, ego_mask
 
         n = params.night
@@ -285,19 +285,21 @@ class Chain:
         frame = self.scene
         clean, ego = composite_ego(clean, frame.image, frame.labels, lights)
         ev, meter = n.exposure, {}
+        lab_r = _resize_nearest(frame.labels, clean.shape[:2])
+        excl_r = _resize_nearest(lights, clean.shape[:2]) | _resize_nearest(ego_mask(frame.labels), clean.shape[:2])
         if n.exposure_mode == "auto":
-            ev, meter = auto_exposure(clean, _resize_nearest(frame.labels, clean.shape[:2]),
-                                      _resize_nearest(lights, clean.shape[:2]) | _resize_nearest(
-                                          ego_mask(frame.labels), clean.shape[:2]),
-                                      target=n.exposure_target, bounds=(n.exposure_min, n.exposure_max),
-                                      compensation=n.exposure)
+            ev, meter = auto_exposure(clean, lab_r, excl_r, target=n.exposure_target,
+                                      bounds=(n.exposure_min, n.exposure_max), compensation=n.exposure)
+        # The camera's white balance reads the same lit pixels as its meter (docs/relight.md).
+        wb, wb_info = auto_white_balance(clean, lab_r, excl_r, degree=float(n.white_balance))
         cam = CameraParams(exposure_ev=ev, iso=(n.iso or None) if n.noise else None, seed=n.seed,
-                           motion_blur_px=int(n.motion_blur_px), bloom=float(n.bloom))
+                           motion_blur_px=int(n.motion_blur_px), bloom=float(n.bloom), white_balance=wb,
+                           tone_contrast=float(n.tone_contrast))
         same = labels is not None and labels.shape == clean.shape[:2]
         srgb, _ = apply_camera(clean, cam, labels=labels if same else None,
                                light_classes=materials.light_classes if same else None)
         if info is not None:
-            info.update(exposure_mode=n.exposure_mode, exposure_ev=float(ev), **meter, **ego)
+            info.update(exposure_mode=n.exposure_mode, exposure_ev=float(ev), **meter, **ego, **wb_info)
         return srgb, {"denoise": t1 - t0, "camera": time.perf_counter() - t1}
 
     def night_preview(self, results: ChainResults | None, params: ChainParams, *,

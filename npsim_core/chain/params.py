@@ -154,6 +154,13 @@ class NightParams:
     exposure : stops; in ``auto`` mode an exposure compensation added to the metered value.
     exposure_target : linear level (1 = sensor white) the metered value is brought to.
     exposure_min, exposure_max : the automatic exposure's range, stops.
+    white_balance : the camera's automatic white balance, the part of the way (in log gain) from
+        the render's own white toward neutralising the lit pixels' mean colour (0 = off, 1 = full
+        grey world; :func:`~npsim_core.render.camera_post.auto_white_balance`). 0.25: a camera
+        under warm night light corrects it only partly (docs/relight.md "The camera of real
+        night photos").
+    tone_contrast : the camera's global tone curve, log-luminance slope around its mid-grey
+        (1 = a linear sensor with the sRGB curve; :func:`~npsim_core.render.camera_post.tone_contrast`).
     ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
     denoise : remove the Monte Carlo noise before the camera noise (the on/off switch).
@@ -180,9 +187,11 @@ class NightParams:
     iso: int = 1600
     exposure: float = 0.0
     exposure_mode: str = "auto"
-    exposure_target: float = 0.025
+    exposure_target: float = 0.029
     exposure_min: float = -3.0
     exposure_max: float = 4.0
+    white_balance: float = 0.25
+    tone_contrast: float = 0.9
     ego_headlights: bool = True
     group_all_together: bool = False
     noise: bool = True
@@ -221,6 +230,11 @@ class NightParams:
                                   f"{self.exposure_min}, {self.exposure_max}")
         if not (math.isfinite(float(self.exposure_target)) and float(self.exposure_target) > 0):
             raise NpsimInputError(f"night.exposure_target must be a positive linear level, got {self.exposure_target}")
+        if not 0.0 <= float(self.white_balance) <= 1.0:
+            raise NpsimInputError(f"night.white_balance must be in [0, 1] (0 = off, 1 = full grey world), got "
+                                  f"{self.white_balance}")
+        if not 0.3 <= float(self.tone_contrast) <= 1.5:
+            raise NpsimInputError(f"night.tone_contrast must be in [0.3, 1.5] (1 = off), got {self.tone_contrast}")
         if self.denoiser is None:  # ``--set night.denoiser=none`` parses as JSON null
             object.__setattr__(self, "denoiser", "none")
         if self.denoiser not in DENOISERS:

@@ -5,8 +5,9 @@ light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
 render -> optional horizontal motion blur of moving vehicles -> optional glare (bloom)
 around what exceeds sensor white -> heteroscedastic Gaussian noise
 ``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in linear units where
-1.0 = sensor white) -> white balance (per-channel gains) -> highlight shoulder (the
-camera's tone curve: linear below ``highlight_knee``, rolling off smoothly to white,
+1.0 = sensor white) -> white balance (per-channel gains; :func:`auto_white_balance` gives a camera's automatic ones) ->
+tone contrast (the camera's global tone curve around its mid-grey, :func:`tone_contrast`) ->
+highlight shoulder (linear below ``highlight_knee``, rolling off smoothly to white,
 :func:`highlight_shoulder`) -> clip to [0, 1] -> sRGB encoding -> 8-bit quantisation
 (round half up). Labels
 are never touched: the label map of a night is the day's, copied unchanged.
@@ -64,6 +65,13 @@ class CameraParams:
     bloom_threshold : linear level above which light glares.
     bloom_radius : σ of the PSF's core as a fraction of the image width (the wider lobes are
         3x and 9x it), so a preview at a smaller scale shows the same halo.
+    tone_contrast : slope of the camera's global tone curve in log luminance around
+        ``tone_pivot`` (:func:`tone_contrast`; 1 = the plain sRGB camera, the default here). The
+        chain's nights use ``night.tone_contrast`` (0.9): real night photos hold a narrower range
+        between their median and their highlights than a linear sensor with an sRGB curve gives
+        (docs/relight.md "The camera of real night photos").
+    tone_pivot : linear level (1.0 = sensor white) the tone curve leaves unchanged (the camera's
+        mid-grey; the automatic exposure brings the metered scene near it).
     highlight_knee : linear level (1.0 = sensor white) above which the tone curve rolls off to
         white (:func:`highlight_shoulder`; 1.0 = a hard clip, the camera before the shoulder).
         A camera's JPEG tone curve compresses highlights instead of clipping them: real night
@@ -85,8 +93,13 @@ class CameraParams:
     bloom_threshold: float = 1.0
     bloom_radius: float = 0.002
     highlight_knee: float = 0.5
+    tone_contrast: float = 1.0
+    tone_pivot: float = 0.025
 
     def __post_init__(self) -> None:
+        if not (0.3 <= float(self.tone_contrast) <= 1.5 and float(self.tone_pivot) > 0):
+            raise NpsimInputError(f"tone_contrast must be in [0.3, 1.5] (1 = off) and tone_pivot > 0, got "
+                                  f"{self.tone_contrast}, {self.tone_pivot}")
         if not 0.0 < float(self.highlight_knee) <= 1.0:
             raise NpsimInputError(f"highlight_knee must be in (0, 1] (1 = hard clip), got {self.highlight_knee}")
         if not 0.0 <= float(self.bloom) <= 1.0:
@@ -124,6 +137,26 @@ def highlight_shoulder(x: np.ndarray, knee: float = 0.5) -> np.ndarray:
         return x
     t = np.clip((x - k) / (3.0 * (1.0 - k)), 0.0, 1.0)
     return np.where(x > k, k + (1.0 - k) * (1.0 - (1.0 - t) ** 3), x).astype(np.float32)
+
+
+def tone_contrast(x: np.ndarray, contrast: float = 1.0, pivot: float = 0.025) -> np.ndarray:
+    """A camera's global tone curve on linear RGB: luminance ``Y -> pivot·(Y/pivot)^contrast``,
+    colour ratios kept (each pixel's RGB scaled by the same factor, so hues do not shift).
+
+    ``contrast`` < 1 lifts what is darker than ``pivot`` and compresses what is brighter -- the
+    range between a night's median and its lit highlights narrows, as in the JPEGs of real night
+    cameras (their tone curves and shadow lifting; docs/relight.md "The camera of real night
+    photos"). 1 returns the input. Pixels with luminance <= 0 (read noise) are left as they are.
+    """
+    x = np.asarray(x, dtype=np.float32)
+    c = float(contrast)
+    if c == 1.0:
+        return x
+    y = x @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    pos = y > 1e-12
+    ratio = np.ones_like(y)
+    ratio[pos] = np.power(y[pos] / np.float32(pivot), np.float32(c - 1.0))
+    return (x * ratio[..., None]).astype(np.float32)
 
 
 def add_noise(linear: np.ndarray, beta1: float, beta2: float, rng: np.random.Generator) -> np.ndarray:
@@ -227,18 +260,15 @@ def auto_exposure(linear: np.ndarray, labels: np.ndarray, exclude: np.ndarray | 
     lin = np.asarray(linear, dtype=np.float32)
     if lin.ndim != 3 or lin.shape[2] != 3:
         raise NpsimInputError(f"auto_exposure: linear image must be HxWx3, got {lin.shape}")
-    lab = np.asarray(labels)
-    if lab.shape != lin.shape[:2] or (exclude is not None and np.shape(exclude) != lin.shape[:2]):
-        raise NpsimInputError(f"auto_exposure: labels {lab.shape} and exclude {np.shape(exclude)} must match the "
-                              f"render {lin.shape[:2]}")
     lo, hi = (float(b) for b in bounds)
     if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi) or not float(target) > 0:
         raise NpsimInputError(f"auto_exposure: bounds must be finite with min <= max and target > 0, got "
                               f"{bounds}, {target}")
+    try:
+        lit = _lit_pixels(lin, labels, exclude, sky_id)
+    except NpsimInputError as e:
+        raise NpsimInputError(f"auto_exposure: {e}") from None
     lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-    lit = (lab != sky_id) & np.isfinite(lum) & (lum > LIT_FLOOR)
-    if exclude is not None:
-        lit &= ~np.asarray(exclude, bool)
     frac = float(lit.mean())
     if frac < 1e-3:
         return float(compensation), {"meter": float("nan"), "metered_fraction": frac, "exposure_auto_ev": 0.0}
@@ -247,9 +277,60 @@ def auto_exposure(linear: np.ndarray, labels: np.ndarray, exclude: np.ndarray | 
     return auto + float(compensation), {"meter": meter, "metered_fraction": frac, "exposure_auto_ev": auto}
 
 
+#: Bounds of the automatic white balance's per-channel gains (a camera's AWB range).
+AWB_GAIN_BOUNDS = (0.5, 2.0)
+
+
+def auto_white_balance(linear: np.ndarray, labels: np.ndarray, exclude: np.ndarray | None = None, *,
+                       degree: float = 0.3, sky_id: int = 23) -> tuple[tuple[float, float, float], dict]:
+    """A camera's automatic white balance for a linear night render: (R, G, B gains, info).
+
+    The illuminant is estimated as the mean colour of the *lit* scene pixels (grey world over the
+    pixels :func:`auto_exposure` meters: not sky, not ``exclude``, luminance above
+    :data:`LIT_FLOOR`). A full correction would make that mean grey; a camera under warm night
+    light corrects only part of the way, so sodium, halogen and tungsten light stays warm in its
+    photos (AWB algorithms keep the "atmosphere" of low colour temperatures, and real night
+    photos' lit pixels are warm: R/B 1.61 on ACDC, SPEC §10). ``degree`` is that part, in
+    log-gain (0 = the render's own D65 white, 1 = full grey world); gains are relative to green
+    and bounded by :data:`AWB_GAIN_BOUNDS`. Fewer than 0.1 % lit pixels: no correction.
+    Deterministic: same render, same gains.
+
+    Returns ``((gR, gG, gB), {"awb_illuminant": (r/g, 1, b/g) of the lit mean, "awb_gains": ...})``.
+    """
+    lin = np.asarray(linear, dtype=np.float32)
+    if lin.ndim != 3 or lin.shape[2] != 3:
+        raise NpsimInputError(f"auto_white_balance: linear image must be HxWx3, got {lin.shape}")
+    if not 0.0 <= float(degree) <= 1.0:
+        raise NpsimInputError(f"auto_white_balance: degree must be in [0, 1] (0 = off), got {degree}")
+    lit = _lit_pixels(lin, labels, exclude, sky_id)
+    if float(degree) == 0.0 or lit.mean() < 1e-3:
+        return (1.0, 1.0, 1.0), {}
+    m = lin[lit].astype(np.float64).mean(0)
+    if not (m > 0).all():
+        return (1.0, 1.0, 1.0), {}
+    g = np.clip((m[1] / m) ** float(degree), *AWB_GAIN_BOUNDS)
+    gains = (float(g[0]), 1.0, float(g[2]))
+    return gains, {"awb_illuminant": [round(float(v), 4) for v in m / m[1]],
+                   "awb_gains": [round(v, 4) for v in gains]}
+
+
+def _lit_pixels(lin: np.ndarray, labels: np.ndarray, exclude: np.ndarray | None, sky_id: int) -> np.ndarray:
+    """The scene pixels a camera's meters read: not sky, not ``exclude``, luminance > :data:`LIT_FLOOR`."""
+    lab = np.asarray(labels)
+    if lab.shape != lin.shape[:2] or (exclude is not None and np.shape(exclude) != lin.shape[:2]):
+        raise NpsimInputError(f"labels {lab.shape} and exclude {np.shape(exclude)} must match the render "
+                              f"{lin.shape[:2]}")
+    lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lit = (lab != sky_id) & np.isfinite(lum) & (lum > LIT_FLOOR)
+    if exclude is not None:
+        lit &= ~np.asarray(exclude, bool)
+    return lit
+
+
 def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, labels: np.ndarray | None = None,
                  light_classes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Linear render -> (8-bit sRGB image, noisy white-balanced linear image before clipping).
+    """Linear render -> (8-bit sRGB image, the noisy white-balanced, tone-mapped linear image before the
+    shoulder and clipping).
 
     Parameters
     ----------
@@ -275,5 +356,6 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     if wb.size != 3 or not (wb > 0).all():
         raise NpsimInputError(f"white_balance must be three positive gains, got {params.white_balance}")
     x = x * wb
+    x = tone_contrast(x, float(params.tone_contrast), float(params.tone_pivot))
     out = np.floor(linear_to_srgb(highlight_shoulder(x, params.highlight_knee)) * 255.0 + 0.5).astype(np.uint8)
     return out, x
