@@ -327,3 +327,38 @@ def test_the_night_sky_glows_warm_not_blue():
 
     r, g, b = load_light_table().sky_radiance
     assert r > g > b
+
+
+def test_a_delit_facade_in_the_shade_keeps_its_colour_not_the_sky_blue():
+    """A façade in the shade is lit by the blue sky alone; divided by a grey shading its de-lit
+    albedo kept that blue (the fixture's de-lit façades came out grey-blue and pale: chroma error
+    0.21 against the true albedo, 0.05 now). The shading is coloured by the sky seen in the photo
+    and the sun found from lit against shadowed ground (``day_light_colours``)."""
+    from npsim_core.camera import Intrinsics
+    from npsim_core.render.lights import srgb_to_linear
+    from npsim_core.render.materials import DayLight, delit_albedo
+
+    H, W = 64, 128
+    sky_c = np.array([0.75, 1.0, 1.4], np.float32)
+    sun_c = np.array([1.1, 1.0, 0.85], np.float32)
+    wall, asphalt = np.array([0.5, 0.4, 0.28], np.float32), np.array([0.12, 0.12, 0.12], np.float32)
+    labels = np.full((H, W), 7, np.uint8)
+    labels[:12], labels[12:34] = 23, 11
+    normals = np.zeros((H, W, 3), np.float32)
+    normals[:34] = (0.0, 0.0, -1.0)
+    normals[34:] = (0.0, -1.0, 0.0)
+    depth = np.full((H, W), 12.0, np.float32)
+    depth[:12] = np.nan
+    lin = np.zeros((H, W, 3), np.float32)
+    lin[:12] = 0.3 * sky_c
+    lin[12:34] = 0.1 * wall * sky_c                                  # façade facing away from the sun
+    lin[34:] = 0.1 * asphalt * sky_c                                 # road: shade on the left,
+    lin[34:, W // 2:] += 0.25 * asphalt * sun_c                       # sun on the right
+    image = np.round(np.clip(np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055), 0, 1)
+                     * 255).astype(np.uint8)
+    assert np.allclose(srgb_to_linear(image[20, 20] / 255.0), lin[20, 20], rtol=0.05)
+    light = DayLight(sun=(0.0, -0.8, 0.6), ratio=2.5, score=0.5, shadow_fraction=0.5)
+    alb, _ = delit_albedo(image, labels, normals, depth, Intrinsics.cityscapes(W, H), 0.0, light=light)
+    a = np.median(alb[16:30, 10:W - 10].reshape(-1, 3), axis=0)
+    assert a[0] / a[1] == pytest.approx(wall[0] / wall[1], rel=0.08)
+    assert a[2] / a[1] == pytest.approx(wall[2] / wall[1], rel=0.08)

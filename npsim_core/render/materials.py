@@ -339,6 +339,48 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
     return DayLight(tuple(float(v) for v in s), float(np.clip(k, 0.5, 10.0)), 1.0 - iou, shadow)
 
 
+def day_light_colours(image: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sun, sky) colours of a day photo's light, linear RGB each scaled to luminance 1.
+
+    The day's light is not white: surfaces in shadow are lit by the blue sky alone, sunlit ones by
+    the sun plus the sky. Dividing the photo by a grey shading left that blue in the albedo, so
+    de-lit façades came out grey-blue and pale (docs/relight.md "De-lit textures"). Sky: the median
+    colour of the photo's sky pixels (labelId 23; not clipped ones). Sun: on the ground (road,
+    sidewalk, parking, each label by itself: one albedo), lit over shadowed pixels per channel is
+    ``(sun + sky)/sky``, so ``sun ∝ (lit/shadow − 1)·sky`` (shadowed: below 0.55x the label's 75th
+    percentile of luminance, as :func:`estimate_daylight`; lit: above its 60th). Grey where the
+    photo shows too little sky (< 50 pixels) or ground shadow (< 50 pixels each).
+    """
+    w = np.array([0.2126, 0.7152, 0.0722])
+    grey = np.ones(3)
+    lin = srgb_to_linear(np.asarray(image, np.float32) / 255.0).astype(np.float64)
+    sky_px = lin[(labels == 23) & (np.asarray(image).max(-1) < 250)]
+    if len(sky_px) < 50:
+        return grey, grey
+    sky = np.median(sky_px, axis=0)
+    if not (sky > 1e-4).all():
+        return grey, sky
+    sky = sky / (sky @ w)
+    y = lin @ w
+    num, den = np.zeros(3), 0.0
+    for c in (7, 8, 9):
+        m = labels == c
+        if m.sum() < 200:
+            continue
+        yc = y[m]
+        dark, lit = yc < 0.55 * np.percentile(yc, 75), yc > np.percentile(yc, 60)
+        if dark.sum() < 50 or lit.sum() < 50:
+            continue
+        ratio = np.median(lin[m][lit], axis=0) / np.maximum(np.median(lin[m][dark], axis=0), 1e-6)
+        sun_c = np.maximum(ratio - 1.0, 0.0) * sky
+        if sun_c @ w <= 1e-6:
+            continue
+        num += m.sum() * sun_c / (sun_c @ w)
+        den += m.sum()
+    sun = num / den if den > 0 else grey
+    return sun / (sun @ w), sky
+
+
 def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, depth: np.ndarray, intrinsics,
                  pitch: float = 0.038, params: MaterialParams = MaterialParams(), light: DayLight | None = None,
                  instances: np.ndarray | None = None) -> tuple[np.ndarray, DayLight]:
@@ -348,7 +390,9 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
        shadows on the ground).
     2. Cast shadows: the sun's visibility of every pixel from the depth map
        (:func:`sun_visibility`, at 512 px wide, softened over 3x3 for penumbra and antialiasing).
-    3. ``albedo = photo / shading`` per pixel (chroma kept), then one global scale so that the
+    3. ``albedo = photo / shading`` per pixel, the shading coloured by the day's sun and sky
+       (:func:`day_light_colours`: the sun's part of it in the sun's colour, the rest in the
+       sky's, so shadowed façades do not keep the sky's blue), then one global scale so that the
        frame's pixels match the per-class albedo priors in the median (a single photo does not
        give the absolute level; relative albedos between and within classes come from the photo).
     4. Clamped where the estimate is unreliable: only façades, walls, fences and the ground
@@ -393,7 +437,13 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
         vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, np.asarray(depth, np.float64), intrinsics, above=above)
     vis = cv2.blur(vis.reshape(small.shape), (3, 3))
     vis = cv2.resize(vis, (W, H), interpolation=cv2.INTER_LINEAR) if f > 1 else vis
-    shading = _shading(n, s, light.ratio, up, vis[:H, :W])
+    vis = vis[:H, :W]
+    shading = _shading(n, s, light.ratio, up, vis)
+    # The shading's colour: the sun's part of it has the sun's colour, the rest the sky's.
+    sun_rgb, sky_rgb = day_light_colours(image, labels)
+    sun_part = light.ratio * np.maximum(n @ s, 0.0) * vis
+    f_sun = (sun_part / np.maximum(shading, 1e-6))[..., None]
+    chroma = (f_sun * sun_rgb + (1.0 - f_sun) * sky_rgb).astype(np.float32)
     if veh.any():
         # A vehicle's normals are too rough for per-pixel shading (its de-lit texture came out
         # worse than the photo's), but whether it stands in the sun or in a building's shadow
@@ -408,7 +458,7 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
                 med_sh[i] = np.median(shading[veh & (inv == i)])
         shading = np.where(veh, med_sh[inv], shading)
         valid = valid | veh
-    alb = lin / np.maximum(shading, 1e-3)[..., None].astype(np.float32)
+    alb = lin / np.maximum(shading[..., None] * chroma, 1e-3).astype(np.float32)
     lum = alb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
     use = valid & np.isin(labels, _DAYLIGHT_CLASSES) & (lum > 1e-4)
     if use.sum() < 100:
