@@ -650,3 +650,21 @@ def test_a_far_pole_whose_arm_the_labels_lost_gets_its_lamp_at_the_head_beside_i
     assert len(lamps) == 1 and class_of(lamps[0]) == 8
     ys, xs = np.nonzero(ann.mask(lamps[0]))
     assert (ys.min(), ys.max(), xs.min(), xs.max()) == (top + 1, top + 1, 63, 65)
+
+
+def test_no_lamp_on_a_car_showing_a_fraction_of_its_end_face_even_when_depth_misses_the_car_in_front():
+    """The same far strip, but the predicted depth has blurred the car in front to the far car's depth
+    (no occluder is seen beside it): a silhouette under a third of a car's width at its depth
+    (``vehicle_min_face_share``) still gets no lamp."""
+    img, lab = _canvas()
+    lab[95:], img[95:] = ROAD, (70, 70, 75)
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    depth = np.full(lab.shape, 30.0, np.float32)
+    inst = lab.astype(np.int32)
+    row = lambda h, z: int(round(59.5 + (1.22 - h) * 500.0 / z))  # noqa: E731
+    near = (slice(row(1.4, 15.0), 101), slice(100, 150))
+    lab[near], img[near], inst[near] = CAR, (160, 40, 40), CAR * 1000
+    strip = (slice(row(1.4, 30.0), row(0.3, 30.0)), slice(150, 157))          # 7 px of a 30 px face
+    lab[strip], img[strip], inst[strip] = CAR, (40, 60, 140), CAR * 1000 + 1
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert not any((ann.mask(i) & (inst == CAR * 1000 + 1)).any() for i in lamps)

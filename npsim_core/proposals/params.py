@@ -84,6 +84,9 @@ class ProposalParams:
     vehicle_kerb_m: float = 1.0
     #: Share of a lamp box that must be on the vehicle's silhouette (else hidden: not proposed).
     vehicle_lamp_min_visible: float = 0.6
+    #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
+    #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
+    vehicle_min_face_share: float = 0.3
     #: A lamp box at least ``vehicle_lamp_slope_min_px`` wide whose depth changes by more than this
     #: many metres per metre across it lies on a receding side face (or across an edge): no lamp.
     vehicle_lamp_max_slope: float = 1.2

@@ -253,6 +253,10 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     # Cut by a nearer object beside it and no inner edge found: the face's place is a guess laid out
     # from the occluder's edge, where the lamps are hidden (the car in front) -- say so.
     placed = not (cut and not at_border and found is None)
+    # A silhouette much narrower than the face it must hold (a far car in a row, a strip beside the car
+    # in front) places nothing either, unless the image border cut it.
+    if not at_border and w < p.vehicle_min_face_share * face_w:
+        placed = False
     return r0, r1, c0, c1, z, placed
 
 
