@@ -81,6 +81,26 @@ def albedo_errors(scene, mats_albedo: np.ndarray, truth: np.ndarray, lights: np.
     return out
 
 
+def chroma_errors(scene, est: np.ndarray, truth: np.ndarray, lights: np.ndarray | None = None) -> dict:
+    """Mean |ln(r/g) error| and |ln(b/g) error| (averaged) of the albedo's colour per class against
+    the true albedo: the colour that :func:`albedo_errors` (luminance) does not see -- a de-lit
+    façade that keeps the day sky's blue is "pale" (docs/relight.md "De-lit textures")."""
+    from npsim_core.realism import CLASSES
+
+    keep = truth.min(-1) > 0.01
+    if lights is not None:
+        keep &= lights == 0
+    out = {}
+    for c in MEASURED:
+        m = np.isin(scene.labels, CLASSES[c]) & keep
+        if m.sum() <= 50:
+            out[c] = None
+            continue
+        e, t = np.maximum(est[m], 1e-4), truth[m]
+        out[c] = float(np.mean([np.abs(np.log(e[:, k] / e[:, 1]) - np.log(t[:, k] / t[:, 1])).mean() for k in (0, 2)]))
+    return out
+
+
 def _true_sun(scene, seed: int, variant: str) -> np.ndarray:
     """The synthetic street's sun direction (toward the sun, camera frame)."""
     from npsim_core.synthetic.primitives import CameraPose
@@ -106,7 +126,7 @@ def main(argv=None) -> int:
     from npsim_core.camera import normals_from_depth
     from npsim_core.chain import ChainParams
     from npsim_core.realism import REAL_NIGHT, global_stats, structure_ratio
-    from npsim_core.render.materials import delit_albedo, estimate_materials, photo_albedo
+    from npsim_core.render.materials import cap_vehicle_details, delit_albedo, estimate_materials, photo_albedo
     from npsim_core.synthetic import street_scene
     from npsim_core.synthetic.cityscapes import fixture_stem, write_cityscapes_fixture
 
@@ -176,14 +196,22 @@ def main(argv=None) -> int:
     t_delit = time.perf_counter() - t0
     delit_ex, day_ex = delit_albedo(scene.image, scene.labels, true.normals_gt, truth, scene.intrinsics, pitch,
                                     instances=scene.instances)
-    print("\nalbedo error vs the true albedo (mean |ln(k·est/true)| per class, one global scale k)")
-    print(f"{'albedo':34s} " + " ".join(f"{c:>10s}" for c in MEASURED))
-    for name, a in (("photo as albedo (linearised)", photo), ("per-class prior fallback (before)", fallback),
-                    (f"chain's default ({mats.source.split(' (')[0]})", mats.albedo),
-                    ("de-lit, SGM geometry (night.delight)", delit_sgm), ("de-lit, exact geometry", delit_ex)):
-        e = albedo_errors(scene, a, gt_albedo, true.lights.instance_map if true.lights is not None else None)
-        cells = ("-" if e[c] is None else f"{e[c]:.3f}" for c in MEASURED)
-        print(f"{name:34s} " + " ".join(f"{x:>10s}" for x in cells))
+    # As the chain renders them: vehicle details capped (estimate_materials).
+    delit_sgm, delit_ex = (cap_vehicle_details(a, scene.labels, scene.instances) for a in (delit_sgm, delit_ex))
+    albedos = (("photo as albedo (linearised)", photo), ("per-class prior fallback (before)", fallback),
+               (f"chain's default ({mats.source.split(' (')[0]})", mats.albedo),
+               ("de-lit, SGM geometry (night.delight)", delit_sgm), ("de-lit, exact geometry", delit_ex))
+    true_lights = true.lights.instance_map if true.lights is not None else None
+    for title, fn in (("albedo error vs the true albedo (mean |ln(k·est/true)| per class, one global scale k)",
+                       albedo_errors),
+                      ("albedo colour error vs the true albedo (mean |ln r/g| and |ln b/g| error per class)",
+                       chroma_errors)):
+        print("\n" + title)
+        print(f"{'albedo':34s} " + " ".join(f"{c:>10s}" for c in MEASURED))
+        for name, a in albedos:
+            e = fn(scene, a, gt_albedo, true_lights)
+            cells = ("-" if e[c] is None else f"{e[c]:.3f}" for c in MEASURED)
+            print(f"{name:34s} " + " ".join(f"{x:>10s}" for x in cells))
 
     true_sun = np.round(_true_sun(scene, args.seed, args.variant), 2).tolist()
     print(f"de-lit: sun (camera frame) from SGM geometry {np.round(day_sgm.sun, 2).tolist()} sun/sky "

@@ -362,3 +362,26 @@ def test_a_delit_facade_in_the_shade_keeps_its_colour_not_the_sky_blue():
     a = np.median(alb[16:30, 10:W - 10].reshape(-1, 3), axis=0)
     assert a[0] / a[1] == pytest.approx(wall[0] / wall[1], rel=0.08)
     assert a[2] / a[1] == pytest.approx(wall[2] / wall[1], rel=0.08)
+
+
+def test_delit_cars_from_sgm_geometry_are_closer_to_their_true_albedo(sgm_frame):
+    """Cars were not de-lit (the de-lit frame's cars kept the prior fallback: error 0.51 against
+    the true albedo on this frame, the photo's 0.46, the all-fallback albedo's 0.44); divided by
+    the day's shading per pixel over their fitted smooth surfaces they come closer than both
+    (0.39; larger frames in docs/relight.md). Not halved: from the exact geometry it is 0.35."""
+    from benchmarks.realism import albedo_errors
+    from npsim_core.chain import Chain, ChainParams
+    from npsim_core.render.materials import cap_vehicle_details, delit_albedo, fallback_albedo, photo_albedo
+    from npsim_core.synthetic import street_scene
+
+    scene, _ = sgm_frame
+    res = Chain(scene).compute(ChainParams())
+    true = street_scene(256, 128, 0)
+    gt, lights = np.asarray(true.albedo, np.float32), true.lights.instance_map
+    delit, _ = delit_albedo(scene.image, scene.labels, res.normals_in, res.depth_in, scene.intrinsics,
+                            float(scene.camera_pitch), instances=scene.instances)
+    chain_of = lambda a: cap_vehicle_details(a, scene.labels, scene.instances)  # noqa: E731 (as the chain does)
+    car = {name: albedo_errors(scene, a, gt, lights)["car"]
+           for name, a in (("delit", chain_of(delit)), ("photo", photo_albedo(scene.image)),
+                           ("fallback", chain_of(fallback_albedo(scene.image, scene.labels))))}
+    assert car["delit"] < 0.95 * min(car["photo"], car["fallback"]), car

@@ -55,18 +55,18 @@ class MaterialParams:
         its vehicle (instance): number plates, chrome and sky reflections in the day photo are
         small bright details that the headlights would otherwise turn into glowing white
         rectangles (docs/relight.md, "Nights of real frames": plates do not glow). 0 = off.
-    delit_vehicles : de-lighting divides each vehicle by one shading (the median of the day's
-        shading over the instance: in the sun or in a cast shadow), else vehicles keep the
-        fallback. Off: from exact geometry it lowers the car albedo error (512x256 fixture
-        0.463 -> 0.348), from SGM geometry it raises it (0.464 -> 0.607: two cars predicted
-        sunlit that stand in shadow; docs/relight.md).
+    delit_vehicles : de-lighting also divides vehicles by the day's shading per pixel (the normals
+        of their fitted smooth surfaces; off = the fallback). Car albedo error on the fixture from
+        SGM geometry 0.461 -> 0.348 (512x256), 0.428 -> 0.326 (1024x512), from exact geometry
+        0.265 / 0.215; the photo's is 0.419 / 0.401: better, not halved (docs/relight.md
+        "De-lit textures").
     """
 
     contrast: float = 0.7
     albedo_prior: dict = field(default_factory=dict)
     delit_per_class: bool = False
     vehicle_cap: float = 2.0
-    delit_vehicles: bool = False
+    delit_vehicles: bool = True
 
 
 @dataclass(frozen=True)
@@ -397,8 +397,9 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
        give the absolute level; relative albedos between and within classes come from the photo).
     4. Clamped where the estimate is unreliable: only façades, walls, fences and the ground
        (:data:`~npsim_core.geometry.surfaces.PLANE_CLASSES`, whose normals the surface fits
-       get right) are de-lit; every other pixel (vehicles, vegetation, people, thin objects,
-       pixels without normals or depth) gets the prior fallback (:func:`fallback_albedo`).
+       get right) are de-lit, and vehicles (``params.delit_vehicles``, the normals of their
+       fitted surfaces); every other pixel (vegetation, people, thin objects, pixels
+       without normals or depth) gets the prior fallback (:func:`fallback_albedo`).
        Albedo is limited to [0.01, 0.9] and to 4x its label's median (saturated or specular
        day pixels).
     """
@@ -415,7 +416,7 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     from ..geometry.surfaces import PLANE_CLASSES, VEHICLE_CLASSES
 
     # Per pixel only where the reconstructed normals are reliable: façades, walls, fences and the
-    # ground (planes the surface fits get right); vehicles by one shading per instance (below);
+    # ground (planes the surface fits get right), vehicles (their fitted smooth surfaces);
     # vegetation, people keep the prior fallback.
     geo = np.isfinite(normals).all(-1) & np.isfinite(depth)
     valid = geo & np.isin(labels, PLANE_CLASSES)
@@ -444,21 +445,10 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     sun_part = light.ratio * np.maximum(n @ s, 0.0) * vis
     f_sun = (sun_part / np.maximum(shading, 1e-6))[..., None]
     chroma = (f_sun * sun_rgb + (1.0 - f_sun) * sky_rgb).astype(np.float32)
-    if veh.any():
-        # A vehicle's normals are too rough for per-pixel shading (its de-lit texture came out
-        # worse than the photo's), but whether it stands in the sun or in a building's shadow
-        # is its largest error: one shading per vehicle, the median over its pixels.
-        seg = (instances.astype(np.int64) if instances is not None and np.shape(instances) == labels.shape
-               else cv2.connectedComponents(veh.astype(np.uint8))[1].astype(np.int64))
-        ids, inv = np.unique(np.where(veh, seg, -1), return_inverse=True)
-        inv = inv.reshape(labels.shape)
-        med_sh = np.ones(len(ids))
-        for i, sid in enumerate(ids):
-            if sid >= 0:
-                med_sh[i] = np.median(shading[veh & (inv == i)])
-        shading = np.where(veh, med_sh[inv], shading)
-        valid = valid | veh
     alb = lin / np.maximum(shading[..., None] * chroma, 1e-3).astype(np.float32)
+    # Vehicles per pixel, from the smooth surfaces the stereo fits give them (their faces in the
+    # sun and in the shade; one median shading per vehicle was worse from SGM geometry).
+    valid = valid | veh
     lum = alb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
     use = valid & np.isin(labels, _DAYLIGHT_CLASSES) & (lum > 1e-4)
     if use.sum() < 100:
