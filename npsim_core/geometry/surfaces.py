@@ -80,6 +80,14 @@ class SurfaceParams:
     handover : on façades and the ground, below this window weight the local fit hands over to the
         segment's robust plane (blended), which extends them over stereo holes where the hole
         filling's depth agrees within ``handover_agreement`` (relative).
+    fattening_px, fattening_margin : stereo within ``fattening_px`` along its row of a segment nearer
+        by more than ``fattening_margin`` (relative, by a first fit) is dropped and the segment
+        refitted (edge fattening toward the background; 0 = off).
+    vehicle_upright, vehicle_column_sigma : vehicles are fitted as upright surfaces, inverse depth per
+        column (robust median over rows, then a robust local line along the columns with this σ);
+        off = local planes with ``vehicle_sigma``.
+    kerb_max_m : sidewalks above a road border get a vertical kerb face up to this height (m) where
+        their fitted plane lies above the road's (0 = off; docs/relight.md).
     """
 
     plane_sigma: float = 96.0
@@ -93,6 +101,11 @@ class SurfaceParams:
     min_support: float = 0.02
     handover: float = 0.1
     handover_agreement: float = 0.15
+    kerb_max_m: float = 0.3
+    fattening_px: float = 24.0
+    vehicle_upright: bool = True
+    vehicle_column_sigma: float = 16.0
+    fattening_margin: float = 0.05
 
 
 def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: SurfaceParams) -> np.ndarray:
@@ -183,6 +196,176 @@ def _segment_plane(q: np.ndarray, m: np.ndarray, x0: int, y0: int, iterations: i
     return np.array([coef[0] - coef[1] * cu - coef[2] * cv, coef[1], coef[2]])
 
 
+def _fattened(seg: np.ndarray, q: np.ndarray, radius: int, margin: float) -> np.ndarray:
+    """Pixels within ``radius`` along their row of another segment whose inverse depth ``q`` at
+    the border is larger (nearer) by more than ``margin`` (relative) than their own segment's
+    ``radius`` pixels inside the border (the first fit follows the fattened stereo up to the
+    border, so it is read beyond it)."""
+    H, W = seg.shape
+    cols = np.arange(W)[None, :]
+    qn = np.nan_to_num(q, nan=0.0)
+
+    def run_start(s):
+        start = np.ones((H, W), bool)
+        start[:, 1:] = s[:, 1:] != s[:, :-1]
+        return np.maximum.accumulate(np.where(start, cols, 0), axis=1)
+
+    out = np.zeros((H, W), bool)
+    for flip in (False, True):
+        s = seg[:, ::-1] if flip else seg
+        qq = qn[:, ::-1] if flip else qn
+        st = run_start(s)
+        end = (W - 1 - run_start(s[:, ::-1]))[:, ::-1]                  # last pixel of each run
+        j = st - 1                                                      # the pixel before the run
+        jj = np.clip(j, 0, W - 1)
+        qf = np.take_along_axis(qq, jj, 1)
+        sf = np.take_along_axis(s, jj, 1)
+        qref = np.take_along_axis(qq, np.minimum(st + radius, end), 1)
+        m = (j >= 0) & (sf > 0) & (cols - j <= radius) & (qref > 0) & (qf > qref * (1.0 + margin))
+        out |= m[:, ::-1] if flip else m
+    return out
+
+
+def _upright_columns(q: np.ndarray, w0: np.ndarray, sigma: float, iterations: int
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """A vehicle as an upright surface: inverse depth per column of its bounding box, (q, dq/du).
+
+    Per column the median of its stereo (``w0``) over rows, then a robust (Cauchy) local linear fit
+    along the columns (Gaussian σ in px, weighted by each column's count): corners between a car's
+    rear and side stay, a lean does not (glass and paint matched to the background above a car
+    made fitted bodies face up, and a lamp on one threw its light at the sky or along a facade).
+    None when fewer than 3 columns have stereo.
+    """
+    n = w0.sum(0).astype(np.float64)
+    if (n >= 3).sum() < 3:
+        return None
+    med = np.nanmedian(np.where(w0, q, np.nan)[:, n >= 3], axis=0)
+    wc = np.zeros(q.shape[1])
+    wc[n >= 3] = n[n >= 3]
+    qv = np.zeros(q.shape[1])
+    qv[n >= 3] = med
+    u = np.arange(q.shape[1], dtype=np.float64)
+    k = int(2 * round(3 * sigma) + 1)
+
+    def blur(a):
+        return cv2.GaussianBlur(a[None, :], (k, 1), max(sigma, 0.5), borderType=cv2.BORDER_CONSTANT)[0]
+
+    w = wc.copy()
+    a = np.zeros_like(u)
+    b = np.zeros_like(u)
+    for it in range(max(1, iterations)):
+        s0, su, suu, sq, suq = (blur(x) for x in (w, w * u, w * u * u, w * qv, w * u * qv))
+        # Columns far from any stereo take the whole box's robust line (large window).
+        det = s0 * suu - su * su
+        okd = (s0 > 1e-3 * max(wc.max(), 1)) & (det > 1e-9 * np.maximum(s0, 1) ** 2)
+        b = np.where(okd, (s0 * suq - su * sq) / np.where(okd, det, 1), 0.0)
+        a = np.where(s0 > 0, (sq - b * su) / np.maximum(s0, 1e-12), 0.0)
+        if not okd.all():
+            W0 = w.sum()
+            mu, mq = (w * u).sum() / W0, (w * qv).sum() / W0
+            vu = (w * (u - mu) ** 2).sum()
+            bg = (w * (u - mu) * (qv - mq)).sum() / vu if vu > 1e-9 else 0.0
+            a = np.where(okd, a, mq - bg * mu)
+            b = np.where(okd, b, bg)
+        if it == iterations - 1:
+            break
+        r = np.where(wc > 0, (qv - (a + b * u)) / np.maximum(np.abs(qv), 1e-9), 0.0)
+        sel = wc > 0
+        scale = max(1.4826 * float(np.median(np.abs(r[sel]))), 0.005)
+        w = wc / (1.0 + (r / (2.385 * scale)) ** 2)
+    qh = a + b * u
+    if not (qh > 1e-4).all():
+        return None
+    return qh, b
+
+
+def _kerbs(out_q: np.ndarray, coef: np.ndarray, labels: np.ndarray, intrinsics: Intrinsics,
+           max_height: float) -> int:
+    """Give the sidewalks' kerbs their vertical faces, in place; returns the kerb pixels set.
+
+    The fitted sidewalk plane has no kerb: its road-side face (15 cm, labelled sidewalk, several
+    pixels tall near the camera) was a slope, and the lamps' bright line along it was missing
+    from the night (2048x1024 fixture: sidewalk structure ratio 0.71 of the exact night's). The
+    kerb is the vertical plane through the road/sidewalk border (on the fitted road surface)
+    along the border's 3-D direction; a ray below the kerb's top hits it before the sidewalk's
+    plane, a ray above it hits the sidewalk's plane behind it, so the depth of a sidewalk pixel
+    above a road border in its column is the farther of the two (at most ``max_height`` metres
+    above the border: a sidewalk fitted too high does not grow a wall).
+    """
+    H, W = labels.shape
+    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    top = (labels == 8) & np.isfinite(out_q)
+    base = np.isin(labels, (7, 9)) & np.isfinite(out_q)
+    if not top.any() or not base.any():
+        return 0
+    rows = np.arange(H)[:, None]
+    # The first row below each pixel that is not sidewalk (H = none), per column.
+    nb = np.minimum.accumulate(np.where(labels == 8, H, np.broadcast_to(rows, (H, W)))[::-1], axis=0)[::-1]
+    cols = np.broadcast_to(np.arange(W)[None, :], (H, W))
+    vb = np.minimum(nb, H - 1)
+    cand = top & (nb < H) & base[vb, cols]
+    if not cand.any():
+        return 0
+    # Border points (each run of sidewalk pixels: the road pixel below it) on the fitted road surface, in 3-D.
+    bc = coef[vb, cols]
+    vbord = vb - 0.5
+    qb = bc[..., 0] + bc[..., 1] * cols + bc[..., 2] * vbord
+    cand &= qb > 1e-4
+    bu, bv = cols[cand], vbord[cand]
+    zb = 1.0 / qb[cand]
+    B = np.stack([zb * (bu - cx) / fx, zb * (bv - cy) / fy, zb], -1)
+    road = bc[cand]
+    up = -np.stack([road[:, 1] * fx, road[:, 2] * fy, road[:, 0] + road[:, 1] * cx + road[:, 2] * cy], -1)
+    up /= np.linalg.norm(up, axis=-1, keepdims=True) + 1e-30
+    # Per sidewalk component: the kerb's direction along the border is the principal direction of
+    # its border points in the ground plane (one per column), robust to outliers; the kerb is one
+    # vertical plane through their robust centre line (per-column planes followed the label
+    # border's 1-px steps: a zigzag face, striped in the night).
+    ncomp, comp = cv2.connectedComponents((labels == 8).astype(np.uint8), connectivity=4)
+    cc = comp[cand]
+    delta = np.full(len(B), np.nan)
+    m = np.zeros_like(B)
+    for k in np.unique(cc):
+        sel = cc == k
+        _, first = np.unique(bu[sel], return_index=True)
+        P = B[sel][first]
+        if len(P) < 8:
+            continue
+        n_up = np.median(up[sel], axis=0)
+        n_up /= np.linalg.norm(n_up)
+        w = np.ones(len(P))
+        for _ in range(3):
+            c0 = (w[:, None] * P).sum(0) / w.sum()
+            D = P - c0
+            D -= (D @ n_up)[:, None] * n_up[None, :]
+            _, _, vt = np.linalg.svd(D * np.sqrt(w)[:, None], full_matrices=False)
+            t = vt[0] - (vt[0] @ n_up) * n_up
+            t /= np.linalg.norm(t)
+            mk = np.cross(n_up, t)
+            perp = D @ mk
+            w = 1.0 / (1.0 + (perp / max(3 * np.median(np.abs(perp)), 0.02)) ** 2)
+        if (mk @ c0) > 0:  # facing the camera
+            mk = -mk
+        m[sel] = mk
+        delta[sel] = mk @ c0
+    ok = np.isfinite(delta) & (delta < 0)
+    delta = np.where(ok, delta, -1.0)
+    N = m / delta[:, None]
+    kb, kc = N[:, 0] / fx, N[:, 1] / fy
+    ka = N[:, 2] - kb * cx - kc * cy
+    uu, vv = cols[cand], rows.repeat(W, 1)[cand]
+    qk = ka + kb * uu + kc * vv
+    qt = out_q[cand]
+    # Within max_height above the border (rows), the kerb where it is farther than the sidewalk plane.
+    near = (vb[cand] - vv) <= max_height * fy * qb[cand] + 1
+    use = ok & near & (qk > 1e-4) & (qk < qt)
+    idx = np.nonzero(cand)
+    iy, ix = idx[0][use], idx[1][use]
+    out_q[iy, ix] = qk[use]
+    coef[iy, ix] = np.stack([ka[use], kb[use], kc[use]], -1)
+    return int(use.sum())
+
+
 def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, labels: np.ndarray,
                  intrinsics: Intrinsics, instances: np.ndarray | None = None,
                  params: SurfaceParams | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -225,7 +408,6 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
     use &= ~near_edge
 
     base_f = max(1, int(round(W / _WORK_WIDTH)))
-    qfull = np.where(use, 1.0 / np.where(use, depth, 1.0), 0.0)
     out_q = np.full((H, W), np.nan)
     coef_full = np.full((H, W, 3), np.nan)
     label_of_seg = np.zeros(n_seg + 1, np.int32)
@@ -240,102 +422,138 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
     np.maximum.at(y1, ids, rows)
     np.minimum.at(x0, ids, cols)
     np.maximum.at(x1, ids, cols)
-    nvalid = np.bincount(seg[use], minlength=n_seg + 1)
     fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
-    for s in range(1, n_seg + 1):
-        lab = int(label_of_seg[s])
-        if y1[s] < 0:
-            continue
-        if lab in THIN_CLASSES:
-            sl = (slice(y0[s], y1[s] + 1), slice(x0[s], x1[s] + 1))
-            ms = (seg[sl] == s)
-            # All of its stereo, not only what the edge trimming left (a pole a few pixels wide is
-            # all edge); and, if it has none within the stereo's range, its stereo beyond it: a
-            # lamp pole at the street's end (101 m) otherwise took the hole filling's 53-62 m
-            # and its lamp lit the near road white (2048x1024 fixture, docs/relight.md).
-            raw = ms & np.isfinite(depth[sl]) & (depth[sl] > 0) & ~speckle[sl]
-            ok_t = raw & valid[sl]
-            if ok_t.sum() < max(3, 0.05 * ms.sum()):
-                ok_t = raw
-            qs = 1.0 / depth[sl][ok_t]
-            if qs.size >= max(3, 0.05 * ms.sum()):
-                qm = float(np.median(qs))
+    def fit_pass(segments, use: np.ndarray, cnt: dict) -> None:
+        """Fit ``segments`` to the stereo pixels ``use`` (writes out_q, coef_full)."""
+        qfull = np.where(use, 1.0 / np.where(use, depth, 1.0), 0.0)
+        nvalid = np.bincount(seg[use], minlength=n_seg + 1)
+        for s in segments:
+            lab = int(label_of_seg[s])
+            if y1[s] < 0:
+                continue
+            if lab in THIN_CLASSES:
+                sl = (slice(y0[s], y1[s] + 1), slice(x0[s], x1[s] + 1))
+                ms = (seg[sl] == s)
+                # All of its stereo, not only what the edge trimming left (a pole a few pixels wide is
+                # all edge); and, if it has none within the stereo's range, its stereo beyond it: a
+                # lamp pole at the street's end (101 m) otherwise took the hole filling's 53-62 m
+                # and its lamp lit the near road white (2048x1024 fixture, docs/relight.md).
+                raw = ms & np.isfinite(depth[sl]) & (depth[sl] > 0) & ~speckle[sl]
+                ok_t = raw & valid[sl]
+                if ok_t.sum() < max(3, 0.05 * ms.sum()):
+                    ok_t = raw
+                qs = 1.0 / depth[sl][ok_t]
+                if qs.size >= max(3, 0.05 * ms.sum()):
+                    qm = float(np.median(qs))
+                    blk = out_q[sl]
+                    blk[ms] = qm
+                    cb = coef_full[sl]
+                    cb[ms] = (qm, 0.0, 0.0)
+                    cnt["thin"] += 1
+                else:
+                    cnt["unsupported"] += 1
+                continue
+            if nvalid[s] < 12:
+                cnt["unsupported"] += 1
+                continue
+            if lab in VEHICLE_CLASSES and p.vehicle_upright:
+                sl = (slice(y0[s], y1[s] + 1), slice(x0[s], x1[s] + 1))
+                ms = seg[sl] == s
+                qc = _upright_columns(qfull[sl], ms & use[sl], p.vehicle_column_sigma * scale, p.iterations)
+                if qc is None:
+                    cnt["unsupported"] += 1
+                    continue
+                q_col, b_col = qc
+                U = np.arange(x0[s], x1[s] + 1, dtype=np.float64)
                 blk = out_q[sl]
-                blk[ms] = qm
+                blk[ms] = np.broadcast_to(q_col[None, :], ms.shape)[ms]
                 cb = coef_full[sl]
-                cb[ms] = (qm, 0.0, 0.0)
-                counts["thin"] += 1
+                cf = np.stack([q_col - b_col * U, b_col, np.zeros_like(b_col)], -1)
+                cb[ms] = np.broadcast_to(cf[None], ms.shape + (3,))[ms]
+                cnt["fitted"] += 1
+                continue
+            sigma_full = (p.plane_sigma if lab in PLANE_CLASSES else p.vehicle_sigma if lab in VEHICLE_CLASSES
+                          else p.vegetation_sigma if lab in VEGETATION_CLASSES else p.detail_sigma) * scale
+            # Work on a grid about sigma/6 coarser (at least 512 px wide): the coefficients are smooth.
+            f = max(base_f, int(sigma_full // 6))
+            pad = int(3 * sigma_full) + f
+            ya, yb = max(0, y0[s] - pad), min(H, y1[s] + 1 + pad)
+            xa, xb = max(0, x0[s] - pad), min(W, x1[s] + 1 + pad)
+            # Crop aligned to the working grid.
+            ya, xa = (ya // f) * f, (xa // f) * f
+            yb, xb = min(H, -(-yb // f) * f), min(W, -(-xb // f) * f)
+            ms = seg[ya:yb, xa:xb] == s
+            wq = (ms & use[ya:yb, xa:xb]).astype(np.float32)
+            qq = qfull[ya:yb, xa:xb].astype(np.float32)
+            hw, ww = -(-(yb - ya) // f), -(-(xb - xa) // f)
+            if f > 1:
+                wsum = cv2.resize(wq, (ww, hw), interpolation=cv2.INTER_AREA)
+                qsum = cv2.resize(wq * qq, (ww, hw), interpolation=cv2.INTER_AREA)
+                qw = np.where(wsum > 0, qsum / np.maximum(wsum, 1e-12), 0.0)
             else:
-                counts["unsupported"] += 1
-            continue
-        if nvalid[s] < 12:
-            counts["unsupported"] += 1
-            continue
-        sigma_full = (p.plane_sigma if lab in PLANE_CLASSES else p.vehicle_sigma if lab in VEHICLE_CLASSES
-                      else p.vegetation_sigma if lab in VEGETATION_CLASSES else p.detail_sigma) * scale
-        # Work on a grid about sigma/6 coarser (at least 512 px wide): the coefficients are smooth.
-        f = max(base_f, int(sigma_full // 6))
-        pad = int(3 * sigma_full) + f
-        ya, yb = max(0, y0[s] - pad), min(H, y1[s] + 1 + pad)
-        xa, xb = max(0, x0[s] - pad), min(W, x1[s] + 1 + pad)
-        # Crop aligned to the working grid.
-        ya, xa = (ya // f) * f, (xa // f) * f
-        yb, xb = min(H, -(-yb // f) * f), min(W, -(-xb // f) * f)
-        ms = seg[ya:yb, xa:xb] == s
-        wq = (ms & use[ya:yb, xa:xb]).astype(np.float32)
-        qq = qfull[ya:yb, xa:xb].astype(np.float32)
-        hw, ww = -(-(yb - ya) // f), -(-(xb - xa) // f)
-        if f > 1:
-            wsum = cv2.resize(wq, (ww, hw), interpolation=cv2.INTER_AREA)
-            qsum = cv2.resize(wq * qq, (ww, hw), interpolation=cv2.INTER_AREA)
-            qw = np.where(wsum > 0, qsum / np.maximum(wsum, 1e-12), 0.0)
-        else:
-            wsum, qw = wq, qq
-        # Working pixel centres in full-resolution pixel coordinates, normalised for conditioning.
-        u = xa + (np.arange(ww) + 0.5) * f - 0.5
-        v = ya + (np.arange(hw) + 0.5) * f - 0.5
-        uc, vc, L = 0.5 * (xa + xb), 0.5 * (ya + yb), float(W)
-        uu = np.broadcast_to(((u - uc) / L)[None, :], (hw, ww)).astype(np.float64)
-        vv = np.broadcast_to(((v - vc) / L)[:, None], (hw, ww)).astype(np.float64)
-        sig_w = max(0.5, sigma_full / f)
-        coef, support = _local_planes(qw.astype(np.float64), wsum.astype(np.float64), uu, vv, sig_w,
-                                      p.iterations, ridge=1e-4 * (sig_w * f / L) ** 2)
-        # Coefficients in full-resolution pixel units: q = a + b u + c v.
-        b = coef[..., 1] / L
-        c = coef[..., 2] / L
-        a = coef[..., 0] - b * uc - c * vc
-        full = np.stack([a, b, c], -1).astype(np.float32)
-        if f > 1:
-            full = cv2.resize(full, (xb - xa, yb - ya), interpolation=cv2.INTER_LINEAR)
-            support = cv2.resize(support.astype(np.float32), (xb - xa, yb - ya), interpolation=cv2.INTER_LINEAR)
-        full = full.astype(np.float64)
-        U = np.arange(xa, xb)[None, :].astype(np.float64)
-        V = np.arange(ya, yb)[:, None].astype(np.float64)
-        if lab in PLANE_CLASSES:
-            # A façade or the ground goes on where the stereo has none (the left border SGM cannot
-            # match, occlusions): far from support the local fit hands over to the segment's
-            # robust plane, blended in the coefficients so the surface stays smooth.
-            glob = _segment_plane(qfull[ya:yb, xa:xb], ms & use[ya:yb, xa:xb], xa, ya)
-            if glob is not None:
-                alpha = np.clip(support / p.handover, 0.0, 1.0)
-                full = alpha[..., None] * full + (1 - alpha[..., None]) * glob[None, None, :]
-                # ... but only where the hole filling agrees that it is the same surface (a far
-                # façade beyond the stereo's range joined to a near one is not).
-                qb = full[..., 0] + full[..., 1] * U + full[..., 2] * V
-                fz = filled[ya:yb, xa:xb]
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    agree = ~np.isfinite(fz) | (np.abs(1.0 / qb - fz) <= p.handover_agreement * fz)
-                support = np.where(ms & (alpha < 1) & agree, 1.0, np.where(alpha < 1, 0.0, support))
-        qh = full[..., 0] + full[..., 1] * U + full[..., 2] * V
-        ok = ms & (support >= p.min_support) & (qh > 1e-4)
-        if not ok.any():
-            counts["unsupported"] += 1
-            continue
-        blk = out_q[ya:yb, xa:xb]
-        blk[ok] = qh[ok]
-        cb = coef_full[ya:yb, xa:xb]
-        cb[ok] = full[ok]
-        counts["fitted"] += 1
+                wsum, qw = wq, qq
+            # Working pixel centres in full-resolution pixel coordinates, normalised for conditioning.
+            u = xa + (np.arange(ww) + 0.5) * f - 0.5
+            v = ya + (np.arange(hw) + 0.5) * f - 0.5
+            uc, vc, L = 0.5 * (xa + xb), 0.5 * (ya + yb), float(W)
+            uu = np.broadcast_to(((u - uc) / L)[None, :], (hw, ww)).astype(np.float64)
+            vv = np.broadcast_to(((v - vc) / L)[:, None], (hw, ww)).astype(np.float64)
+            sig_w = max(0.5, sigma_full / f)
+            coef, support = _local_planes(qw.astype(np.float64), wsum.astype(np.float64), uu, vv, sig_w,
+                                          p.iterations, ridge=1e-4 * (sig_w * f / L) ** 2)
+            # Coefficients in full-resolution pixel units: q = a + b u + c v.
+            b = coef[..., 1] / L
+            c = coef[..., 2] / L
+            a = coef[..., 0] - b * uc - c * vc
+            full = np.stack([a, b, c], -1).astype(np.float32)
+            if f > 1:
+                full = cv2.resize(full, (xb - xa, yb - ya), interpolation=cv2.INTER_LINEAR)
+                support = cv2.resize(support.astype(np.float32), (xb - xa, yb - ya), interpolation=cv2.INTER_LINEAR)
+            full = full.astype(np.float64)
+            U = np.arange(xa, xb)[None, :].astype(np.float64)
+            V = np.arange(ya, yb)[:, None].astype(np.float64)
+            if lab in PLANE_CLASSES:
+                # A façade or the ground goes on where the stereo has none (the left border SGM cannot
+                # match, occlusions): far from support the local fit hands over to the segment's
+                # robust plane, blended in the coefficients so the surface stays smooth.
+                glob = _segment_plane(qfull[ya:yb, xa:xb], ms & use[ya:yb, xa:xb], xa, ya)
+                if glob is not None:
+                    alpha = np.clip(support / p.handover, 0.0, 1.0)
+                    full = alpha[..., None] * full + (1 - alpha[..., None]) * glob[None, None, :]
+                    # ... but only where the hole filling agrees that it is the same surface (a far
+                    # façade beyond the stereo's range joined to a near one is not).
+                    qb = full[..., 0] + full[..., 1] * U + full[..., 2] * V
+                    fz = filled[ya:yb, xa:xb]
+                    with np.errstate(invalid="ignore", divide="ignore"):
+                        agree = ~np.isfinite(fz) | (np.abs(1.0 / qb - fz) <= p.handover_agreement * fz)
+                    support = np.where(ms & (alpha < 1) & agree, 1.0, np.where(alpha < 1, 0.0, support))
+            qh = full[..., 0] + full[..., 1] * U + full[..., 2] * V
+            ok = ms & (support >= p.min_support) & (qh > 1e-4)
+            if not ok.any():
+                cnt["unsupported"] += 1
+                continue
+            blk = out_q[ya:yb, xa:xb]
+            blk[ok] = qh[ok]
+            cb = coef_full[ya:yb, xa:xb]
+            cb[ok] = full[ok]
+            cnt["fitted"] += 1
+
+    fit_pass(range(1, n_seg + 1), use, counts)
+    # Edge fattening toward the background is wider than edge_px (SGM's block and path costs spread
+    # the nearer object's disparity 10-20 px at 1024 px wide into the farther one): a pixel within
+    # fattening_px along its row of a nearer segment (by the first fit, > fattening_margin) is
+    # dropped and its segment refitted. A car seen beside a nearer one leaned toward it (a lamp
+    # on it then threw its light sideways along a facade, docs/relight.md).
+    counts["fattening_refit"] = 0
+    if p.fattening_px > 0:
+        fat = _fattened(seg, out_q, max(1, int(round(p.fattening_px * scale))), p.fattening_margin)
+        fat &= use & ~np.isin(label_of_seg[seg], THIN_CLASSES)
+        counts["fattening_dropped_fraction"] = round(float(fat.mean()), 4)
+        if fat.any():
+            redo = np.unique(seg[fat])
+            fit_pass(redo[redo > 0], use & ~fat, {"fitted": 0, "thin": 0, "unsupported": 0})
+            counts["fattening_refit"] = int((redo > 0).sum())
+    counts["kerb_pixels"] = _kerbs(out_q, coef_full, labels, intrinsics, p.kerb_max_m) if p.kerb_max_m > 0 else 0
     fitted = np.isfinite(out_q)
     z = np.where(fitted, 1.0 / np.where(fitted, out_q, 1.0), filled).astype(np.float32)
     a, b, c = coef_full[..., 0], coef_full[..., 1], coef_full[..., 2]
