@@ -135,6 +135,9 @@ class ProposalParams:
     #: column (row, for a tall blob) dips below this fraction of the peaks either side (0: never, the
     #: default: it gains 2 % recall at 512x256 on the hard street and loses 2 % at 2048x1024).
     window_gap_contrast: float = 0.0
+    #: A blob is cut where a run of its columns (rows) holds under this share of its height (width)
+    #: with fuller ones on both sides: panes joined by a frame or a sill line (0: never).
+    window_gap_occupancy: float = 0.25
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).
@@ -164,6 +167,10 @@ class ProposalParams:
     window_facade_step_m: float = 0.3
     #: A cell of a wall's window lattice is proposed when this share of it shows that wall.
     window_cell_min_visible: float = 0.8
+    #: ... at most this many pixels wide (a wider pane is found as a blob where there is one) and at
+    #: most this many bays beyond the panes found, toward the vanishing point.
+    window_cell_max_px: int = 3
+    window_cell_max_extra_bays: int = 4
     #: No window larger than this many times the median window of its wall (area on the wall).
     window_max_median_ratio: float = 1.5
     #: ... unless its top is at most this high (m above the ground): ground-floor glazing larger than

@@ -107,6 +107,44 @@ def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float) -> list[tuple[in
     return out
 
 
+def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
+    """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
+    blob's height (width) -- with fuller columns (rows, over twice that) on both sides: the wall
+    between two panes that a frame, a sill line or a car's roof joins into one blob, which the convex
+    hull would fill into one window over both. Returns (y, x, mask) pieces, local; one when uncut."""
+    if gap <= 0:
+        return [(0, 0, m)]
+    for axis in (0, 1):  # 0: columns
+        occ = m.mean(axis)
+        n = occ.size
+        if n < 5:
+            continue
+        low = occ < gap
+        full = occ >= 2 * gap
+        left = np.maximum.accumulate(full)
+        right = np.maximum.accumulate(full[::-1])[::-1]
+        cut = low & left & right
+        if not cut.any():
+            continue
+        out = []
+        keep = ~cut
+        d = np.diff(np.r_[0, keep.astype(np.int8), 0])
+        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+            sub = m[:, a:b] if axis == 0 else m[a:b, :]
+            if not sub.any():
+                continue
+            nc, lab = cv2.connectedComponents(sub.astype(np.uint8), connectivity=4)
+            for c in range(1, nc):
+                part = lab == c
+                ys, xs = np.nonzero(part)
+                piece = part[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+                oy, ox = int(ys.min()), int(xs.min())
+                out.append((oy + (0 if axis == 0 else int(a)), ox + (int(a) if axis == 0 else 0), piece))
+        if len(out) > 1:
+            return out
+    return [(0, 0, m)]
+
+
 def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, p) -> bool:
     """Whether a blob differs from the building pixels in a ring ``window_ring_px`` wide around it by
     at least half the window thresholds (log luminance or Lab chroma). The wall reference is a
@@ -348,8 +386,10 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have.append((r0, r1, a0, a1))
         fm = bld == b_id
+        n0 = {id(f): f for f in kept}
         kept = _median_rule(ctx, kept, fm)  # before the grid: the cells stand in for what it drops
-        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma)
+        dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
+        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma, dropped)
         if cells:
             kept = [f for i, f in enumerate(kept) if i not in merged]
             have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
@@ -370,13 +410,13 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray) -> list:
     """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
     (``fm``, HxW bool; three windows at least) and of their floor (three windows at least): a merged
     row, a gable or an awning, never one pane.
-    Areas on the wall up to a common factor: height (m) x width along the wall (the span in the
-    projective column coordinate of :func:`lattice_cells` for a receding wall, metres for one facing
-    the camera), each one pixel smaller across and down than in the image (quantisation)."""
+    Areas on the wall: pixels x (z / f)^2 / cos of the incidence on the wall (its direction,
+    :func:`_wall_direction`), each one pixel smaller across and down than in the image
+    (quantisation)."""
     p = ctx.params
     if len(wins) < 3 or ctx.depth is None:
         return wins
-    u_vp = _wall_vp(ctx, fm)
+    t = _wall_direction(ctx, fm)
     K = ctx.intrinsics
     area = []
     for f in wins:
@@ -386,23 +426,31 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray) -> list:
         if z is None:
             area.append(np.nan)
             continue
+        # the wall's incidence: a pane down a receding wall is foreshortened by it
+        cos = 1.0
+        if t is not None:
+            rx = (li.x0 + w / 2.0 - 0.5 - K.cx) / K.fx
+            cos = max(0.1, abs(t[1] * rx - t[0]) / float(np.hypot(rx, 1.0)))
         # one pixel less either way: a pane 1.4 px wide is 1 or 2 px in the image, not twice the size
-        w, h = max(w - 1, 1), max(h - 1, 1)
-        if u_vp is not None:
-            wa, wb = 1.0 / (li.x0 - u_vp), 1.0 / (li.x0 + w - u_vp)
-            width = abs(wb - wa)
-        else:
-            width = w * z / float(K.fx)
-        area.append(width * h * z / float(K.fy))
+        n = max(float(li.mask.sum()) * (w - 1) * (h - 1) / float(w * h), 1.0)
+        area.append(n * z * z / (float(K.fx) * float(K.fy)) / cos)
     a = np.asarray(area)
-    if np.isfinite(a).sum() < 3:
+    # The reference sizes leave out panes cut by something in front (a tree, a car, the frame's
+    # edge): their visible part is smaller than the pane.
+    H, W = fm.shape
+    B = ctx.labels == BUILDING
+    whole = np.array([li.y0 > 0 and li.x0 > 0 and li.y0 + li.mask.shape[0] < H and li.x0 + li.mask.shape[1] < W
+                      and B[li.y0 - 1:li.y0 + li.mask.shape[0] + 1, li.x0 - 1:li.x0 + li.mask.shape[1] + 1].all()
+                      for li in (f[3] for f in wins)])
+    ref_a = np.where(whole, a, np.nan) if (whole & np.isfinite(a)).sum() >= 3 else a
+    if np.isfinite(ref_a).sum() < 3:
         return wins
-    med = float(np.nanmedian(a))
+    med = float(np.nanmedian(ref_a))
     lev = np.array([f[1] for f in wins])
     out = []
     for f, ai in zip(wins, a):
         # ... and of its floor (a gable's or a dormer row's windows are smaller than the main floors')
-        row = a[(np.abs(lev - f[1]) <= f[2]) & np.isfinite(a)]
+        row = ref_a[(np.abs(lev - f[1]) <= f[2]) & np.isfinite(ref_a)]
         ref = max(med, float(np.median(row))) if row.size >= 3 else med
         if not (np.isfinite(ai) and ai > p.window_max_median_ratio * ref):
             out.append(f)
@@ -580,6 +628,10 @@ def propose(ctx: Context) -> list[Group]:
     rejects = []  # blobs too large or too ragged for one window: the facade grid may cut them (regularise)
     while stack:
         y0, x0, m, depth_ = stack.pop()
+        pieces = _occupancy_split(m, p.window_gap_occupancy)
+        if len(pieces) > 1:  # panes side by side (or stacked) joined by a frame or a sill line
+            stack.extend((y0 + py, x0 + px, pm, depth_) for py, px, pm in pieces)
+            continue
         why = accept(y0, x0, m)
         if why in ("fill", "size"):
             rejects.append((y0, x0, m))
@@ -733,8 +785,8 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
         t = np.radians((o - 1) * step)
         for c in range(1, nc):
             x0, y0, ww, hh, area = (int(q) for q in st[c])
-            if area < min_px:
-                continue  # joins its nearest wall below
+            if area < 4 * min_px:
+                continue  # joins its nearest wall below (directions are noisy beside trees and cars)
             sl = (slice(y0, y0 + hh), slice(x0, x0 + ww))
             m = lab[sl] == c
             d = np.where(m, -np.sin(t) * X[sl] + np.cos(t) * Zw[sl], np.nan)   # plane offset (m)
@@ -765,18 +817,21 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
                     seg_d[i] = np.nanmedian(seg)
             with np.errstate(invalid="ignore"):
                 off = np.abs(d - seg_d[colid][None, :]) > p.window_facade_step_m + 0.01 * zz[sl]
-            ids = colid[None, :] * 2 + off.astype(np.int32)
-            for q in np.unique(ids[m]):
-                sel = m & (ids == q)
-                if q % 2 == 0:
-                    out[sl][sel] = nxt
-                    nxt += 1
+            base = nxt + colid  # each column range's wall
+            nxt += len(edges) - 1
+            out[sl][m] = np.broadcast_to(base[None, :], m.shape)[m]
+            n2, lab2, st2, _ = cv2.connectedComponentsWithStats((m & off).astype(np.uint8), connectivity=4)
+            for c2 in range(1, n2):
+                # off-plane pieces: their own wall when large and flat (a dormer, an awning); a ramp
+                # is depth bled from a car or a tree in front and stays on the wall
+                if st2[c2, 4] < min_px:
                     continue
-                n2, lab2, st2, _ = cv2.connectedComponentsWithStats(sel.astype(np.uint8), connectivity=4)
-                for c2 in range(1, n2):  # off-plane pieces: each its own wall when large enough
-                    if st2[c2, 4] >= min_px:
-                        out[sl][lab2 == c2] = nxt
-                        nxt += 1
+                piece = lab2 == c2
+                dd = d[piece]
+                dd = dd[np.isfinite(dd)]
+                if dd.size and float(np.std(dd)) <= p.window_facade_step_m + 0.01 * float(np.median(zz[sl][piece])):
+                    out[sl][piece] = nxt
+                    nxt += 1
     out = _fill_nearest(out, Bs)
     if f > 1:
         out = cv2.resize(out, (W, H), interpolation=cv2.INTER_NEAREST)
@@ -784,10 +839,10 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
     return np.where(B, out, 0).astype(np.int32)
 
 
-def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
-    """Image column of the vanishing point of a wall's horizontal direction (``fm``: HxW bool, the
-    wall's pixels), from depth seen from above; None when the wall faces the camera (its bays are
-    evenly spaced in the image), is too short to tell, or without depth."""
+def _wall_direction(ctx: Context, fm: np.ndarray) -> tuple[float, float] | None:
+    """Horizontal direction (tx, tz) of a wall seen from above (``fm``: HxW bool, the wall's pixels):
+    the principal axis of its points' sideways and forward positions (m, from depth); None without
+    depth or when the wall spans under 0.5 m."""
     if ctx.depth is None:
         return None
     ys, xs = np.nonzero(fm)
@@ -804,16 +859,29 @@ def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
     X = (xs - K.cx) * z / K.fx
     Zw = z * np.cos(pitch) - (ys - K.cy) * z / K.fy * np.sin(pitch)
     evals, evecs = np.linalg.eigh(np.cov(np.stack([X, Zw])))
-    tx, tz = evecs[:, 1]
-    if np.sqrt(max(evals[1], 0.0)) < 0.5 or abs(tz) < 0.15 * abs(tx):
+    if np.sqrt(max(evals[1], 0.0)) < 0.5:
         return None
+    return float(evecs[0, 1]), float(evecs[1, 1])
+
+
+def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
+    """Image column of the vanishing point of a wall's horizontal direction (:func:`_wall_direction`;
+    ``fm``: HxW bool, the wall's pixels); None when the wall faces the camera (its bays are evenly
+    spaced in the image), is too short to tell, or without depth."""
+    t = _wall_direction(ctx, fm)
+    if t is None:
+        return None
+    tx, tz = t
+    if abs(tz) < 0.15 * abs(tx):
+        return None
+    K, pitch = ctx.intrinsics, float(ctx.params.camera_pitch_rad)
     u_vp = K.fx * tx / (tz * np.cos(pitch)) + K.cx
     W = ctx.shape[1]
     if not -3 * W < u_vp < 4 * W:
         return None
     # every pixel of the wall must lie on one side of it (else it is not a receding plane)
-    side = np.sign(xs - u_vp)
-    if abs(side.mean()) < 0.98:
+    xs = np.nonzero(fm)[1]
+    if abs(np.sign(xs - u_vp).mean()) < 0.98:
         return None
     return float(u_vp)
 
@@ -862,7 +930,8 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
     return float(P), float(phi), float(sc.sum())
 
 
-def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, chroma: np.ndarray) -> tuple[
+def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, chroma: np.ndarray,
+                  dropped: list | tuple = ()) -> tuple[
         list[tuple[int, int, np.ndarray]], set[int]]:
     """The facade grid of one wall (docs/proposals.md "Building windows"): every cell of it in view.
 
@@ -873,11 +942,16 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
     window width is their median width in w. Floors are the windows' levels (within the level
     tolerance) with two windows at least; a floor's top and bottom are lines through the wall's
     vanishing point on the horizon (their median slopes), or rows for a wall facing the camera.
-    A cell is kept when ``window_cell_min_visible`` of it is this wall's pixels and it looks faintly
+    The vanishing column from depth is a few pixels off; the column within 6 % of the image width
+    whose lattice fits best is taken. Bays run over the windows found and up to
+    ``window_cell_max_extra_bays`` beyond them toward the vanishing point (where panes shrink until
+    the blob test misses them; a facing wall: none beyond).
+    A cell is kept when ``window_cell_min_visible`` of it is this wall's pixels, it looks faintly
     like a window (``window_cell_min_share`` of it beyond half the window thresholds in ``ratio``, the
-    log luminance against the wall, or ``chroma``). Returns the cells
-    (y0, x0, local mask) and the indices of ``wins`` that span two or more cells (merged panes,
-    replaced by the cells).
+    log luminance against the wall, or ``chroma``), and it is at most ``window_cell_max_px`` wide or
+    lies on a window spanning cells or on one of ``dropped`` (Lights :func:`_median_rule` removed).
+    Returns the cells (y0, x0, local mask) and the indices of ``wins`` that span two or more cells
+    (merged panes, replaced by the cells).
     """
     p = ctx.params
     H, W = fm.shape
@@ -951,6 +1025,18 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
     cols = np.flatnonzero(col)
     wr = to_w(np.array([cols.min() - 0.5, cols.max() + 0.5]), u_vp)
     k0, k1 = sorted(((wr - phi) / P).tolist())
+    # Bays beyond the windows found only toward the vanishing point, where panes shrink until the
+    # blob test misses them; on the near side a pane would have been found (and a facing wall
+    # has no far side).
+    kd = np.round((wab.mean(1) - phi) / P)
+    kd0, kd1 = float(kd.min()), float(kd.max())
+    ext = p.window_cell_max_extra_bays
+    if u_vp is None:
+        k0, k1 = max(k0, kd0), min(k1, kd1)
+    elif abs(phi + (kd1 + 1) * P) > abs(phi + (kd0 - 1) * P):
+        k0, k1 = max(k0, kd0), min(k1, kd1 + ext)
+    else:
+        k0, k1 = max(k0, kd0 - ext), min(k1, kd1)
     cells = []
     merged = set()
     grid = []
@@ -960,7 +1046,7 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
         if not np.isfinite(ua) or not np.isfinite(ub) or ub < -0.5 or ua > W - 0.5:
             continue
         ca, cb = int(np.ceil(ua)), int(np.floor(ub))
-        if cb < ca:
+        if cb < ca:  # narrower than a pixel: the column nearest its centre
             ca = cb = int(round((ua + ub) / 2.0))
         ca, cb = max(ca, 0), min(cb, W - 1)
         if cb < ca:
@@ -986,14 +1072,19 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
         if n_in >= 2:
             merged.add(i)
     t = -np.log(p.window_dark_ratio)
-    for ya, xa, m in grid:
+    gone = [(li.y0, li.y0 + li.mask.shape[0] - 1, li.x0, li.x0 + li.mask.shape[1] - 1) for li in dropped]
+    for ya, xa0, m in grid:
         h, w = m.shape
-        vis = fm[ya:ya + h, xa:xa + w] & m
-        if vis.sum() < p.window_cell_min_visible * m.sum():
+        vis = fm[ya:ya + h, xa0:xa0 + w] & m
+        if vis.sum() < p.window_cell_min_visible * m.sum() or not vis.any():
             continue
         # looks faintly like a window: half the window thresholds on enough of it
-        odd = (np.abs(ratio[ya:ya + h, xa:xa + w]) > 0.5 * t) | (chroma[ya:ya + h, xa:xa + w] > 0.5 * p.window_chroma_delta)
-        if (odd & vis).sum() < p.window_cell_min_share * vis.sum():
-            continue
-        cells.append((ya, xa, m))
+        odd = (np.abs(ratio[ya:ya + h, xa0:xa0 + w]) > 0.5 * t) | \
+            (chroma[ya:ya + h, xa0:xa0 + w] > 0.5 * p.window_chroma_delta)
+        # narrow cells (a wider pane is found as a blob where there is one), or the cells of a
+        # blob over several cells
+        in_merged = any(min(ya + h - 1, q[1]) >= max(ya, q[0]) and min(xa0 + w - 1, q[3]) >= max(xa0, q[2])
+                        for q in [box[i] for i in merged] + gone)
+        if (odd & vis).sum() >= p.window_cell_min_share * vis.sum() and (w <= p.window_cell_max_px or in_merged):
+            cells.append((ya, xa0, m))
     return cells, merged
