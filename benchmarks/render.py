@@ -4,7 +4,8 @@ Usage::
 
     python benchmarks/render.py [--quick] [--variants scalar_rgb,llvm_ad_rgb] [--out FILE.md]
     python -m benchmarks.render --frontier [--sizes 512x256,2048x1024] [--spp 4,8,16,64]
-        [--denoisers none,guided,oidn] [--depths 2,3] [--cache DIR] [--out FILE.md] [--plot PNG]
+        [--denoisers none,guided,oidn] [--depths 2,3] [--samplers independent,multijitter]
+        [--meshes full,reduced] [--cache DIR] [--out FILE.md] [--plot PNG]
     python -m benchmarks.render --replot FILE.json --plot docs/img/render_frontier.png
     python -m benchmarks.render --defaults [--legacy] [--cache DIR]
     python -m benchmarks.render --crops-figure docs/img/denoiser_crops.png [--cache DIR]
@@ -211,6 +212,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--replot", default=None, metavar="JSON",
                     help="only redraw --plot from the JSON of an earlier --frontier --out run")
     ap.add_argument("--depths", default="2,3", help="frontier path depths (default 2,3)")
+    ap.add_argument("--samplers", default="independent",
+                    help="frontier Mitsuba samplers: independent (default), multijitter, stratified, ldsampler")
+    ap.add_argument("--meshes", default="full,reduced", help="frontier meshes: full, reduced (default both)")
     ap.add_argument("--cache", default=None, help="folder for the frontier's reference renders (reused when present)")
     ap.add_argument("--plot", default=None, metavar="PNG", help="frontier plot, e.g. docs/img/render_frontier.png")
     ap.add_argument("--defaults", action="store_true",
@@ -226,7 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.frontier:
         return frontier(args.sizes, [int(v) for v in args.spp.split(",")], args.denoisers.split(","),
                         [int(v) for v in args.depths.split(",")], 4096 if args.ref_spp == 256 else args.ref_spp,
-                        args.cache, args.out, args.plot)
+                        args.cache, args.out, args.plot, samplers=args.samplers.split(","),
+                        meshes=args.meshes.split(","))
     if args.defaults:
         return defaults(legacy=args.legacy, cache=args.cache)
     if args.fast_final:
@@ -331,15 +336,17 @@ def _cut(img: np.ndarray, crops) -> list[np.ndarray]:
     return [img] if crops is None else [img[y:y + h, x:x + w] for x, y, w, h in crops]
 
 
-def _render(built, spp: int, seed: int, max_depth: int, crop=None) -> np.ndarray:
-    """Mean of ``spp`` samples in calls of at most :data:`PASS_SPP` (distinct seeds)."""
+def _render(built, spp: int, seed: int, max_depth: int, crop=None, sampler: str | None = None) -> np.ndarray:
+    """Mean of ``spp`` samples in calls of at most :data:`PASS_SPP` (distinct seeds); ``sampler``
+    (default: the scene's, ``scene_builder.RENDER_SAMPLER``)."""
     from npsim_core.render.render import render_linear
 
     per = PASS_SPP if crop is None else 8 * PASS_SPP
     acc, done, k = None, 0, 0
     while done < spp:
         n = min(per, spp - done)
-        img = render_linear(built, spp=n, seed=seed * 100003 + k, max_depth=max_depth, crop=crop) * n
+        img = render_linear(built, spp=n, seed=seed * 100003 + k, max_depth=max_depth, crop=crop,
+                            sampler=sampler) * n
         acc = img if acc is None else acc + img
         done, k = done + n, k + 1
     return acc / spp
@@ -347,8 +354,9 @@ def _render(built, spp: int, seed: int, max_depth: int, crop=None) -> np.ndarray
 
 def _reference(built, W: int, H: int, crops, ref_spp: int, cache: Path | None, log):
     """Two independent one-bounce renders of ``ref_spp / 2`` samples each on the full mesh (the
-    frame, or each crop). Their mean is the reference; a quarter of their mean squared sRGB difference
-    estimates the reference's own error variance. Cached in ``cache`` (npz) when given."""
+    frame, or each crop), with the independent sampler (as before the sampler became a setting).
+    Their mean is the reference; a quarter of their mean squared sRGB difference estimates the
+    reference's own error variance. Cached in ``cache`` (npz) when given."""
     name = f"ref_{W}x{H}_{ref_spp}spp_{'full' if crops is None else 'crops'}.npz"
     if cache is not None and (cache / name).exists():
         z = np.load(cache / name)
@@ -357,8 +365,8 @@ def _reference(built, W: int, H: int, crops, ref_spp: int, cache: Path | None, l
     t0 = time.perf_counter()
     a, b = [], []
     for crop in (crops or [None]):
-        a.append(_render(built, ref_spp // 2, 9001, 3, crop))
-        b.append(_render(built, ref_spp // 2, 9002, 3, crop))
+        a.append(_render(built, ref_spp // 2, 9001, 3, crop, "independent"))
+        b.append(_render(built, ref_spp // 2, 9002, 3, crop, "independent"))
         log(f"  reference part {len(a)}: {time.perf_counter() - t0:.0f} s")
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
@@ -396,8 +404,11 @@ def _denoise_params(spec: str):
 
 
 def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: Path | None, log,
-                  tolerance: float = 0.01) -> tuple[list[dict], dict]:
-    """The frontier at one size on the synthetic street (see :func:`frontier`); returns rows and facts."""
+                  tolerance: float = 0.01, samplers=("independent",),
+                  meshes=("full", "reduced")) -> tuple[list[dict], dict]:
+    """The frontier at one size on the synthetic street (see :func:`frontier`); returns rows and facts.
+    ``samplers``: Mitsuba samplers of the renders (``scene_builder.SAMPLERS``); ``meshes``: ``full``
+    and/or ``reduced``."""
     from npsim_core.chain import Chain, ChainParams
     from npsim_core.chain.stages import light_table, lit_mesh
     from npsim_core.render.denoise import denoise_guides, denoise_night
@@ -421,6 +432,9 @@ def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: 
         f"({what}, {t_red:.1f} s)")
     built, aov = {}, {}
     for name, mesh in (("full", lit_mesh(res.mesh_result, chain.annotation)[0]), ("reduced", reduced)):
+        if name not in meshes and name != "full":  # the reference is rendered on the full mesh
+            facts["faces"][name], facts["build_s"][name] = mesh.n_faces, float("nan")
+            continue
         b, t, _ = _timed(lambda: build_scene(mesh, res.intrinsics, mats.materials, table, chain.annotation, active,
                                              bp))
         for d in depths:  # compile the kernels before timing
@@ -439,20 +453,20 @@ def frontier_size(W: int, H: int, spps, denoisers, depths, ref_spp: int, cache: 
     facts.update(ref_spp=ref_spp, ref_s=t_ref, ref_rmse=float(np.sqrt(ref_var)), crops=crops)
     log(f"  reference {ref_spp} spp: own RMSE about {np.sqrt(ref_var):.2f} levels")
     rows = []
-    for name in ("full", "reduced"):
-        for depth in depths:
-            for spp in spps:
-                img, t_r, _ = _timed(lambda: _render(built[name], spp, 17 * spp + depth, depth))
-                for spec in denoisers:
-                    dn, dp, kind = _denoise_params(spec)
-                    g = {"none": None, "mesh": raster, "aov": aov[name]}[kind]
-                    out, t_d, _ = _timed(lambda: denoise_night(img, g, dp, prot, denoiser=dn))
-                    rmse, rmse_c, ss = _errors(out, crops, ref, ref_var)
-                    rows.append({"size": f"{W}x{H}", "mesh": name, "faces": facts["faces"][name], "depth": depth,
-                                 "spp": spp, "denoiser": spec, "render": t_r, "denoise": t_d, "total": t_r + t_d,
-                                 "rmse": rmse, "rmse_c": rmse_c, "ssim": ss, "load": os.getloadavg()[0]})
-                    log(f"  {name} depth {depth} {spp:3d} spp {spec:13s} render {t_r:6.1f} s + {t_d:5.2f} s  "
-                        f"RMSE {rmse:6.2f} ({rmse_c:6.2f})  SSIM {ss:.3f}  load {rows[-1]['load']:.1f}")
+    for name, depth, sampler, spp in ((n, d, sm, sp) for n in meshes for d in depths for sm in samplers for sp in spps):
+        img, t_r, c_r = _timed(lambda: _render(built[name], spp, 17 * spp + depth, depth, sampler=sampler))
+        for spec in denoisers:
+            dn, dp, kind = _denoise_params(spec)
+            g = {"none": None, "mesh": raster, "aov": aov[name]}[kind]
+            out, t_d, _ = _timed(lambda: denoise_night(img, g, dp, prot, denoiser=dn))
+            rmse, rmse_c, ss = _errors(out, crops, ref, ref_var)
+            rows.append({"size": f"{W}x{H}", "mesh": name, "faces": facts["faces"][name], "depth": depth,
+                         "sampler": sampler, "spp": spp, "denoiser": spec, "render": t_r, "render_cpu": c_r,
+                         "denoise": t_d, "total": t_r + t_d,
+                         "rmse": rmse, "rmse_c": rmse_c, "ssim": ss, "load": os.getloadavg()[0]})
+            log(f"  {name} depth {depth} {sampler} {spp:3d} spp {spec:13s} render {t_r:6.1f} s "
+                f"({c_r:.1f} CPU s) + {t_d:5.2f} s  "
+                f"RMSE {rmse:6.2f} ({rmse_c:6.2f})  SSIM {ss:.3f}  load {rows[-1]['load']:.1f}")
     facts["load_end"] = os.getloadavg()[0]
     return rows, facts
 
@@ -468,10 +482,11 @@ def format_frontier(rows: list[dict], facts: list[dict]) -> str:
                    + ("" if f["crops"] is None else f", on the crops {f['crops']}")
                    + f" (its own RMSE about {f['ref_rmse']:.2f} levels); load {f['load_start']:.1f} at the "
                    f"start, {f['load_end']:.1f} at the end")
-    out += ["", "| size | mesh | depth | spp | denoiser | render s | denoise s | total s | RMSE | RMSE* | SSIM | load |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out += ["", "| size | mesh | depth | sampler | spp | denoiser | render s | render CPU s | denoise s | total s | RMSE | "
+                "RMSE* | SSIM | load |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        out.append(f"| {r['size']} | {r['mesh']} | {r['depth']} | {r['spp']} | {r['denoiser']} | {r['render']:.2f} | "
+        out.append(f"| {r['size']} | {r['mesh']} | {r['depth']} | {r.get('sampler', 'independent')} | {r['spp']} | "
+                   f"{r['denoiser']} | {r['render']:.2f} | {r.get('render_cpu', float('nan')):.1f} | "
                    f"{r['denoise']:.2f} | {r['total']:.2f} | {r['rmse']:.2f} | {r['rmse_c']:.2f} | {r['ssim']:.3f} | "
                    f"{r['load']:.1f} |")
     out += ["", "RMSE in 8-bit sRGB levels (exposure 0, no camera noise); RMSE* the same with the reference's own "
@@ -480,22 +495,27 @@ def format_frontier(rows: list[dict], facts: list[dict]) -> str:
 
 
 def format_pivot(rows: list[dict]) -> str:
-    """The frontier as one line per (size, mesh, path depth, spp): the render time, then RMSE / SSIM
-    of each denoiser (with its denoising time when it is not negligible)."""
+    """The frontier as one line per (size, mesh, path depth, sampler, spp): the render time (and its
+    CPU seconds), then RMSE / SSIM of each denoiser (with its denoising time when not negligible)."""
     specs = list(dict.fromkeys(r["denoiser"] for r in rows))
-    out = ["| size | mesh | depth | spp | render s | " + " | ".join(f"{d}: RMSE / SSIM" for d in specs) + " | load |",
-           "|---" * (6 + len(specs)) + "|"]
-    keys = list(dict.fromkeys((r["size"], r["mesh"], r["depth"], r["spp"]) for r in rows))
-    for k in keys:
-        sub = {r["denoiser"]: r for r in rows if (r["size"], r["mesh"], r["depth"], r["spp"]) == k}
+    out = ["| size | mesh | depth | sampler | spp | render s (CPU s) | " + " | ".join(f"{d}: RMSE / SSIM" for d in specs)
+           + " | load |", "|---" * (7 + len(specs)) + "|"]
+
+    def key(r):
+        return r["size"], r["mesh"], r["depth"], r.get("sampler", "independent"), r["spp"]
+
+    for k in dict.fromkeys(key(r) for r in rows):
+        sub = {r["denoiser"]: r for r in rows if key(r) == k}
         first = next(iter(sub.values()))
         cells = []
         for d in specs:
             r = sub.get(d)
             cells.append("-" if r is None else f"{r['rmse']:.1f} / {r['ssim']:.3f}"
                          + (f" (+{r['denoise']:.1f} s)" if r["denoise"] >= 0.05 else ""))
+        cpu = first.get("render_cpu")
         out.append(f"| {k[0]} | {k[1]} | {'one bounce' if k[2] == 3 else 'direct' if k[2] == 2 else k[2]} | {k[3]} | "
-                   f"{first['render']:.1f} | " + " | ".join(cells) + f" | {first['load']:.1f} |")
+                   f"{k[4]} | {first['render']:.1f}" + ("" if cpu is None else f" ({cpu:.1f})") + " | "
+                   + " | ".join(cells) + f" | {first['load']:.1f} |")
     return "\n".join(out)
 
 
@@ -549,14 +569,15 @@ def plot_frontier(rows: list[dict], facts: list[dict], path: str, baseline=("ful
 
 
 def frontier(argv_sizes: str, spps, denoisers, depths, ref_spp: int, cache: str | None, out: str | None,
-             plot: str | None) -> int:
+             plot: str | None, samplers=("independent",), meshes=("full", "reduced")) -> int:
     """RMSE and SSIM against a high-spp one-bounce reference on the full mesh, over spp x denoiser x
     mesh (full, error-bounded reduction) x path depth (direct light, one bounce) (docs/relight.md)."""
     log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     rows, facts = [], []
     for size in argv_sizes.split(","):
         W, H = (int(v) for v in size.lower().split("x"))
-        r, f = frontier_size(W, H, spps, denoisers, depths, ref_spp, Path(cache) if cache else None, log)
+        r, f = frontier_size(W, H, spps, denoisers, depths, ref_spp, Path(cache) if cache else None, log,
+                             samplers=samplers, meshes=meshes)
         rows += r
         facts.append(f)
         if plot:

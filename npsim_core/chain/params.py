@@ -19,6 +19,7 @@ from ..refine.bilateral import FilterParams
 from ..refine.params import OPTIMIZER_FIELDS, PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DENOISERS, DenoiseParams
+from ..render.scene_builder import RENDER_SAMPLER, SAMPLERS
 from .names import DEPTH_SOURCES, LIGHT_SOURCES
 
 __all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "LightsParams",
@@ -146,6 +147,9 @@ class NightParams:
         reference than 64 spp with the guided filter, docs/relight.md).
     final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct
         light only (about half the time), 4 = two bounces.
+    sampler : Mitsuba sampler of the nights, previews and guides (``scene_builder.SAMPLERS``):
+        ``multijitter`` (the default: stratified samples, lower noise at the same spp
+        than ``independent``, the sampler before; ``benchmarks/render.py --frontier --samplers``).
     iso : camera noise preset (0 = no noise).
     exposure_mode : ``auto`` (default): the camera meters the lit pixels of the night (geometric
         mean of their luminance, light sources, sky and ego vehicle left out) and exposes them to
@@ -184,6 +188,7 @@ class NightParams:
     preview_max_depth: int = 3
     final_spp: int = 16
     final_max_depth: int = 3
+    sampler: str = RENDER_SAMPLER
     iso: int = 1600
     exposure: float = 0.0
     exposure_mode: str = "auto"
@@ -219,6 +224,8 @@ class NightParams:
             raise NpsimInputError(f"night.motion_blur_px must be >= 0, got {self.motion_blur_px}")
         if not 0.0 <= float(self.bloom) <= 1.0:
             raise NpsimInputError(f"night.bloom must be in [0, 1] (0 = off), got {self.bloom}")
+        if self.sampler not in SAMPLERS:
+            raise NpsimInputError(f"night.sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
         if self.variant not in ("", "scalar_rgb", "llvm_ad_rgb"):
             raise NpsimInputError(f"night.variant must be '', 'scalar_rgb' or 'llvm_ad_rgb', got {self.variant!r}")
         if self.exposure_mode not in EXPOSURE_MODES:

@@ -72,11 +72,13 @@ def _size(built: BuiltScene, scale: float) -> tuple[int, int]:
 
 def render_linear(built: BuiltScene, *, spp: int, seed: int = 0, scale: float = 1.0,
                   width: int | None = None, height: int | None = None, pixel_centres: bool = False,
-                  max_depth: int | None = None, crop: tuple[int, int, int, int] | None = None) -> np.ndarray:
+                  max_depth: int | None = None, crop: tuple[int, int, int, int] | None = None,
+                  sampler: str | None = None) -> np.ndarray:
     """One render of ``spp`` samples per pixel -> (H, W, 3) float32 linear RGB.
 
     ``max_depth`` overrides the scene's path length for this render only;
-    ``crop = (x, y, w, h)`` renders only that window of the film (result h x w).
+    ``crop = (x, y, w, h)`` renders only that window of the film (result h x w);
+    ``sampler`` overrides the scene's Mitsuba sampler (``scene_builder.SAMPLERS``).
     """
     import mitsuba as mi
 
@@ -85,8 +87,8 @@ def render_linear(built: BuiltScene, *, spp: int, seed: int = 0, scale: float = 
     w, h = (width, height) if width and height else _size(built, scale)
     with thread_env_scope(mi, built.thread_env):
         kw = {} if max_depth is None else {"integrator": built.integrator(int(max_depth))}
-        img = mi.render(built.scene, sensor=built.sensor(w, h, pixel_centres=pixel_centres, crop=crop), spp=int(spp),
-                        seed=int(seed), **kw)
+        sensor = built.sensor(w, h, pixel_centres=pixel_centres, crop=crop, sampler=sampler)
+        img = mi.render(built.scene, sensor=sensor, spp=int(spp), seed=int(seed), **kw)
         return np.array(img, dtype=np.float32)[..., :3]
 
 
