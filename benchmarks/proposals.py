@@ -21,8 +21,8 @@ and per ground-truth group not reproduced exactly (regroup).
 
 Table 4: the window rules -- windows (kind ``window``, not shop fronts or office bands) larger
 than 1.5x the median window of their facade (area in m^2 at the window's depth; facade = the wall
-plane around the window, from the scene's primitives and exact normals: one face of one building
-box), and the largest share of a facade's area that proposed windows cover (target
+plane the window's pixels lie on, from the scene cast without its light panes and exact normals: one
+face of one building box), and the largest share of a facade's area that proposed windows cover (target
 <= 40 %); and the proposed groups an annotator keeps: ground-truth groups (lights matched at mask
 IoU >= 0.5) reproduced exactly, reproduced in part without a foreign member (the editor completes
 them in 2 + missing actions), or not at all.
@@ -55,20 +55,21 @@ def frame(W: int, H: int, seed: int, variant: str):
 
 def frame_and_walls(W: int, H: int, seed: int, variant: str):
     """:func:`frame` and the scene's wall planes (HxW int64, 0 elsewhere): one id per building
-    primitive and face orientation (the axis of its exact normal), lights' primitives left out --
-    the facades Table 4 measures windows on."""
+    primitive and face orientation (the axis of its exact normal), cast without the light panes so
+    a pane's pixels show the wall it is on -- the facades Table 4 measures windows on."""
     from npsim_core.synthetic import street_ground_truth, street_scene
     from npsim_core.synthetic.cityscapes import instance_ids
 
     scene = street_scene(W, H, seed, variant)
     layout, _, _, gt = street_ground_truth(W, H, seed, variant=variant)
-    prims = layout.prims
-    wall_prim = (np.asarray(prims.label) == 11) & (np.asarray(prims.light) == 0)
-    ok = gt.prim >= 0
-    walls = np.zeros(gt.prim.shape, np.int64)
-    sel = ok & wall_prim[np.where(ok, gt.prim, 0)]
-    axis = np.abs(np.nan_to_num(gt.normals)).argmax(-1)
-    walls[sel] = (gt.prim[sel].astype(np.int64) + 1) * 4 + axis[sel]
+    _, _, _, host = street_ground_truth(W, H, seed, include_lights=False, variant=variant)
+    prims = layout.prims.subset(layout.prims.light == 0)  # what host.prim indexes
+    wall_prim = np.asarray(prims.label) == 11
+    ok = host.prim >= 0
+    walls = np.zeros(host.prim.shape, np.int64)
+    sel = ok & wall_prim[np.where(ok, host.prim, 0)]
+    axis = np.abs(np.nan_to_num(host.normals)).argmax(-1)
+    walls[sel] = (host.prim[sel].astype(np.int64) + 1) * 4 + axis[sel]
     return scene, instance_ids(scene.labels, gt.prim, layout.prims).astype(np.int32), walls
 
 
@@ -107,8 +108,9 @@ def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int,
     """(windows of kind ``window``, of those larger than 1.5x their facade's median, largest share of a
     facade covered by them) -- Table 4. Window area on the wall: pixel area x (z / f)^2 / cos of the
     incidence angle (the scene's exact normals where it has them), so windows down a receding facade compare fairly.
-    Facade: the wall plane most of the pixels around the window show (``walls``, :func:`frame_and_walls`);
-    without ``walls`` the connected building region (which joins neighbouring buildings)."""
+    Facade: the wall plane most of the window's pixels lie on (``walls``, :func:`frame_and_walls`); the
+    lit share of a wall: its windows' pixels on it over its pixels (panes included); without
+    ``walls`` the connected building region (which joins neighbouring buildings)."""
     import cv2
 
     from npsim_core.annotation import class_of
@@ -116,18 +118,10 @@ def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int,
     kinds = ann.meta.get("light_kinds", {})
     if walls is None:
         _, bld = cv2.connectedComponents((scene.labels == 11).astype(np.uint8), connectivity=4)
-    else:  # each window on the wall plane around it: a 2-px ring
-        ring = cv2.dilate((ann.instance_map > 0).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-        owner = cv2.dilate(ann.instance_map.astype(np.float32), np.ones((5, 5), np.uint8)).astype(np.int64)
-        bld = np.zeros(walls.shape, np.int64)
-        inside = ann.instance_map > 0
-        near = ring & ~inside & (walls > 0)
+    else:  # each window on the wall plane its pixels lie on
         ids, inv = np.unique(walls, return_inverse=True)
-        inv = inv.reshape(walls.shape)
-        for i in np.unique(owner[near]):
-            vals = inv[near & (owner == i)]
-            bld[ann.instance_map == i] = int(np.bincount(vals).argmax())
-        bld_area = np.bincount(inv[walls > 0].ravel(), minlength=ids.size)
+        bld = np.where(walls > 0, inv.reshape(walls.shape), 0)
+        bld_area = np.bincount(bld.ravel(), minlength=ids.size)
     m = ann.instance_map
     per: dict[int, list[float]] = {}
     lit: dict[int, float] = {}
@@ -144,7 +138,7 @@ def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int,
         fid = int(np.bincount(b).argmax())
         if kinds.get(str(i), "window") != "window":
             continue
-        lit[fid] = lit.get(fid, 0.0) + float(mk.sum())
+        lit[fid] = lit.get(fid, 0.0) + float(mk.sum() if walls is None else (b == fid).sum())
         d = depth[mk] if depth is not None else np.array([])
         d = d[np.isfinite(d)]
         z = float(np.median(d)) if d.size else 1.0
@@ -160,7 +154,7 @@ def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int,
         per.setdefault(fid, []).append(float(mk.sum()) * z * z / f2 / cos)
     n = sum(len(v) for v in per.values())
     big = sum(int((np.asarray(v) > 1.5 * np.median(v)).sum()) for v in per.values())
-    area = (lambda fid: float((bld == fid).sum())) if walls is None else (lambda fid: float(bld_area[fid]) + lit[fid])
+    area = (lambda fid: float((bld == fid).sum())) if walls is None else (lambda fid: float(bld_area[fid]))
     share = max((a / max(area(fid), 1.0) for fid, a in lit.items()), default=0.0)
     return n, big, share
 

@@ -785,8 +785,9 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
         t = np.radians((o - 1) * step)
         for c in range(1, nc):
             x0, y0, ww, hh, area = (int(q) for q in st[c])
-            if area < 4 * min_px:
-                continue  # joins its nearest wall below (directions are noisy beside trees and cars)
+            if area < min_px or (area < 4 * min_px and area < 0.6 * ww * hh):
+                continue  # joins its nearest wall below (directions are noisy beside trees and cars;
+                # a small piece is a wall when it fills its box: the side of a building's step)
             sl = (slice(y0, y0 + hh), slice(x0, x0 + ww))
             m = lab[sl] == c
             d = np.where(m, -np.sin(t) * X[sl] + np.cos(t) * Zw[sl], np.nan)   # plane offset (m)
