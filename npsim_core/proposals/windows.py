@@ -386,10 +386,11 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have.append((r0, r1, a0, a1))
         fm = bld == b_id
+        t_wall = _wall_direction(ctx, fm) if len(kept) >= 3 else None
         n0 = {id(f): f for f in kept}
-        kept = _median_rule(ctx, kept, fm)  # before the grid: the cells stand in for what it drops
+        kept = _median_rule(ctx, kept, fm, t_wall)  # before the grid: the cells stand in for what it drops
         dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
-        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma, dropped)
+        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma, dropped, t_wall)
         if cells:
             kept = [f for i, f in enumerate(kept) if i not in merged]
             have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
@@ -406,17 +407,16 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
     return out
 
 
-def _median_rule(ctx: Context, wins: list, fm: np.ndarray) -> list:
+def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
     """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
     (``fm``, HxW bool; three windows at least) and of their floor (three windows at least): a merged
     row, a gable or an awning, never one pane.
-    Areas on the wall: pixels x (z / f)^2 / cos of the incidence on the wall (its direction,
+    Areas on the wall: pixels x (z / f)^2 / cos of the incidence on the wall (its direction ``t``,
     :func:`_wall_direction`), each one pixel smaller across and down than in the image
     (quantisation)."""
     p = ctx.params
     if len(wins) < 3 or ctx.depth is None:
         return wins
-    t = _wall_direction(ctx, fm)
     K = ctx.intrinsics
     area = []
     for f in wins:
@@ -846,7 +846,11 @@ def _wall_direction(ctx: Context, fm: np.ndarray) -> tuple[float, float] | None:
     depth or when the wall spans under 0.5 m."""
     if ctx.depth is None:
         return None
-    ys, xs = np.nonzero(fm)
+    rows, cols = np.flatnonzero(fm.any(1)), np.flatnonzero(fm.any(0))
+    if rows.size == 0:
+        return None
+    ys, xs = np.nonzero(fm[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1])
+    ys, xs = ys + rows[0], xs + cols[0]
     if ys.size < 8:
         return None
     step = max(1, ys.size // 4000)
@@ -865,11 +869,10 @@ def _wall_direction(ctx: Context, fm: np.ndarray) -> tuple[float, float] | None:
     return float(evecs[0, 1]), float(evecs[1, 1])
 
 
-def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
-    """Image column of the vanishing point of a wall's horizontal direction (:func:`_wall_direction`;
-    ``fm``: HxW bool, the wall's pixels); None when the wall faces the camera (its bays are evenly
-    spaced in the image), is too short to tell, or without depth."""
-    t = _wall_direction(ctx, fm)
+def _wall_vp(ctx: Context, fm: np.ndarray, t: tuple[float, float] | None) -> float | None:
+    """Image column of the vanishing point of a wall's horizontal direction ``t``
+    (:func:`_wall_direction`; ``fm``: HxW bool, the wall's pixels); None when the wall faces the
+    camera (its bays are evenly spaced in the image), is too short to tell, or without depth."""
     if t is None:
         return None
     tx, tz = t
@@ -880,9 +883,9 @@ def _wall_vp(ctx: Context, fm: np.ndarray) -> float | None:
     W = ctx.shape[1]
     if not -3 * W < u_vp < 4 * W:
         return None
-    # every pixel of the wall must lie on one side of it (else it is not a receding plane)
-    xs = np.nonzero(fm)[1]
-    if abs(np.sign(xs - u_vp).mean()) < 0.98:
+    # the wall's columns must lie on one side of it (else it is not a receding plane)
+    cols = np.flatnonzero(fm.any(0))
+    if cols.size == 0 or abs(np.sign(cols - u_vp).mean()) < 0.98:
         return None
     return float(u_vp)
 
@@ -903,7 +906,7 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
     d = np.sort(d[d > 1.4 * width])
     if d.size == 0:
         return None
-    d = d[np.r_[True, np.diff(np.log(d)) > 0.01]][:300]  # distinct to 1 %
+    d = d[np.r_[True, np.diff(np.log(d)) > 0.01]][:150]  # distinct to 1 %, the shortest
 
     def score(P, phi):
         r = (c - phi) / P
@@ -932,7 +935,7 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
 
 
 def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, chroma: np.ndarray,
-                  dropped: list | tuple = ()) -> tuple[
+                  dropped: list | tuple = (), direction: tuple[float, float] | None = None) -> tuple[
         list[tuple[int, int, np.ndarray]], set[int]]:
     """The facade grid of one wall (docs/proposals.md "Building windows"): every cell of it in view.
 
@@ -958,7 +961,7 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
     H, W = fm.shape
     if len(wins) < 3:
         return [], set()
-    u0 = _wall_vp(ctx, fm)
+    u0 = _wall_vp(ctx, fm, direction if direction is not None else _wall_direction(ctx, fm))
     K = ctx.intrinsics
     v_h = float(K.cy - K.fy * np.tan(p.camera_pitch_rad))  # the horizon row
 
@@ -976,13 +979,17 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
     # The vanishing column from depth is a few pixels off (depth is warped); the bays' regularity
     # fixes it: the column near it whose lattice fits the windows best.
     best = None
-    cands = [None] if u0 is None else [u0 + d * W for d in np.linspace(-0.06, 0.06, 25)]
-    for u_vp in cands:
-        if u_vp is not None and not (np.all(edges_u > u_vp + 0.5) or np.all(edges_u < u_vp - 0.5)):
-            continue
-        fit, width, wab = lattice(u_vp)
-        if fit is not None and (best is None or fit[2] > best[1][2]):
-            best = (u_vp, fit, width, wab)
+    cands = [None] if u0 is None else [u0 + d * W for d in np.linspace(-0.06, 0.06, 9)]
+    for rnd in range(2):  # coarse, then fine around the best
+        for u_vp in cands:
+            if u_vp is not None and not (np.all(edges_u > u_vp + 0.5) or np.all(edges_u < u_vp - 0.5)):
+                continue
+            fit, width, wab = lattice(u_vp)
+            if fit is not None and (best is None or fit[2] > best[1][2]):
+                best = (u_vp, fit, width, wab)
+        if best is None or best[0] is None:
+            break
+        cands = [best[0] + d * W for d in np.linspace(-0.0075, 0.0075, 7)]
     if best is None:
         return [], set()
     u_vp, (P, phi, _), width, wab = best
