@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .core import Context, Light, components
+from .params import ProposalParams
 
 POLE = 17
 STREET_LIGHT_HT, STREET_LIGHT_LT = 8, 9
@@ -19,11 +20,13 @@ def _pole_depth(ctx: Context, y0: int, x0: int, mask: np.ndarray) -> float | Non
     return float(np.percentile(d, 20)) if d.size else None
 
 
-def _speck_head(specks: list, taken: set[int], top: int, trunk: int, band: int, mpp: float, p) -> int | None:
-    """Index of the speck of pole (a component smaller than ``pole_min_area_px`` or under 4 px tall, at
-    least as wide as tall) that is the lamp head of the trunk whose top is at global row ``top``, column ``trunk``: its
-    rows within the head band (``band`` px below the top, a pixel above), its centre ``lamp_min_arm_m``
-    to ``lamp_max_arm_m`` sideways (``mpp`` metres per pixel at the trunk); the nearest such, else None."""
+def _speck_head(specks: list[tuple[int, int, np.ndarray]], taken: set[int], top: int, trunk: int, band: int,
+                mpp: float, p: ProposalParams) -> int | None:
+    """Index in ``specks`` ((y0, x0, local mask) of pole components smaller than ``pole_min_area_px``
+    or under 4 px tall, at least as wide as tall) of the lamp head of the trunk whose top is at global
+    row ``top``, column ``trunk``: rows within the head band (``band`` px below the top, or a pixel
+    above it), centre ``lamp_min_arm_m`` to ``lamp_max_arm_m`` sideways (``mpp`` metres per pixel at
+    the trunk's depth); the nearest one not ``taken``, else None."""
     best, best_d = None, np.inf
     for k, (sy, sx, m) in enumerate(specks):
         if k in taken or sy + m.shape[0] - 1 < top - 1 or sy > top + band:

@@ -182,7 +182,8 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     by the image border or an occluder) of the body's end face the camera sees, its depth (m), and
     whether it is placed (False: cut by a nearer object beside it -- the car in front in a row of
     parked cars -- with no inner edge found, so the box is laid out from the occluder's edge and the
-    lamps behind it are hidden: no lamps are proposed on it).
+    lamps behind it are hidden; or a silhouette narrower than ``vehicle_min_face_share`` of the face,
+    not cut by the image border: no lamps are proposed on it).
 
     Columns: the end face is a vertical plane across the vehicle, so it starts at the silhouette's
     nearer side (with depth: the side whose columns are nearer; without: the side away from the
@@ -445,7 +446,8 @@ def propose(ctx: Context) -> list[Group]:
     ``vehicle_lamp_cols`` fractions); a lamp box whose colour differs from the paint is snapped to
     those pixels. Facing comes from colour: lamps red by day, or departing from the paint towards
     red (``vehicle_rear_red_share``: in shade, far away), are rear lamps, else front lamps. A lamp box
-    on a face receding from the camera (:func:`_on_side_face`) is dropped. Confidence 0.75 with
+    on a face receding from the camera (:func:`_on_side_face`) is dropped, and a face that is not
+    placed (:func:`_end_face`: mostly hidden by the car in front) gets none. Confidence 0.75 with
     depth (0.55 without), +0.15 when both lamps stand out from the paint, -0.3 when the face is
     narrower than 1 m (a side view).
     Panes: pixels of the cabin band darker than the paint, split into the end pane (windscreen
