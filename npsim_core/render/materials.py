@@ -57,7 +57,7 @@ class MaterialParams:
         rectangles (docs/relight.md, "Nights of real frames": plates do not glow). 0 = off.
     delit_vehicles : de-lighting also divides vehicles by the day's shading per pixel (the normals
         of their fitted smooth surfaces; off = the fallback). Car albedo error on the fixture from
-        SGM geometry 0.461 -> 0.348 (512x256), 0.428 -> 0.326 (1024x512), from exact geometry
+        SGM geometry 0.461 -> 0.350 (512x256), 0.428 -> 0.320 (1024x512), from exact geometry
         0.265 / 0.215; the photo's is 0.419 / 0.401: better, not halved (docs/relight.md
         "De-lit textures").
     """
