@@ -173,6 +173,8 @@ class ProposalParams:
     window_cell_max_extra_bays: int = 4
     #: No window larger than this many times the median window of its wall (area on the wall).
     window_max_median_ratio: float = 1.5
+    #: ... judged on walls with at least this many windows (fewer give no reliable median).
+    window_median_min_count: int = 5
     #: ... unless its top is at most this high (m above the ground): ground-floor glazing larger than
     #: the windows above is a shop front (kind ``shop``; cars often hide its lower part).
     window_shop_max_top_m: float = 3.2

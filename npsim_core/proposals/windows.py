@@ -409,13 +409,14 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
 
 def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
     """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
-    (``fm``, HxW bool; three windows at least) and of their floor (three windows at least): a merged
+    (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
+    at least): a merged
     row, a gable or an awning, never one pane.
     Areas on the wall: pixels x (z / f)^2 / cos of the incidence on the wall (its direction ``t``,
     :func:`_wall_direction`), each one pixel smaller across and down than in the image
     (quantisation)."""
     p = ctx.params
-    if len(wins) < 3 or ctx.depth is None:
+    if len(wins) < p.window_median_min_count or ctx.depth is None:
         return wins
     K = ctx.intrinsics
     area = []
@@ -442,8 +443,8 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
     whole = np.array([li.y0 > 0 and li.x0 > 0 and li.y0 + li.mask.shape[0] < H and li.x0 + li.mask.shape[1] < W
                       and B[li.y0 - 1:li.y0 + li.mask.shape[0] + 1, li.x0 - 1:li.x0 + li.mask.shape[1] + 1].all()
                       for li in (f[3] for f in wins)])
-    ref_a = np.where(whole, a, np.nan) if (whole & np.isfinite(a)).sum() >= 3 else a
-    if np.isfinite(ref_a).sum() < 3:
+    ref_a = np.where(whole, a, np.nan) if (whole & np.isfinite(a)).sum() >= p.window_median_min_count else a
+    if np.isfinite(ref_a).sum() < p.window_median_min_count:
         return wins
     med = float(np.nanmedian(ref_a))
     lev = np.array([f[1] for f in wins])
@@ -529,18 +530,19 @@ def _median_depth(ctx: Context, li: Light) -> float | None:
 
 
 def propose(ctx: Context) -> list[Group]:
-    """Window instances in one windows_group per floor of each building region.
+    """Window instances in one windows_group per floor of each wall (:func:`facades`).
 
     Candidates are building pixels whose luminance differs from the local wall
     (:func:`wall_reference`) by more than ``window_dark_ratio`` either way (dark glass, bright
-    reflections and frames), or whose chromaticity differs (tinted glass). Each connected blob is
-    filled to its convex hull (frames, curtains and mullions split a pane) and kept when its
+    reflections and frames), or whose chromaticity differs (tinted glass). A blob whose columns
+    (rows) run nearly empty between fuller ones is first cut there (:func:`_occupancy_split`). Each
+    blob is filled to its convex hull (frames, curtains and mullions split a pane) and kept when its
     height is plausible (``window_height_m`` with depth) and it fills its box
     (``window_min_fill``); a blob failing the fill or size test is eroded, split into its parts
     and each part grown back and tested again (``window_split_steps`` times at most). A darker blob
     with the wall's own colour, or running down to the ground with little tint, is a cast shadow
-    (``window_shadow_*``) and dropped. Floors:
-    blobs of one building component whose centre heights (with
+    (``window_shadow_*``) and dropped. Then the grid per wall (:func:`regularise`). Floors:
+    blobs of one wall whose centre heights (with
     depth; else image rows) lie within ``window_floor_tol_m`` (else half a window). Confidence
     0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows.
     """
