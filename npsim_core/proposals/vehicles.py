@@ -383,8 +383,10 @@ def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     edge onto something else) rather than on its end face: the depth of its columns (median over
     its rows) rises or falls by more than ``vehicle_lamp_max_slope`` metres per metre across it
     (between the median depths of its two halves, its outermost columns left out).
-    Boxes narrower than ``vehicle_lamp_slope_min_px`` (at 512 px image width, scaled with the
-    width: predicted depth is blurred over a share of the image) are not judged."""
+    Boxes with fewer than ``vehicle_lamp_slope_min_px`` columns (at 512 px image width, scaled with
+    the width: predicted depth is blurred over a share of the image) left once the outermost ones are
+    left out (W/512 each side) are not judged: 8 px wide at 512x256, 32 px at 2048x1024 (judging from
+    ``vehicle_lamp_slope_min_px`` before trimming lost 0.02-0.09 recall, docs/proposals.md)."""
     p = ctx.params
     h, w = lamp.shape
     scale = max(1.0, ctx.shape[1] / 512.0)  # predicted depth bleeds over ~W/400 px at edges
