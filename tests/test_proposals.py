@@ -668,3 +668,18 @@ def test_no_lamp_on_a_car_showing_a_fraction_of_its_end_face_even_when_depth_mis
     lab[strip], img[strip], inst[strip] = CAR, (40, 60, 140), CAR * 1000 + 1
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     assert not any((ann.mask(i) & (inst == CAR * 1000 + 1)).any() for i in lamps)
+
+
+def test_a_far_pole_whose_foot_is_hidden_still_gets_its_lamp():
+    """The same far pole with all but its top 8 px hidden behind a hedge: an 8-px trunk is a pole
+    (``pole_min_area_px`` 6; it was 10, so its lamp was missed)."""
+    img, lab = _canvas(H=200, W=200)
+    lab[150:, :] = ROAD
+    depth = np.full((200, 200), 100.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
+    top = int(round(99.5 + 1.22 * 2)) - 16
+    lab[top:top + 8, 60], img[top:top + 8, 60] = POLE, (80, 80, 85)
+    lab[top + 8:top + 20, 50:75], img[top + 8:top + 20, 50:75] = 21, (30, 70, 30)      # the hedge
+    lab[top + 1:top + 2, 63:66], img[top + 1:top + 2, 63:66] = POLE, (200, 200, 190)
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, params=FLAT), (8, 9))
+    assert len(lamps) == 1 and np.nonzero(ann.mask(lamps[0]))[1].min() == 63

@@ -37,7 +37,7 @@ class ProposalParams:
 
     # --- street lamps
     #: Smallest pole component (pixels) examined for a lamp head.
-    pole_min_area_px: int = 10
+    pole_min_area_px: int = 6
     #: Lamp heads are looked for within this distance (m) below the component's top.
     lamp_head_band_m: float = 0.55
     #: A pole whose top is at least this high (m above the ground) carries a high (HT) lamp, else a low one.
