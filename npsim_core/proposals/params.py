@@ -113,6 +113,8 @@ class ProposalParams:
     window_min_area_px: int = 6
     #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.
     window_min_fill: float = 0.55
+    #: ... counting only the box's pixels not hidden by something in front (not building, not sky).
+    window_fill_unhidden: bool = True
     #: Leave the 1-px rim of what differs out of the wall estimate too (pixels mixing pane and wall).
     window_wall_rim: bool = False
     #: Share of wall pixels a box needs for its local wall estimate (else the coarser scale decides).

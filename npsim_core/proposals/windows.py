@@ -595,7 +595,9 @@ def propose(ctx: Context) -> list[Group]:
             filled = np.zeros((h, w), np.uint8)
             cv2.fillConvexPoly(filled, hull, 1)
             filled = filled.astype(bool) & B[y:y + h, x:x + w]
-        fill = filled.sum() / float(w * h)
+        # of the box's pixels not hidden: a tree, a pole or a car in front takes a pane's corner
+        hidden = int((~np.isin(ctx.labels[y:y + h, x:x + w], (BUILDING, SKY))).sum()) if p.window_fill_unhidden else 0
+        fill = filled.sum() / float(max(w * h - hidden, 1))
         if fill < p.window_min_fill:
             return "fill"
         contrast = float(np.median(np.abs(ratio[y:y + h, x:x + w][sub])))
