@@ -69,9 +69,9 @@ def test_kerbs_get_their_vertical_faces(sgm):
 
 
 def test_cars_stand_upright(sgm):
-    """No fitted car surface faces the sky: the normals of the car pixels stay within 30° of the
-    horizontal and near the exact ones on the large cars' upright faces (old fit: local planes,
-    many cars' bodies facing up, the pickup's median normal error 87°)."""
+    """No fitted car surface faces the sky: at most 2 % of the car pixels' normals are more than
+    30° above the horizontal (old fit, local planes: 40 %), and the upright faces' normals are
+    near the exact ones (the pickup's median error 32°, old 87°)."""
     scene, exact, _, _ = sgm
     n_true = normals_from_depth(exact, scene.intrinsics)
     up = np.array([0.0, -np.cos(scene.camera_pitch), -np.sin(scene.camera_pitch)])
@@ -83,7 +83,7 @@ def test_cars_stand_upright(sgm):
     _, normals, _ = _fit(sgm)
     _, old, _ = _fit(sgm, vehicle_upright=False, fattening_px=0.0)
     assert facing_up(normals) < 0.02
-    assert facing_up(old) > 0.1
+    assert facing_up(old) > 0.2                                                  # 40 %
     # Their upright faces (the exact boxes' tops are not fitted as such), all cars and the largest.
     vert = cars & (np.abs(n_true @ up) < 0.5)
     err, err_old = (np.nanmedian(_angle(n[vert], n_true[vert])) for n in (normals, old))
