@@ -107,8 +107,9 @@ def editor_actions(gt, props, threshold: float = 0.5) -> tuple[int, int]:
 
 def window_rules(scene, ann, walls: np.ndarray | None = None) -> tuple[int, int, float, int]:
     """(windows of kind ``window``, of those larger than 1.5x their facade's median, largest share of a
-    facade covered by them, of those larger than 1.5x the median of the facade's true windows) -- Table 4. Window area on the wall: pixel area x (z / f)^2 / cos of the
-    incidence angle (the scene's exact normals where it has them), so windows down a receding facade compare fairly.
+    facade covered by them, of those larger than 1.5x the median of the facade's true windows) -- Table 4.
+    Window area on the wall: pixel area x (z / f)^2 / cos of the incidence angle (the scene's exact
+    normals where it has them), so windows down a receding facade compare fairly.
     Facade: the wall plane most of the window's pixels lie on (``walls``, :func:`frame_and_walls`); the
     lit share of a wall: its windows' pixels on it over its pixels (panes included); without
     ``walls`` the connected building region (which joins neighbouring buildings)."""
