@@ -29,6 +29,13 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
    0.75 and none, exact depth 1.26).
 4. **Normals** come from the fitted planes analytically (``n ∝ −(b fx, c fy, a + b cx + c cy)``),
    so the refinement is not guided by stereo noise.
+5. **Kerbs**: a sidewalk above a road border gets the vertical face through the border
+   (:func:`_kerbs`); its plane alone had no kerb, and the night lacked the lamps' line along it.
+6. **Vehicles upright**: inverse depth per column, slope ridge-regressed toward facing the
+   camera (:func:`_upright_columns`); local planes laid cars back or turned them sideways, and
+   their lamps' spots then lit the sky or grazed a façade in row streaks.
+7. **Wide edge fattening**: stereo near a nearer segment (along the row, ``fattening_px``) is
+   dropped and the segment refitted (:func:`_fattened`).
 
 Where a façade or ground segment has too little stereo support in the window, the local fit
 hands over (blended in the coefficients) to the segment's robust plane, so the surface goes on
