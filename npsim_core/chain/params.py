@@ -143,10 +143,11 @@ class NightParams:
     preview_scale : preview resolution as a fraction of the image.
     preview_max_depth : path length of the preview: 3 = one bounce (default since session 3: with
         OIDN, 4 spp of one bounce are as close to the reference as 16 of direct light), 2 = direct.
-    final_spp : samples per pixel of exported nights: 12 with the multi-jittered sampler, as close to
-        a 4096-spp reference after OIDN as the former 16 independent samples (2048x1024 crops: RMSE
-        17.5 vs 17.3 levels, SSIM 0.728 vs 0.727) at 3/4 of the render's CPU (``benchmarks/render.py
-        --frontier --samplers``); 16 since session 3 (docs/relight.md), 64 before.
+    final_spp : samples per pixel of exported nights (16 since session 3, docs/relight.md; 64
+        before). With the multi-jittered sampler 12 would cost 3/4 of the render's CPU but is not as
+        close to a 4096-spp reference after OIDN (2048x1024 crops, 3 seeds: RMSE 18.1 vs 17.1
+        levels, SSIM 0.729 vs 0.730 for 16; ``benchmarks/render.py --frontier --samplers``). The
+        multi-jittered sampler takes the product of two near-equal factors (14 -> 15 spp).
     final_max_depth : path length of exported nights: 3 = one bounce (default), 2 = direct
         light only (about half the time), 4 = two bounces.
     sampler : Mitsuba sampler of the nights, previews and guides (``scene_builder.SAMPLERS``):
@@ -189,7 +190,7 @@ class NightParams:
     spp: int = 16
     preview_scale: float = 0.5
     preview_max_depth: int = 3
-    final_spp: int = 12
+    final_spp: int = 16
     final_max_depth: int = 3
     sampler: str = RENDER_SAMPLER
     iso: int = 1600
