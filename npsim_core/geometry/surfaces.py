@@ -113,7 +113,7 @@ class SurfaceParams:
     kerb_max_m: float = 0.3
     fattening_px: float = 24.0
     vehicle_upright: bool = True
-    vehicle_column_sigma: float = 16.0
+    vehicle_column_sigma: float = 32.0
     vehicle_noise_px: float = 0.5
     fattening_margin: float = 0.05
 
