@@ -322,7 +322,7 @@ def test_tone_contrast_narrows_the_range_around_mid_grey_and_keeps_hue():
 
 def test_the_night_sky_glows_warm_not_blue():
     """City sky glow is the city's sodium, halogen and warm-LED light scattered back: brownish in
-    night photos (SPEC §10); the table's sky was bluish (b/r 2)."""
+    night photos (docs/relight.md); the table's sky was bluish (b/r 2)."""
     from npsim_core.render.lights import load_light_table
 
     r, g, b = load_light_table().sky_radiance

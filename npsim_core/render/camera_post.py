@@ -290,7 +290,7 @@ def auto_white_balance(linear: np.ndarray, labels: np.ndarray, exclude: np.ndarr
     :data:`LIT_FLOOR`). A full correction would make that mean grey; a camera under warm night
     light corrects only part of the way, so sodium, halogen and tungsten light stays warm in its
     photos (AWB algorithms keep the "atmosphere" of low colour temperatures, and real night
-    photos' lit pixels are warm: R/B 1.61 on ACDC, SPEC §10). ``degree`` is that part, in
+    photos' lit pixels are warm: R/B 1.61 on ACDC nights, docs/relight.md). ``degree`` is that part, in
     log-gain (0 = the render's own D65 white, 1 = full grey world); gains are relative to green
     and bounded by :data:`AWB_GAIN_BOUNDS`. Fewer than 0.1 % lit pixels: no correction.
     Deterministic: same render, same gains.
