@@ -15,6 +15,13 @@ import numpy as np
 from .errors import NpsimInputError
 
 
+#: Confidence below which a pixel of an estimate's confidence map counts as guessed: the pop-up
+#: prior's hidden feet, crowns over occluders, nearest fills and far-limit placements fall below it,
+#: its visible contacts and the ground above (docs/geometry.md, "Confidence"). The uncertain map's
+#: default (``UncertaintyParams.confidence_below``) and the manifest's share use it.
+LOW_CONFIDENCE = 0.5
+
+
 @dataclass(frozen=True)
 class Intrinsics:
     """Pinhole intrinsics in pixels for an image of ``width`` x ``height``.

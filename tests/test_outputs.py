@@ -151,3 +151,15 @@ def test_ply_is_streamed_in_blocks(tmp_path, monkeypatch):
     assert len(t.faces) == m.n_faces
     face = t.metadata["_ply_raw"]["face"]["data"]
     np.testing.assert_array_equal(np.asarray(face["light_id"]).ravel(), m.parts[0].face_light_id())
+
+
+def test_manifest_says_how_much_of_the_depth_was_guessed(exported, tmp_path):
+    """The pop-up prior's confidence reaches the manifest as a structured field (share of pixels below
+    0.5); a frame with its own depth has none (docs/geometry.md "Confidence in the chain")."""
+    chain, out, files = exported
+    man = read_json(files[-1])
+    assert man["depth_confidence"] is None  # the synthetic street carries its own depth
+    prior = QUICK.with_value("depth", "source", "prior")
+    written = export_frame(Chain(chain.scene), prior, tmp_path, nights=0, kinds=("masks",))
+    conf = read_json(written[-1])["depth_confidence"]
+    assert conf is not None and 0.05 < conf["low_share"] < 0.6 and conf["threshold"] == 0.5

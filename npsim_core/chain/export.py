@@ -291,6 +291,9 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         "format": "npsim-export", "scene": n, "size": [s.width, s.height], "inputs": inputs or {},
         "provenance": {k: str(v) for k, v in s.provenance.items() if k != "files"},
         "depth_source": res.depth_source, "warnings": list(s.provenance.get("warnings", [])),
+        # share of guessed pixels (the pop-up prior's confidence; None for files, stereo, networks)
+        "depth_confidence": chain.engine.run(("geometry",), params).results["geometry"].scene.provenance.get(
+            "confidence"),
         "params": params.to_json(),
         "timings": {k: round(v, 4) for k, v in timings.items()},
         "mesh": mesh_info, "depth": depth_info,

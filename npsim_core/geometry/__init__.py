@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ..camera import LOW_CONFIDENCE  # re-exported: defined with the depth conventions
 from ..errors import NpsimInputError
 from ..scene import Scene
 
@@ -159,13 +160,6 @@ def estimate_geometry(scene: Scene, method: str = "popup", params: Any = None,
     if conf is not None and lim.dropped:
         conf = np.where(np.isfinite(depth), conf, np.float32(np.nan)).astype(np.float32)
     return GeometryEstimate(depth, normals, est.method, {**est.info, "depth_limits": lim.to_json()}, conf)
-
-
-#: Confidence below which a pixel of an estimate's confidence map counts as guessed: the pop-up
-#: prior's hidden feet, crowns over occluders, nearest fills and far-limit placements fall below it,
-#: its visible contacts and the ground above (docs/geometry.md, "Confidence"). The uncertain map's
-#: default (``UncertaintyParams.confidence_below``) and the manifest's share use it.
-LOW_CONFIDENCE = 0.5
 
 
 def confidence_summary(confidence: np.ndarray, threshold: float = LOW_CONFIDENCE) -> dict:

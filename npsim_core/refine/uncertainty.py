@@ -50,9 +50,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..camera import valid_depth_mask
+from ..camera import LOW_CONFIDENCE, valid_depth_mask
 from ..errors import NpsimInputError
-from ..geometry import LOW_CONFIDENCE
 from ..labels import cityscapes
 from ._inputs import as_depth, as_labels, check_positive
 
