@@ -124,6 +124,21 @@ def cityscapes_layout(tmp_path_factory):
     return make
 
 
+@pytest.fixture(scope="session")
+def sgm_frame(tmp_path_factory):
+    """One 256x128 Cityscapes-layout frame with SGM stereo (the fixture's default) and its exact
+    depth, written outside the dataset: (scene, exact depth in metres)."""
+    import numpy as np
+
+    from npsim_core.datasets import open_dataset
+    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
+
+    root = tmp_path_factory.mktemp("sgm")
+    truth = tmp_path_factory.mktemp("truth")
+    stem = write_cityscapes_fixture(root, frames=1, size=(256, 128), corrupt=0, truth=truth)[0]
+    return open_dataset(root)[0].load(), np.load(truth / f"{stem}_depth.npy")
+
+
 @pytest.fixture
 def settings(tmp_path, monkeypatch):
     """Every QSettings of a GUI test and the annotations folder in a temporary folder: the

@@ -49,18 +49,6 @@ def test_global_stats_match_the_shared_tool_definition():
     assert set(out["stats"]) == set(REAL_NIGHT) and out["real_night"] == REAL_NIGHT
 
 
-@pytest.fixture(scope="module")
-def sgm_frame(tmp_path_factory):
-    from npsim_core.datasets import open_dataset
-    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
-
-    root = tmp_path_factory.mktemp("sgm")
-    truth = tmp_path_factory.mktemp("truth")
-    stem = write_cityscapes_fixture(root, frames=1, size=(256, 128), corrupt=0, truth=truth)[0]
-    scene = open_dataset(root)[0].load()
-    return scene, np.load(truth / f"{stem}_depth.npy")
-
-
 def _night(scene, params):
     from npsim_core.chain import Chain
 

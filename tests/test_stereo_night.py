@@ -21,17 +21,11 @@ from npsim_core.geometry.surfaces import SurfaceParams, fit_surfaces
 
 
 @pytest.fixture(scope="module")
-def sgm(tmp_path_factory):
+def sgm(sgm_frame):
     from npsim_core.chain import Chain, ChainParams
-    from npsim_core.datasets import open_dataset
     from npsim_core.geometry.stereo import stereo_valid
-    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
 
-    root = tmp_path_factory.mktemp("sgm")
-    truth = tmp_path_factory.mktemp("truth")
-    stem = write_cityscapes_fixture(root, frames=1, size=(256, 128), corrupt=0, truth=truth)[0]
-    scene = open_dataset(root)[0].load()
-    exact = np.load(truth / f"{stem}_depth.npy")
+    scene, exact = sgm_frame
     # The hole filling the chain hands to the fits (its stereo estimate without the fits).
     filled = Chain(scene).compute(ChainParams().with_sets(["depth.stereo_surfaces=false", "depth.stereo_holdout=0"]),
                                   until="geometry").depth_in
