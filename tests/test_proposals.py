@@ -584,18 +584,31 @@ def test_a_car_whose_lower_body_is_hidden_by_the_car_in_front_keeps_its_lamps_on
     assert max(_iou(ann.mask(i), truth[1]) for i in mine) >= 0.5
 
 
+def _parked_row(far_depth_m: float, near_depth_m: float | None):
+    """A road, a red car in front (15 m, columns 100-150) and everything else at ``far_depth_m``;
+    the car in front's depth is ``near_depth_m`` (None: the depth does not see it). Returns
+    (img, lab, intr, depth, inst, row) with ``row(h, z)`` the image row of height ``h`` m at ``z`` m."""
+    img, lab = _canvas()
+    lab[95:], img[95:] = ROAD, (70, 70, 75)
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
+    depth = np.full(lab.shape, far_depth_m, np.float32)
+    inst = lab.astype(np.int32)
+
+    def row(h: float, z: float) -> int:
+        return int(round(59.5 + (1.22 - h) * 500.0 / z))
+
+    near = (slice(row(1.4, 15.0), 101), slice(100, 150))
+    lab[near], img[near], inst[near] = CAR, (160, 40, 40), CAR * 1000
+    if near_depth_m is not None:
+        depth[near] = near_depth_m
+    return img, lab, intr, depth, inst, row
+
+
 def test_no_lamp_on_a_far_car_of_which_only_a_strip_beside_the_car_in_front_shows():
     """Far down a row of parked cars only a strip of a car's side shows beside the nearer car in front
     (5 px at 30 m here, receding): its end face is hidden, so it gets no lamp. The old code laid the
     face out from the occluder's edge as if that were the car's own and put a lamp on the strip."""
-    img, lab = _canvas()
-    lab[95:], img[95:] = ROAD, (70, 70, 75)
-    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
-    depth = np.full(lab.shape, 80.0, np.float32)
-    inst = lab.astype(np.int32)
-    row = lambda h, z: int(round(59.5 + (1.22 - h) * 500.0 / z))  # noqa: E731
-    near = (slice(row(1.4, 15.0), 101), slice(100, 150))                    # the car in front, 15 m
-    lab[near], img[near], depth[near], inst[near] = CAR, (160, 40, 40), 15.0, CAR * 1000
+    img, lab, intr, depth, inst, row = _parked_row(80.0, 15.0)      # the car in front at 15 m
     strip = (slice(row(1.4, 30.0), row(0.3, 30.0)), slice(150, 155))          # the far car's side, 30-31 m
     lab[strip], img[strip], inst[strip] = CAR, (40, 60, 140), CAR * 1000 + 1
     depth[strip] = 30.0 + 0.25 * (np.arange(150, 155) - 150)
@@ -656,14 +669,7 @@ def test_no_lamp_on_a_car_showing_a_fraction_of_its_end_face_even_when_depth_mis
     """The same far strip, but the predicted depth has blurred the car in front to the far car's depth
     (no occluder is seen beside it): a silhouette under a third of a car's width at its depth
     (``vehicle_min_face_share``) still gets no lamp."""
-    img, lab = _canvas()
-    lab[95:], img[95:] = ROAD, (70, 70, 75)
-    intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
-    depth = np.full(lab.shape, 30.0, np.float32)
-    inst = lab.astype(np.int32)
-    row = lambda h, z: int(round(59.5 + (1.22 - h) * 500.0 / z))  # noqa: E731
-    near = (slice(row(1.4, 15.0), 101), slice(100, 150))
-    lab[near], img[near], inst[near] = CAR, (160, 40, 40), CAR * 1000
+    img, lab, intr, depth, inst, row = _parked_row(30.0, None)
     strip = (slice(row(1.4, 30.0), row(0.3, 30.0)), slice(150, 157))          # 7 px of a 30 px face
     lab[strip], img[strip], inst[strip] = CAR, (40, 60, 140), CAR * 1000 + 1
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
