@@ -252,6 +252,9 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
     if "mesh" in kinds and ex.mesh != "none":
         # in a function of its own: the written meshes are gone before the nights' peak
         written += _write_meshes(chain, params, res, staging, mesh_formats, mesh_info)
+    # Scored before the nights: afterwards the Mitsuba scene is cached and scoring's normal maps
+    # and reference came on top of it (the frame's peak).
+    errors = frame_errors(chain, res, params.depth.stereo_max_m, params.depth.stereo_holdout)
     release_free_memory()
     nights_info = []
     for k in range(n_nights):
@@ -300,7 +303,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         "refine": None if res.refine is None else {"steps": int(res.refine.steps), "diverged": bool(res.refine.diverged),
                                                    "message": res.refine.message},
         "lights": _lights_info(chain.lights(params)),
-        "errors": frame_errors(chain, res, params.depth.stereo_max_m, params.depth.stereo_holdout), "nights": nights_info, "kinds": list(kinds),
+        "errors": errors, "nights": nights_info, "kinds": list(kinds),
         "files": names, "checksums": {nm: file_checksum(staging / nm) for nm in names}, "versions": versions()}
     if cancel is not None and cancel.is_set():
         raise NpsimCancelled("export cancelled")
