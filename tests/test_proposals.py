@@ -97,7 +97,7 @@ def _car_frame(rear_color=(200, 20, 20), paint=(40, 60, 140)):
     lamp_rows = slice(row(0.84), row(0.69))
     img[lamp_rows, x0 + 4:x0 + 19] = rear_color
     img[lamp_rows, x1 - 19:x1 - 4] = rear_color
-    inst = np.where(lab == CAR, CAR * 1000, lab).astype(np.int32)
+    inst = np.where(lab == CAR, CAR * 1000, lab.astype(np.int32)).astype(np.int32)   # (uint8 lab: 26000 overflowed to 144)
     truth = [np.zeros(lab.shape, bool), np.zeros(lab.shape, bool)]
     truth[0][lamp_rows, x0 + 4:x0 + 19] = True
     truth[1][lamp_rows, x1 - 19:x1 - 4] = True
@@ -689,3 +689,34 @@ def test_a_far_pole_whose_foot_is_hidden_still_gets_its_lamp():
     lab[top + 1:top + 2, 63:66], img[top + 1:top + 2, 63:66] = POLE, (200, 200, 190)
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, params=FLAT), (8, 9))
     assert len(lamps) == 1 and np.nonzero(ann.mask(lamps[0]))[1].min() == 63
+
+
+def test_a_car_whose_cabin_shows_over_the_car_in_front_keeps_its_lamp_on_the_body():
+    """A van in front (6 m) hides the right 35 px of a car at 10 m up to its cabin (rows from 1.14 m at
+    6 m), so over columns 110-140 only the car's cabin shows, and predicted depth has bled the van's
+    nearness into those columns (7 m). The end face is laid out from the columns the silhouette holds at
+    body height: the visible left lamp is proposed on its truth. The old code took the cabin strip's
+    depth for the car's nearer side, laid the face out from there and proposed no lamp on the left."""
+    img, lab, depth, intr, inst, truth = _car_frame()
+    van = (slice(66, 120), slice(110, 200))
+    lab[van], img[van], depth[van], inst[van] = CAR, (200, 200, 200), 6.0, CAR * 1000 + 1
+    cab = (slice(0, 66), slice(110, 145))
+    depth[cab] = np.where(inst[cab] == CAR * 1000, 7.0, depth[cab])     # the van's depth bled into the cabin
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+
+
+def test_a_car_cut_by_the_car_in_front_gets_the_lamp_its_end_face_strip_shows():
+    """In a parked row the car in front (7 m) hides all but the inner 20 px of a car's end face at 10 m
+    (under a quarter of its 90 px width); beside the strip the car's side recedes to 14 m. The strip
+    holds the inner lamp, whole: it is proposed on its truth. The old code looked for the face's inner edge from a third of a face width on, found
+    none and proposed no lamp on the car."""
+    img, lab, depth, intr, inst, truth = _car_frame()
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    side = (slice(row(0.9), row(0.3)), slice(20, 55))
+    lab[side], img[side], inst[side] = CAR, (28, 42, 100), CAR * 1000          # the side, in shade
+    depth[side] = 10.0 + 0.12 * (55 - np.arange(20, 55))
+    front = (slice(30, 120), slice(75, 200))
+    lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 7.0, CAR * 1000 + 1
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5

@@ -87,6 +87,9 @@ class ProposalParams:
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3
+    #: A vehicle cut by a nearer one beside it (the car in front in a parked row): the end face's inner
+    #: edge is looked for from this share of the face's width from the cut on (a strip of the face shows).
+    vehicle_cut_min_strip: float = 0.1
     #: A lamp box at least ``vehicle_lamp_slope_min_px`` wide whose depth changes by more than this
     #: many metres per metre across it lies on a receding side face (or across an edge): no lamp.
     vehicle_lamp_max_slope: float = 1.2

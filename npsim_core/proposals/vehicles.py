@@ -178,6 +178,26 @@ def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float 
 
 def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
               ) -> tuple[int, int, int, int, float | None, bool] | None:
+    """:func:`_end_face_in` over the columns the silhouette holds at body height (0.35-0.7 of its
+    height from the top): a car behind a lower one shows its cabin over the other's bonnet, and those
+    columns are not its end face (the face was laid out from the far end of the cabin strip, 2048x1024
+    default seed 2)."""
+    ys = np.flatnonzero(m.any(1))
+    sil_h = int(ys[-1] - ys[0] + 1)
+    band = m[ys[0] + int(0.35 * sil_h):ys[0] + int(np.ceil(0.7 * sil_h)) + 1]
+    cols = np.flatnonzero(band.any(0))
+    if cols.size == 0 or (cols[0] == 0 and cols[-1] == m.shape[1] - 1):
+        return _end_face_in(ctx, cls, y0, x0, m)
+    a, b = int(cols[0]), int(cols[-1])
+    face = _end_face_in(ctx, cls, y0, x0 + a, m[:, a:b + 1])
+    if face is None:
+        return None
+    r0, r1, c0, c1, z, placed = face
+    return r0, r1, c0 + a, c1 + a, z, placed
+
+
+def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
+                 ) -> tuple[int, int, int, int, float | None, bool] | None:
     """Box (r0, r1, c0, c1 inclusive, local; c0/c1 may lie outside the mask's box when the face is cut
     by the image border or an occluder) of the body's end face the camera sees, its depth (m), and
     whether it is placed (False: cut by a nearer object beside it -- the car in front in a row of
@@ -238,10 +258,14 @@ def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
             idx = np.flatnonzero(near)  # the run of near columns that starts on the face's side
             if idx.size:
                 run_end = _run_from(near, int(idx[0] if left_side else idx[-1]), 1 if left_side else -1)
-                if abs(run_end - outer) + 1 >= 0.3 * face_w:
+                # Cut by the car in front, only a strip of the end face may show (its inner lamp)
+                if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut and not at_border else 0.3) * face_w:
                     inner = run_end
     if inner is None and face_w >= 6:
         lo, hi = (outer + face_w // 3, outer + 2 * face_w) if left_side else (outer - 2 * face_w, outer - face_w // 3)
+        if cut and not at_border:  # the strip left of the end face lies within a face width of the cut
+            k = max(2, int(round(p.vehicle_cut_min_strip * face_w)))
+            lo, hi = (outer + k, outer + face_w) if left_side else (outer - face_w, outer - k)
         j = _step_column(ctx, y0, x0, m, r0, r1, lo, hi)
         if j is not None:
             inner = j if left_side else j + 1
