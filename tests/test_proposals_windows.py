@@ -156,3 +156,39 @@ def test_two_walls_of_one_building_region_get_separate_grids():
         assert len(walls) <= 1, "a windows_group spans two walls"
     matched = sum(1 for g in gt.values() if any(_iou(g, w) >= 0.5 for w in wins.values()))
     assert matched >= 0.9 * len(gt)
+
+
+def _brown_between_grey(params):
+    """A narrow brown building (4 m wide, 34 m away) between two wider beige walls 30 m away, with
+    2 bays x 3 floors of dark panes; the wall boxes are widened (``window_wall_kernel_frac``) so the
+    brown wall is narrower than the fine box, as a narrow far building is at 2048x1024."""
+    img, labels, depth, noise = _canvas()
+    za, zb = 30.0, 34.0
+    _wall(img, labels, depth, -12.0, -2.0, 14.0, za)
+    _wall(img, labels, depth, 2.0, 12.0, 14.0, za)
+    u0, u1 = int(round(_u(-2.0, za))), int(round(_u(2.0, za)))
+    v0, g = int(round(_v(14.0, zb))), int(round(_v(0.0, zb)))
+    img[v0:g, u0:u1], labels[v0:g, u0:u1], depth[v0:g, u0:u1] = (96, 64, 44), 11, zb
+    gt = {}
+    for f, sill in enumerate((4.9, 8.1, 11.3)):
+        for b, x in enumerate((-1.4, 0.4)):
+            _pane(img, gt, (f, b), x, x + 0.9, sill, sill + 1.5, zb)
+    img = np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8)
+    props = propose_lights(img, labels, depth, K, None, params)
+    return gt, _windows(props)[0]
+
+
+def test_narrow_wall_of_its_own_colour_gets_its_own_reference():
+    """The local wall estimate took the beige neighbours' colour for the narrow brown wall, so all of
+    it differed from "the wall": one blob over its whole face, rejected, its six panes lost (2048x1024
+    default street: the brown building in the middle distance)."""
+    from dataclasses import replace
+
+    params = replace(PARAMS, window_wall_kernel_frac=0.12)
+    gt, wins = _brown_between_grey(params)
+    hit = sum(1 for g in gt.values() if any(_iou(g, w) >= 0.5 for w in wins.values()))
+    assert hit >= 5, f"{hit} of {len(gt)} panes of the brown wall found"
+    brown = np.zeros((H, W), bool)
+    brown[:, int(round(_u(-2.0, 30.0))):int(round(_u(2.0, 30.0)))] = True
+    for w in wins.values():
+        assert (w & brown).sum() <= 2 * max(g.sum() for g in gt.values()), "a window over the brown wall"

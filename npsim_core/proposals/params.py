@@ -122,6 +122,9 @@ class ProposalParams:
     window_wall_rim: bool = False
     #: Share of wall pixels a box needs for its local wall estimate (else the coarser scale decides).
     window_wall_min_share: float = 0.08
+    #: A wall (facade plane) more than this share of which differs from the wall reference gets its
+    #: own reference (the mode of its colour: a narrow building between wider ones of other colour).
+    window_rereference_share: float = 0.5
     #: Leave building pixels beside sky or foliage (blended with them) out of the candidates (off: it
     #: loses more panes behind trees than it removes false ones at 512x256).
     window_skip_border: bool = False

@@ -62,6 +62,82 @@ def wall_reference(feat: np.ndarray, building: np.ndarray, params) -> np.ndarray
     return cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
 
 
+def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref: np.ndarray,
+                      params) -> np.ndarray:
+    """The wall reference (HxWxC, as :func:`wall_reference`) redone on walls it calls mostly not wall.
+
+    The local box estimate mixes neighbouring walls: a narrow building of its own colour between
+    two wider ones takes theirs, and then all of it "differs from the wall" (one blob over its
+    whole facade, rejected as too large, and its panes are lost). A wall (``walls``: HxW int ids,
+    :func:`facades`) of which more than ``window_rereference_share`` is candidate (``cand``) -- no
+    facade is mostly panes; the lit cap is 40 % -- and whose colour (below) departs from the reference
+    by the window thresholds gets its own reference: the mode of its log
+    luminance (panes vary, the wall is one colour), its chroma the median of the pixels near that
+    mode, refined by a box mean (``window_wall_kernel_frac``) over its pixels within the window
+    thresholds of the mode, and over candidate pixels of that colour up to a quarter box beyond it
+    (the wall pieces at a depth step are ragged); kept where it halves the share of the wall that
+    differs (dense panes or glass can be the mode of a wall). Returns ``ref`` itself when no wall
+    is redone.
+    """
+    share = float(params.window_rereference_share)
+    if share >= 1.0:
+        return ref
+    from scipy import ndimage
+
+    n = int(walls.max())
+    if n == 0:
+        return ref
+    area = np.bincount(walls.ravel(), minlength=n + 1)
+    odd = np.bincount(walls.ravel(), weights=cand.ravel().astype(np.float64), minlength=n + 1)
+    bad = np.flatnonzero((odd > share * np.maximum(area, 1)) & (area >= 64))
+    bad = bad[bad > 0]
+    if bad.size == 0:
+        return ref
+    t = -np.log(params.window_dark_ratio)
+    H, W = walls.shape
+    k = max(3, int(round(params.window_wall_kernel_frac * W)) | 1)
+    out = None
+    boxes = ndimage.find_objects(walls)
+    pad = max(1, k // 4)  # the wall pieces at a depth step are ragged: its colour a few px beyond
+    for w_id in bad.tolist():
+        sl = boxes[w_id - 1]
+        if sl is None:
+            continue
+        sl = (slice(max(0, sl[0].start - pad), min(H, sl[0].stop + pad)),
+              slice(max(0, sl[1].start - pad), min(W, sl[1].stop + pad)))
+        wm = walls[sl] == w_id
+        f = feat[sl]
+        lum = f[..., 0][wm]
+        step = t / 4.0
+        lo = float(lum.min())
+        hist = np.bincount(((lum - lo) / step).astype(np.int64))
+        hist = np.convolve(hist, [1, 2, 1], mode="same")
+        mode = lo + (int(hist.argmax()) + 0.5) * step
+        near = np.abs(lum - mode) < 0.5 * t
+        ab = np.median(f[..., 1:][wm][near], axis=0)
+        r0 = np.median(ref[sl][wm], axis=0)
+        if abs(float(r0[0]) - mode) <= t and float(np.hypot(r0[1] - ab[0], r0[2] - ab[1])) <= params.window_chroma_delta:
+            continue  # the wall's own colour is its reference: dense panes, not a wrong reference
+        # its colour: on the wall, and next to it on candidate pixels of neighbouring pieces
+        like = (wm | (cand[sl] & (walls[sl] > 0))) & (np.abs(f[..., 0] - mode) < t) & \
+            (np.hypot(f[..., 1] - ab[0], f[..., 2] - ab[1]) < params.window_chroma_delta)
+        wl = like.astype(np.float32)
+        den = cv2.blur(wl, (k, k), borderType=cv2.BORDER_REPLICATE)
+        base = np.array([mode, ab[0], ab[1]], np.float32)
+        loc = np.stack([cv2.blur(f[..., c] * wl, (k, k), borderType=cv2.BORDER_REPLICATE) for c in range(3)], -1)
+        loc = np.where((den > params.window_wall_min_share)[..., None], loc / np.maximum(den, 1e-6)[..., None], base)
+        # kept only when it makes the wall far less "different" (where dense panes or glass are
+        # the mode, both references leave about as much of it different)
+        if _differs(f, loc, params)[wm].mean() > 0.5 * odd[w_id] / area[w_id]:
+            continue
+        if out is None:
+            out = ref.copy()
+        o = out[sl]
+        tgt = wm | like
+        o[tgt] = loc[tgt]
+    return ref if out is None else out
+
+
 def _differs(feat: np.ndarray, ref: np.ndarray, params) -> np.ndarray:
     """Pixels whose luminance ratio or chromaticity departs from the wall reference."""
     t = -np.log(params.window_dark_ratio)
@@ -564,6 +640,14 @@ def propose(ctx: Context) -> list[Group]:
     cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((2, 2), np.uint8)).astype(bool) \
         if min(H, W) >= 512 else cand
     bld = facades(ctx, B, feat, cand)  # wall planes: grids, floors and the lit cap are per wall
+    ref2 = rereference_walls(feat, bld, cand, ref, p)
+    if ref2 is not ref:  # a narrow wall of its own colour took its neighbours' as its reference
+        ref = ref2
+        ratio = feat[..., 0] - ref[..., 0]
+        chroma = np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2])
+        cand = inner & _differs(feat, ref, p)
+        cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_OPEN, np.ones((2, 2), np.uint8)).astype(bool) \
+            if min(H, W) >= 512 else cand
     fy = float(ctx.intrinsics.fy)
     found = []  # [building id, centre height or row, floor tolerance, Light]
 
