@@ -720,3 +720,16 @@ def test_a_car_cut_by_the_car_in_front_gets_the_lamp_its_end_face_strip_shows():
     lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 7.0, CAR * 1000 + 1
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+
+
+def test_a_rear_window_half_covered_by_a_reflection_is_proposed_whole():
+    """The right 55 % of a car's rear window mirrors the bright sky: the pane proposed is the cabin
+    band, whole (IoU >= 0.5 with the window). The old code, seeing 30 % of the band darker than the
+    paint, proposed only the dark part (IoU under 0.5)."""
+    img, lab, depth, intr, inst, _ = _car_frame()
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    window = np.zeros(lab.shape, bool)
+    window[row(1.33):row(0.97), 64:136] = True
+    img[row(1.33):row(0.97), 96:136] = (185, 195, 210)               # the reflection
+    ann, panes = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (2,))
+    assert max((_iou(ann.mask(i), window) for i in panes), default=0.0) >= 0.5

@@ -476,9 +476,8 @@ def propose(ctx: Context) -> list[Group]:
     placed (:func:`_end_face`: mostly hidden by the car in front) gets none. Confidence 0.75 with
     depth (0.55 without), +0.15 when both lamps stand out from the paint, -0.3 when the face is
     narrower than 1 m (a side view).
-    Panes: pixels of the cabin band darker than the paint, split into the end pane (windscreen
-    or rear window) and the side pane at the end face's edge; confidence 0.6, +0.2 when darker; when
-    fewer than 30 % of the band are darker (glass as light as the paint) the whole band, 0.55.
+    Panes: the cabin band (above the body face, its top and bottom 0.07 m trimmed), split into the end
+    pane (windscreen or rear window) and the side pane at the end face's edge; confidence 0.6.
     """
     p = ctx.params
     fy = float(ctx.intrinsics.fy)
@@ -493,7 +492,6 @@ def propose(ctx: Context) -> list[Group]:
         if fh < 2 or fw < 3:
             continue
         img = ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32)
-        lum = ctx.lum[y0:y0 + h, x0:x0 + w]
         face_mask = np.zeros_like(m)
         cc0, cc1 = max(c0, 0), min(c1, w - 1)  # the face's part inside the box (slicing)
         face_mask[r0:r1 + 1, cc0:cc1 + 1] = m[r0:r1 + 1, cc0:cc1 + 1]
@@ -518,7 +516,7 @@ def propose(ctx: Context) -> list[Group]:
             moving = _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
             lamp_cls = (MOVING_REAR if rear else MOVING_FRONT) if moving else (PARKED_REAR if rear else PARKED_FRONT)
             members = [Light(lamp_cls, y0, x0, b, conf) for b in lamps]
-        # Window panes: the cabin band above the body face, darker than the paint.
+        # Window panes: the cabin band above the body face.
         cab = m.copy()
         cab[r0:, :] = False
         if z is not None:
@@ -527,15 +525,10 @@ def propose(ctx: Context) -> list[Group]:
             if cab_rows.size:
                 cab[:cab_rows.min() + trim, :] = False
                 cab[max(0, r0 - trim):r0, :] = False
-        paint_lum = float(np.median(lum[face_mask])) if face_mask.any() else float(np.median(lum[m]))
-        dark = lum < 0.6 * paint_lum
-        pane_conf = 0.6
-        panes = cab & dark
-        if panes.sum() < 0.3 * cab.sum():  # dark paint or bright reflections: the whole cabin band
-            panes = cab
-            pane_conf = 0.55
-        else:
-            pane_conf += 0.2
+        # The whole band: on the synthetic streets (512x256, seeds 0-2) band panes matched a true pane at
+        # IoU >= 0.5 0.78 of the time, against 0.62 for its darker pixels alone (reflections and frames
+        # split them), which the older rule preferred whenever 30 % of the band was darker than the paint.
+        panes, pane_conf = cab, 0.6
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
         for part in (panes & end, panes & ~end):
