@@ -2,6 +2,7 @@
 
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
+                                                      [--oracle] [--per-member-grouping]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -12,20 +13,38 @@ IoU >= 0.5, no other light is left, every ground-truth group is a group of exact
 
 An **action** is one key press or one mouse gesture (click, drag, rubber band) of the editor:
 
-* draw a light: 1 (one superpixel drag or brush stroke), plus 1 class key the first time a
-  light class is drawn (the annotator draws all lights of a class in one go);
-* group n lights: n (a click and n-1 Shift+clicks) + 1 (Ctrl+G), plus 1 group-class key when
-  the group's class is not the default the editor preselects for its lights' class; complete a
-  group that holds k of its n lights already: 2 + (n - k) (click the group, Shift+click the
-  others, Ctrl+G joins them to it), + 3 when its class is wrong;
+* draw a light: 1 (one superpixel drag or brush stroke);
+* group: the annotator works group by group. The lights of a group that must be drawn are drawn one
+  after another with *one light per region* on (key R): each such stroke leaves every light drawn
+  since the last other selection selected (``EditorSession.select_created``; a class key does not
+  clear it), so they need no click. The lights the group already has (accepted proposals) are
+  selected by Shift+clicks -- one per light, or one on a proposed group holding only members --
+  or by Shift+drags of the Select tool's rubber band (it selects every light it touches), one per
+  run of them whose box touches no other light, whichever is fewer; then Ctrl+G
+  (1; with one group selected the others join it), plus 1 group-class key when the group's class
+  is neither the default the editor preselects for its lights nor that of the one group joined;
+* class keys: 1 whenever the light class drawn changes, drawing group by group (a car's panes and
+  lamps: two), then the lights of no group by class;
+* ``--per-member-grouping``, the model before issue #26's third pass: draws by class (1 key per
+  class), every member of a new group clicked again (n lights: n + 1, + 1 group-class key), a
+  group that holds k of its n lights completed with 2 + (n - k) (+ 3 when its class is wrong). It
+  charged every drawn light of a group twice (draw and Shift+click) although the editor leaves
+  drawn lights selected for Ctrl+G, and never used the rubber band;
 * remove a wrong light: 2 (click, Delete); fix a light's class: 3 (click, class key, C);
   touch up a light whose mask IoU with its ground truth is below 0.7: 1 (one stroke);
   ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
   the slider's default (0.90); "Propose lights" itself: 1.
 
+``--oracle`` adds a column that accepts exactly the proposals matching a ground-truth light at
+IoU >= 0.5 (with their proposed groups restricted to them): the ceiling of these proposals. With
+the editor's real grouping a group drawn from scratch costs its strokes and one Ctrl+G, so a
+proposal saves its light's stroke, a proposed group kept exactly saves that Ctrl+G too, and a
+group kept in part costs one click more than drawing it would (click it, Ctrl+G): what proposals
+save follows the share of lights matched at IoU >= 0.5 and of groups proposed exactly.
+
 The ground truth is the synthetic street's exact annotation (docs/synthetic.md); the proposals
-get the scene's exact depth and camera (``propose_for_scene``).
+get the scene's depth and camera (``propose_for_scene``).
 """
 
 from __future__ import annotations
@@ -66,11 +85,38 @@ def match_lights(gt, ann) -> dict[int, tuple[int, float]]:
     return out
 
 
-def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None
-                   ) -> None:
+def _band_cost(instance_map: np.ndarray, lights: set[int], members: set[int]) -> int:
+    """Actions to add ``lights`` to the selection with Shift+drags of the rubber band (it selects every
+    light it touches): the lights in reading order (by column) are cut into runs whose bounding box
+    touches no light outside ``members``, one drag per run (a run of one is a Shift+click)."""
+    if not lights:
+        return 0
+    ids = np.fromiter(lights, np.int64, len(lights))
+    boxes = {}
+    for i in ids.tolist():
+        ys, xs = np.nonzero(instance_map == i)
+        if ys.size:
+            boxes[i] = (ys.min(), ys.max(), xs.min(), xs.max())
+    order = sorted(boxes, key=lambda i: (boxes[i][2], boxes[i][0]))
+    allowed = np.fromiter(members | {0}, np.int64, len(members) + 1)
+    runs, box = 0, None
+    for i in order:
+        b = boxes[i]
+        if box is not None:
+            grown = (min(box[0], b[0]), max(box[1], b[1]), min(box[2], b[2]), max(box[3], b[3]))
+            if np.isin(instance_map[grown[0]:grown[1] + 1, grown[2]:grown[3] + 1], allowed).all():
+                box = grown
+                continue
+        runs, box = runs + 1, b
+    return runs + (len(lights) - len(boxes))
+
+
+def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
+                   per_member_grouping: bool = False) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
-    group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``."""
+    group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
+    action model (module doc)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -100,7 +146,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             count("class fix", 3, class_of(g))
         if iou < TOUCH_UP_IOU:
             count("touch up", 1, class_of(g))
-    drawn_classes = set()
+    drawn: set[int] = set()
     for g in gt.instance_ids():
         if g in match:
             continue
@@ -109,25 +155,61 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
         do(paint(session.ann, gt.instance_map == g, nid, overwrite=True))
         match[g] = (nid, 1.0)
         count("draw", 1, class_of(g))
-        drawn_classes.add(class_of(g))
-    for c in drawn_classes:
-        count("class keys", 1, c)
+        drawn.add(nid)
     wanted = {frozenset(match[m][0] for m in grp.members): grp.class_id for grp in gt.groups.values()}
+    # Class keys: by class (the older model), else whenever the class drawn changes, group by group.
+    if per_member_grouping:
+        for c in {class_of(i) for i in drawn}:
+            count("class keys", 1, c)
+    else:
+        runs = sorted((sorted(class_of(i) for i in m & drawn) for m in wanted), key=lambda cs: (len(set(cs)), cs))
+        in_group = set().union(*wanted) if wanted else set()
+        seq = [c for cs in runs for c in cs] + sorted(class_of(i) for i in drawn - in_group)
+        for k, c in enumerate(seq):
+            if k == 0 or c != seq[k - 1]:
+                count("class keys", 1, c)
     have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
     for members, cls in wanted.items():
         best = max(have.values(), key=lambda h: len(h[0] & members), default=(frozenset(), 0))
         if best == (members, cls):
             continue  # an accepted proposal group is this ground-truth group already
-        if best[0] and best[0] <= members:  # a part of it: click the group, Shift+click the rest, Ctrl+G
-            count("group", 2 + len(members - best[0]) + (3 if best[1] != cls else 0), cls)
+        default_cls = DEFAULT_GROUP_FOR_LIGHT.get(class_of(min(members)))
+        part = best[0] if best[0] and best[0] <= members else frozenset()
+        if per_member_grouping:
+            if part:  # a part of it: click the group, Shift+click the rest, Ctrl+G
+                count("group", 2 + len(members - part) + (3 if best[1] != cls else 0), cls)
+            else:
+                count("group", len(members) + 1 + (default_cls != cls), cls)
         else:
-            first = min(members)
-            count("group", len(members) + 1 + (DEFAULT_GROUP_FOR_LIGHT.get(class_of(first)) != cls), cls)
+            there = set(members - drawn)  # drawn members are selected already (select_created)
+            clicks = (1 if part else 0) + len(there - part)
+            select = min(clicks, _band_cost(session.ann.instance_map, there, set(members))) if there else 0
+            key = (best[1] != cls) if part and clicks <= select else (default_cls != cls)
+            count("group", select + 1 + int(key), cls)
         do(group_lights(session.ann, members, cls))
     for gid, grp in list(session.ann.groups.items()):  # proposal groups left over
         if wanted.get(frozenset(grp.members)) != grp.class_id:
             do(ungroup(session.ann, gid))
             count("ungroup", 2, grp.class_id)
+
+
+#: The threshold value that stands for the oracle: accept exactly the proposals that match the ground truth.
+ORACLE = -1.0
+
+
+def _label(t: float, prefix: str = "") -> str:
+    return "oracle" if t == ORACLE else f"{prefix}{t:.2f}"
+
+
+def oracle(gt, props):
+    """``props`` with confidence 1 for the lights that match a ground-truth light (mask IoU >= 0.5,
+    :func:`match_lights`) and their groups, 0 for every other: accepting >= 0.5 takes exactly those."""
+    from npsim_core.proposals import LightProposals
+
+    good = {b for b, _ in match_lights(gt, props.annotation).values()}
+    conf = {i: float(i in good) for i in props.annotation.instance_ids()}
+    conf.update({gid: 1.0 for gid in props.annotation.groups})
+    return LightProposals(props.annotation, conf)
 
 
 def check_equal(gt, ann) -> None:
@@ -148,6 +230,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--variants", default="default,hard")
     ap.add_argument("--thresholds", default="0.5,0.7,0.9")
+    ap.add_argument("--oracle", action="store_true",
+                    help="also accept exactly the proposals that match a ground-truth light at IoU >= 0.5 "
+                         "(an oracle confidence: the ceiling of these proposals)")
+    ap.add_argument("--per-member-grouping", action="store_true", help="the older action model (module doc)")
     args = ap.parse_args(argv)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     from PySide6.QtCore import QCoreApplication
@@ -160,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
 
     _app = QCoreApplication.instance() or QCoreApplication(sys.argv[:1])  # noqa: F841 (Qt objects need it)
     w, h = parse_size(args.size)
-    thresholds = [float(t) for t in args.thresholds.split(",") if t]
+    thresholds = [float(t) for t in args.thresholds.split(",") if t] + ([ORACLE] if args.oracle else [])
     kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")
     rows = []
     for variant in [v for v in args.variants.split(",") if v]:
@@ -176,22 +262,23 @@ def main(argv: list[str] | None = None) -> int:
                 counts = dict.fromkeys(kinds, 0)
                 by_cat: dict[tuple[str, str], int] = {}
                 if t is not None:
-                    book = ProposalBook(props)
-                    book.accept_above(s, t)
+                    book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
+                    book.accept_above(s, 0.5 if t == ORACLE else t)
                     counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
-                finish_by_hand(s, gt, counts, by_cat)
+                finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping)
                 check_equal(gt, s.ann)
                 s.shutdown()
                 rows.append((variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat))
     load = os.getloadavg()[0]
-    print(f"# Editor actions to the ground truth, synthetic street {w}x{h} (load {load:.1f})\n")
+    model = "per-member grouping (older model)" if args.per_member_grouping else "group by group (module doc)"
+    print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
     for variant, seed, t, c, n, ng, *_ in rows:
-        print(f"| {variant} | {seed} | {n} | {ng} | {'no proposals' if t is None else f'{t:.2f}'} | "
+        print(f"| {variant} | {seed} | {n} | {ng} | {'no proposals' if t is None else _label(t)} | "
               + " | ".join(str(c[k]) for k in kinds) + f" | {sum(c.values())} |")
     print("\n| variant | without proposals (mean actions) | " +
-          " | ".join(f"accept ≥ {t:.2f}" for t in thresholds) + " |")
+           " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds) + " |")
     print("|---|---|" + "---|" * len(thresholds))
     for variant in dict.fromkeys(r[0] for r in rows):
         tot = {t: np.mean([sum(r[3].values()) for r in rows if r[0] == variant and r[2] == t])
@@ -209,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     for variant in dict.fromkeys(r[0] for r in rows):
         for t in [None] + thresholds:
             sel = [r[7] for r in rows if r[0] == variant and r[2] == t]
-            print(f"| {variant} | {'none' if t is None else f'{t:.2f}'} | " + " | ".join(
+            print(f"| {variant} | {'none' if t is None else _label(t)} | " + " | ".join(
                 " / ".join(f"{np.mean([b.get((k, c), 0) for b in sel]):.0f}" for c in cats) for k in spent) + " |")
     return 0
 

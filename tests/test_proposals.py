@@ -733,3 +733,46 @@ def test_a_rear_window_half_covered_by_a_reflection_is_proposed_whole():
     img[row(1.33):row(0.97), 96:136] = (185, 195, 210)               # the reflection
     ann, panes = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (2,))
     assert max((_iou(ann.mask(i), window) for i in panes), default=0.0) >= 0.5
+
+
+def _window_row_annotation():
+    """Three windows in a row (one windows_group) and a lamp beside them, on a 40 x 80 image."""
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+
+    m = np.zeros((40, 80), np.int32)
+    for k in range(3):
+        m[10:16, 10 + 12 * k:16 + 12 * k] = 1001 + k
+    m[30:33, 70:75] = 8001                                           # a street lamp below, in no group
+    return LightAnnotation(m, {13001: GroupInstance(13001, (1001, 1002, 1003))})
+
+
+def test_editor_actions_count_drawn_lights_as_selected_and_a_band_over_accepted_ones(qapp):
+    """The action model of ``benchmarks.annotation_actions`` (its module doc): a row of three windows
+    drawn from scratch is 3 strokes, 1 class key per class drawn (windows, the lamp) and Ctrl+G -- the
+    editor leaves the lights of consecutive one-light-per-region strokes selected -- where the older
+    model clicked each again (3 + 1); three accepted windows are grouped with one rubber band and
+    Ctrl+G (2), not 3 clicks and Ctrl+G."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand
+    from npsim_core.annotation_ops import new_instance, paint
+    from npsim_gui.editor.session import EditorSession
+
+    gt = _window_row_annotation()
+    img = np.zeros((40, 80, 3), np.uint8)
+    kinds = ("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup")
+    totals = {}
+    for old in (False, True):
+        for accepted in (False, True):
+            s = EditorSession()
+            s.load(img, None, None)
+            if accepted:                                             # the windows are there, ungrouped
+                for i in (1001, 1002, 1003):
+                    cmd, nid = new_instance(s.ann, 1)
+                    s.apply(cmd)
+                    s.apply(paint(s.ann, gt.instance_map == i, nid, overwrite=True))
+            counts = dict.fromkeys(kinds, 0)
+            finish_by_hand(s, gt, counts, per_member_grouping=old)
+            check_equal(gt, s.ann)
+            s.shutdown()
+            totals[old, accepted] = (counts["draw"], counts["class keys"], counts["group"])
+    assert totals[False, False] == (4, 2, 1) and totals[True, False] == (4, 2, 4)
+    assert totals[False, True] == (1, 1, 2) and totals[True, True] == (1, 1, 4)
