@@ -776,3 +776,22 @@ def test_editor_actions_count_drawn_lights_as_selected_and_a_band_over_accepted_
             totals[old, accepted] = (counts["draw"], counts["class keys"], counts["group"])
     assert totals[False, False] == (4, 2, 1) and totals[True, False] == (4, 2, 4)
     assert totals[False, True] == (1, 1, 2) and totals[True, True] == (1, 1, 4)
+
+
+def test_a_few_columns_of_a_cut_car_seen_past_the_car_in_front_do_not_place_its_end_face():
+    """The strip of the end face as above, and 2 columns of the same car's body at its own depth seen
+    through a notch of the car in front, 15 px further right. The end face's inner edge comes from the
+    face's run of near columns, and the strip's lamp is proposed; the old code took the run that starts
+    at the outermost near column (the notch's two), found no edge and laid the face out from the
+    silhouette's far end."""
+    img, lab, depth, intr, inst, truth = _car_frame()
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    side = (slice(row(0.9), row(0.3)), slice(20, 55))
+    lab[side], img[side], inst[side] = CAR, (28, 42, 100), CAR * 1000
+    depth[side] = 10.0 + 0.12 * (55 - np.arange(20, 55))
+    front = (slice(30, 120), slice(75, 200))
+    lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 7.0, CAR * 1000 + 1
+    notch = (slice(row(0.9), row(0.5)), slice(90, 92))
+    lab[notch], img[notch], depth[notch], inst[notch] = CAR, (40, 60, 140), 10.0, CAR * 1000
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5

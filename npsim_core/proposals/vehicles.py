@@ -258,6 +258,10 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
             idx = np.flatnonzero(near)  # the run of near columns that starts on the face's side
             if idx.size:
                 run_end = _run_from(near, int(idx[0] if left_side else idx[-1]), 1 if left_side else -1)
+                if cut and not at_border:  # the face's run, not a few of its columns seen past the car in front
+                    s_, e_ = _run(near)
+                    if e_ - s_ > abs(run_end - (idx[0] if left_side else idx[-1])):
+                        run_end = e_ if left_side else s_
                 # Cut by the car in front, only a strip of the end face may show (its inner lamp)
                 if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut and not at_border else 0.3) * face_w:
                     inner = run_end
