@@ -192,3 +192,25 @@ def test_narrow_wall_of_its_own_colour_gets_its_own_reference():
     brown[:, int(round(_u(-2.0, 30.0))):int(round(_u(2.0, 30.0)))] = True
     for w in wins.values():
         assert (w & brown).sum() <= 2 * max(g.sum() for g in gt.values()), "a window over the brown wall"
+
+
+def test_pane_cut_by_a_car_in_front_is_proposed_however_low():
+    """A parked car hides the lower 1.1 m of two ground-floor panes: their visible parts (0.4 m tall)
+    are below the minimum pane height, and were dropped as too small; a pane's part cut off at its
+    bottom or top by something in front is proposed as what shows (annotators outline that)."""
+    img, labels, depth, noise = _canvas()
+    z = 16.0
+    _wall(img, labels, depth, -6.0, 6.0, 7.5, z)
+    gt = {}
+    for f, sill in enumerate((0.9, 3.6)):
+        for b, x in enumerate((-5.0, -2.0, 1.0, 4.0)):
+            _pane(img, gt, (f, b), x, x + 1.2, sill, sill + 1.5, z)
+    car = np.zeros((H, W), bool)
+    car[int(np.ceil(_v(2.0, z))):int(round(_v(0.0, z))), int(_u(-6.0, z)):int(_u(0.0, z))] = True
+    img[car], labels[car], depth[car] = (120, 20, 24), 26, 14.0
+    vis = {k: g & ~car for k, g in gt.items()}
+    assert all(vis[(0, b)].sum() > 0 and (vis[(0, b)].any(1).sum() * z / K.fy) < PARAMS.window_height_m[0]
+               for b in (0, 1))
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    for key, g in vis.items():
+        assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {key} (visible part) not proposed once"

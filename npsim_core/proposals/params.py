@@ -112,6 +112,9 @@ class ProposalParams:
     window_chroma_delta: float = 6.0
     #: Window height bounds (m) when depth is known (a receding facade foreshortens widths, not heights).
     window_height_m: tuple[float, float] = (0.45, 4.0)
+    #: ... except the lower bound for a blob cut by the frame or by something in front (a car, a tree):
+    #: its visible part can be any height.
+    window_cut_any_height: bool = True
     #: Smallest window blob (pixels).
     window_min_area_px: int = 6
     #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.

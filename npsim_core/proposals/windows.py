@@ -242,6 +242,30 @@ def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray
                 or float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) > 0.5 * p.window_chroma_delta)
 
 
+def _cut_off(labels: np.ndarray, y: int, x: int, sub: np.ndarray) -> bool:
+    """Whether a blob (``sub`` at (y, x)) is cut off at its top or bottom: over at least half its
+    columns the pixel just above its top or just below its bottom is the image border or something
+    in front of the wall (a label other than building and sky: a car, a tree, a pole). A pane cut
+    there shows only its visible part, however low; a sliver beside a pole is cut at its side and
+    is not."""
+    H, W = labels.shape
+    h, w = sub.shape
+    has = sub.any(0)
+    if min(h, w) < 3:  # a sliver along a car's roof or a pole, not a pane's visible part
+        return False
+    cols = x + np.flatnonzero(has)
+    top = y + np.argmax(sub, axis=0)[has] - 1
+    bot = y + h - np.argmax(sub[::-1], axis=0)[has]
+
+    def front(rows: np.ndarray) -> np.ndarray:
+        out = (rows < 0) | (rows >= H)
+        ok = ~out
+        out[ok] = ~np.isin(labels[rows[ok], cols[ok]], (BUILDING, SKY))
+        return out
+
+    return bool((front(top) | front(bot)).mean() >= 0.5)
+
+
 def _kind(ctx: Context, li: Light) -> str:
     """``shop`` (glazing from near the ground, at least ``window_shop_min_h_m`` tall: a shop front),
     ``office_band`` (at least ``window_band_min_aspect`` times wider than tall in metres: a glass
@@ -466,7 +490,10 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         n0 = {id(f): f for f in kept}
         kept = _median_rule(ctx, kept, fm, t_wall)  # before the grid: the cells stand in for what it drops
         dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
-        cells, merged = lattice_cells(ctx, fm, kept, ratio, chroma, dropped, t_wall)
+        # the lattice from whole panes: a pane's visible part has another centre and width
+        fit = [i for i, f in enumerate(kept) if not getattr(f[3], "cut", False)]
+        cells, merged = lattice_cells(ctx, fm, [kept[i] for i in fit], ratio, chroma, dropped, t_wall)
+        merged = {fit[j] for j in merged}
         if cells:
             kept = [f for i, f in enumerate(kept) if i not in merged]
             have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
@@ -613,7 +640,9 @@ def propose(ctx: Context) -> list[Group]:
     reflections and frames), or whose chromaticity differs (tinted glass). A blob whose columns
     (rows) run nearly empty between fuller ones is first cut there (:func:`_occupancy_split`). Each
     blob is filled to its convex hull (frames, curtains and mullions split a pane) and kept when its
-    height is plausible (``window_height_m`` with depth) and it fills its box
+    height is plausible (``window_height_m`` with depth; a blob cut off at its top or bottom by the
+    frame or something in front, :func:`_cut_off`, may be lower: it is a pane's visible part, and
+    the facade lattice is fitted without it) and it fills its box
     (``window_min_fill``); a blob failing the fill or size test is eroded, split into its parts
     and each part grown back and tested again (``window_split_steps`` times at most). A darker blob
     with the wall's own colour, or running down to the ground with little tint, is a cast shadow
@@ -658,6 +687,7 @@ def propose(ctx: Context) -> list[Group]:
         if a < p.window_min_area_px or h < 2:
             return "small"
         z = None
+        cut = False  # a pane's visible part, cut by the frame or something in front: not its size
         if ctx.depth is not None:
             d = ctx.depth[y:y + h, x:x + w][sub]
             d = d[np.isfinite(d)]
@@ -667,7 +697,9 @@ def propose(ctx: Context) -> list[Group]:
             # Height, not area: facades recede, so a pane's image width is foreshortened but its height is not.
             height_m = h * z / fy
             if height_m < p.window_height_m[0]:
-                return "small"
+                if not (p.window_cut_any_height and _cut_off(ctx.labels, y, x, sub)):
+                    return "small"  # a whole pane is taller; what a car, a tree or the frame cuts shows less
+                cut = True
             if height_m > p.window_height_m[1] or w * z / fy > p.window_height_m[1]:
                 return "size"
         elif a > 0.02 * H * W:
@@ -708,7 +740,9 @@ def propose(ctx: Context) -> list[Group]:
             level, tol = float(cy_), max(2.0, h / 2.0)
         conf = 0.35 + 0.25 * min(1.0, (fill - p.window_min_fill) / (1 - p.window_min_fill + 1e-6)) \
             + 0.2 * min(1.0, contrast / (3 * t))
-        found.append([b_id, level, tol, Light(WINDOW_BUILDING, y, x, filled, conf)])
+        li = Light(WINDOW_BUILDING, y, x, filled, conf)
+        li.cut = cut
+        found.append([b_id, level, tol, li])
         return None
 
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
