@@ -163,3 +163,14 @@ def test_manifest_says_how_much_of_the_depth_was_guessed(exported, tmp_path):
     written = export_frame(Chain(chain.scene), prior, tmp_path, nights=0, kinds=("masks",))
     conf = read_json(written[-1])["depth_confidence"]
     assert conf is not None and 0.05 < conf["low_share"] < 0.6 and conf["threshold"] == 0.5
+
+
+def test_the_last_night_is_denoised_without_the_scene(exported):
+    """A frame's last night drops the cached Mitsuba scene before denoising (the worker's memory peak
+    came with the scene held through the denoiser: issue #30), and the manifest still has the night
+    stages' times and the render mesh it read from the scene."""
+    chain, out, files = exported
+    man = read_json(files[-1])
+    assert {"night_scene", "materials", "guides"} <= set(man["timings"])
+    assert man["nights"][0]["render_mesh"] == "the chain's mesh" and man["nights"][0]["render_faces"] > 0
+    assert "night_scene" in chain.engine.run(("night_scene",), QUICK).recomputed

@@ -324,8 +324,13 @@ class Chain:
                              n.denoiser_used, built.n_faces, info, self.lights(params).annotation, real)
 
     def night_final(self, results: ChainResults | None, params: ChainParams, *, seed: int | None = None,
-                    cancel: threading.Event | None = None, scale: float = 1.0) -> NightFrame:
-        """A full-resolution night (``params.night.final_spp``) with denoising and camera."""
+                    cancel: threading.Event | None = None, scale: float = 1.0,
+                    release_scene: bool = False) -> NightFrame:
+        """A full-resolution night (``params.night.final_spp``) with denoising and camera.
+
+        ``release_scene`` drops the cached Mitsuba scene right after the render, before denoising
+        (a batch frame's last night): the denoiser's memory peak then comes without the scene's
+        acceleration structure; a later night of the same mesh builds it again."""
         from ..render.render import render_final
 
         t0 = time.perf_counter()
@@ -340,12 +345,19 @@ class Chain:
         linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
                               passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
         t3 = time.perf_counter()
+        variant, faces = built.variant, built.n_faces
+        if release_scene:
+            from ..render.render import release_jit_memory
+
+            del built, run
+            self.engine.clear_cache("night_scene")
+            release_jit_memory()  # the scene's buffers, back from Dr.Jit's cache
         info: dict = {}
         srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
         real = self.realism(srgb, timings)
-        return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, built.variant, active, timings,
-                          n.denoiser_used, built.n_faces, info, self.lights(params).annotation, real)
+        return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, variant, active, timings,
+                          n.denoiser_used, faces, info, self.lights(params).annotation, real)
 
     def realism(self, night: np.ndarray, timings: dict | None = None) -> dict:
         """Realism of an sRGB ``night`` of this frame against its day photo (docs/relight.md

@@ -257,10 +257,17 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
     errors = frame_errors(chain, res, params.depth.stereo_max_m, params.depth.stereo_holdout)
     release_free_memory()
     nights_info = []
+    night_timings: dict = {}
     for k in range(n_nights):
         step(f"rendering night {k + 1}/{n_nights}")
         seed = params.night.seed + k
-        frame = chain.night_final(res, params, seed=seed, cancel=cancel)
+        # What the manifest reads from the scene, taken before the frame's last night drops it
+        # (``release_scene``: the denoiser's peak then comes without the scene; same files).
+        built, _, _, run = chain.night_inputs(params, cancel=cancel)
+        night_timings.update(run.timings)
+        render_mesh, area_ids = built.info.get("render_mesh", ""), set(built.area_keys)
+        del built, run
+        frame = chain.night_final(res, params, seed=seed, cancel=cancel, release_scene=k == n_nights - 1)
         release_free_memory()  # the render's and the denoiser's temporaries
         stem = f"{n}_night_{k}"
         put(staging / f"{stem}.png", write_image, frame.image)
@@ -269,15 +276,13 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         put(staging / f"{stem}_labelIds.png", write_image, s.labels)
         put(staging / f"{stem}_lights.json", write_json, frame.active.to_json())
         on = len(frame.active.on_ids)
-        built = chain.night_inputs(params)[0]
         nights_info.append({"night": k, "seed": seed, "spp": frame.spp, "variant": frame.variant,
                             "denoiser": frame.denoiser,
                             "denoiser_quality": (params.denoise.oidn_quality if frame.denoiser == "oidn" else ""),
                             "max_depth": int(params.night.final_max_depth), "render_faces": frame.faces,
-                            "render_mesh": built.info.get("render_mesh", ""),
+                            "render_mesh": render_mesh,
                             "lights_on": on, "lights": len(frame.active.lights),
-                            "lights_without_faces": sorted(int(i) for i in set(frame.active.lights)
-                                                           - set(built.area_keys)),
+                            "lights_without_faces": sorted(int(i) for i in set(frame.active.lights) - area_ids),
                             "exposure": {k2: (None if isinstance(v, float) and not np.isfinite(v) else
                                               round(v, 6) if isinstance(v, float) else v)
                                          for k2, v in frame.exposure.items()},
@@ -286,9 +291,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                             "realism": frame.realism})  # structure ratio + global stats (npsim_core.realism)
     # The night stages' times when they ran (their results are cached in the chain).
     timings = dict(res.timings)
-    if n_nights:
-        run = chain.engine.run(("night_scene", "materials") + (("guides",) if params.night.denoise else ()), params)
-        timings.update(run.timings)
+    timings.update(night_timings)
     names = [p.name for p in written]
     manifest = {
         "format": "npsim-export", "scene": n, "size": [s.width, s.height], "inputs": inputs or {},

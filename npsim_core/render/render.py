@@ -129,13 +129,14 @@ def render_final(built: BuiltScene, *, spp: int = 64, seed: int = 0, scale: floa
             raise NpsimCancelled("final render cancelled")
         img = render_linear(built, spp=per, seed=seed * 100003 + 7919 + k, scale=scale, max_depth=max_depth)
         acc = img if acc is None else acc + img
-    _release_jit_memory()
+    release_jit_memory()
     return acc / passes
 
 
-def _release_jit_memory() -> None:
-    """Hand Dr.Jit's cache of freed render buffers back to the system: a 2048x1024 render leaves
-    ~0.3 GB there, on top of which the denoiser reached the frame's peak (1.90 GiB before)."""
+def release_jit_memory() -> None:
+    """Hand Dr.Jit's cache of freed buffers back to the system: a 2048x1024 render leaves ~0.3 GB
+    there, on top of which the denoiser reached the frame's peak (1.90 GiB before); a dropped
+    scene's vertex and face buffers go there too."""
     try:
         import drjit as dr
 
@@ -171,7 +172,7 @@ def render_guides(built: BuiltScene, labels: np.ndarray, protect: np.ndarray | N
         integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,normal:sh_normal,depth:depth"})
         aov = np.array(mi.render(built.scene, sensor=built.sensor(w, h), integrator=integrator, spp=int(spp),
                                  seed=int(seed)), dtype=np.float32)
-    _release_jit_memory()
+    release_jit_memory()
     K = built.intrinsics
     sx, sy = w / K.width, h / K.height  # the film's pixel centres in the full-resolution camera
     u, v = np.meshgrid((np.arange(w) + 0.5) / sx - 0.5, (np.arange(h) + 0.5) / sy - 0.5)
