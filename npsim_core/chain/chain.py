@@ -263,12 +263,16 @@ class Chain:
                                force=light_override)
 
     def finish(self, linear: np.ndarray, params: ChainParams, guides, materials, *,
-               labels: np.ndarray | None = None, info: dict | None = None) -> tuple[np.ndarray, dict[str, float]]:
+               labels: np.ndarray | None = None, info: dict | None = None, active=None,
+               spot_ids=()) -> tuple[np.ndarray, dict[str, float]]:
         """Linear render -> denoised by ``night.denoiser_used`` (docs/method.md §6.5) -> ego vehicle
         and frame borders composited from the day (:func:`~npsim_core.render.ego.composite_ego`) ->
         exposure (``night.exposure_mode``: metered, or ``night.exposure`` stops) -> camera -> 8-bit
         sRGB; returns it and the seconds of each step. ``info`` (a dict) receives the exposure chosen
-        (``exposure_ev``, stops), the meter's reading and the ego compositing gain."""
+        (``exposure_ev``, stops), the meter's reading and the ego compositing gain. ``active`` and
+        ``spot_ids`` (the night's light states, the lights with a spot): the heads of throwing lamps
+        are brought to their visible radiance before the camera's glare
+        (:func:`~npsim_core.render.lights.visible_head_radiance`)."""
         from ..render.camera_post import CameraParams, apply_camera
         from ..render.denoise import denoise_night
 
@@ -284,6 +288,17 @@ class Chain:
         # The ego vehicle and the frame borders: the day pixels darkened like the scene (docs/relight.md).
         frame = self.scene
         clean, ego = composite_ego(clean, frame.image, frame.labels, lights)
+        annotation = self.lights(params).annotation if active is not None and spot_ids else None
+        if annotation is not None and float(n.glare) > 0:
+            import cv2
+
+            from ..render.lights import visible_head_radiance
+
+            heads = visible_head_radiance(annotation.instance_map, active, light_table(n), spot_ids)
+            if heads is not None:
+                heads = cv2.resize(heads, (clean.shape[1], clean.shape[0]), interpolation=cv2.INTER_NEAREST) \
+                    if heads.shape[:2] != clean.shape[:2] else heads
+                clean = np.where(np.isfinite(heads), heads, clean).astype(np.float32)
         ev, meter = n.exposure, {}
         lab_r = _resize_nearest(frame.labels, clean.shape[:2])
         excl_r = _resize_nearest(lights, clean.shape[:2]) | _resize_nearest(ego_mask(frame.labels), clean.shape[:2])
@@ -294,7 +309,8 @@ class Chain:
         wb, wb_info = auto_white_balance(clean, lab_r, excl_r, degree=float(n.white_balance))
         cam = CameraParams(exposure_ev=ev, iso=(n.iso or None) if n.noise else None, seed=n.seed,
                            motion_blur_px=int(n.motion_blur_px), bloom=float(n.bloom), white_balance=wb,
-                           tone_contrast=float(n.tone_contrast))
+                           tone_contrast=float(n.tone_contrast), glare=float(n.glare),
+                           glare_radius=float(n.glare_radius))
         same = labels is not None and labels.shape == clean.shape[:2]
         srgb, _ = apply_camera(clean, cam, labels=labels if same else None,
                                light_classes=materials.light_classes if same else None)
@@ -318,7 +334,8 @@ class Chain:
                            seed=n.seed, max_depth=int(n.preview_max_depth))
         for frame in render_preview(built, pp, cancel=cancel):
             info: dict = {}
-            srgb, tm = self.finish(frame.image, params, guides, mats, info=info)
+            srgb, tm = self.finish(frame.image, params, guides, mats, info=info, active=active,
+                                   spot_ids=built.spot_keys)
             real = self.realism(srgb, tm) if frame.spp >= int(n.spp) else {}
             yield NightFrame(srgb, frame.image, frame.spp, time.perf_counter() - t0, built.variant, active, tm,
                              n.denoiser_used, built.n_faces, info, self.lights(params).annotation, real)
@@ -345,7 +362,7 @@ class Chain:
         linear = render_final(built, spp=n.final_spp, seed=n.seed, cancel=cancel, scale=scale,
                               passes=max(1, n.final_spp // 16), max_depth=int(n.final_max_depth))
         t3 = time.perf_counter()
-        variant, faces = built.variant, built.n_faces
+        variant, faces, spot_ids = built.variant, built.n_faces, tuple(built.spot_keys)
         if release_scene:
             from ..render.render import release_jit_memory
 
@@ -353,7 +370,8 @@ class Chain:
             self.engine.clear_cache("night_scene")
             release_jit_memory()  # the scene's buffers, back from Dr.Jit's cache
         info: dict = {}
-        srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info)
+        srgb, tm = self.finish(linear, params, guides, mats, labels=self.scene.labels, info=info, active=active,
+                               spot_ids=spot_ids)
         timings = {"night_inputs": t1 - t0, "lights": t2 - t1, "render": t3 - t2, **tm}
         real = self.realism(srgb, timings)
         return NightFrame(srgb, linear, n.final_spp, time.perf_counter() - t0, variant, active, timings,

@@ -168,6 +168,7 @@ class NightParams:
         night photos").
     tone_contrast : the camera's global tone curve, log-luminance slope around its mid-grey
         (1 = a linear sensor with the sRGB curve; :func:`~npsim_core.render.camera_post.tone_contrast`).
+        0.8 with the glare (0.9 before it; docs/relight.md "Glare").
     ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
     denoise : remove the Monte Carlo noise before the camera noise (the on/off switch).
@@ -177,6 +178,11 @@ class NightParams:
     motion_blur_px : horizontal blur (px) of moving vehicles.
     bloom : glare around what exceeds sensor white, strength in [0, 1] (0 = off, the default;
         ``CameraParams.bloom``, docs/relight.md says why it is off).
+    glare : share of all light the camera's lens and windscreen scatter over a long-tailed PSF
+        (:func:`~npsim_core.render.camera_post.lens_glare`; 0 = off), with the heads of throwing
+        lamps at their visible radiance: lamps get saturated halos larger than themselves, broad
+        areas stay (docs/relight.md "Glare").
+    glare_radius : the glare PSF's core radius, fraction of the image width.
     light_table : a user light table JSON merged over the default ('' = the default).
     variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
     delight : without albedo maps, estimate the day's sun and sky from the photo and the
@@ -200,7 +206,7 @@ class NightParams:
     exposure_min: float = -3.0
     exposure_max: float = 4.0
     white_balance: float = 0.25
-    tone_contrast: float = 0.9
+    tone_contrast: float = 0.8
     ego_headlights: bool = True
     group_all_together: bool = False
     noise: bool = True
@@ -209,6 +215,8 @@ class NightParams:
     denoiser: str = "oidn"
     motion_blur_px: int = 0
     bloom: float = 0.0
+    glare: float = 0.1
+    glare_radius: float = 0.0014
     light_table: str = ""
     variant: str = ""
     delight: bool = False
@@ -228,6 +236,9 @@ class NightParams:
             raise NpsimInputError(f"night.motion_blur_px must be >= 0, got {self.motion_blur_px}")
         if not 0.0 <= float(self.bloom) <= 1.0:
             raise NpsimInputError(f"night.bloom must be in [0, 1] (0 = off), got {self.bloom}")
+        if not (0.0 <= float(self.glare) <= 0.5 and 0.0 < float(self.glare_radius) <= 0.05):
+            raise NpsimInputError(f"night.glare must be in [0, 0.5] (0 = off) and night.glare_radius in (0, 0.05] "
+                                  f"image widths, got {self.glare}, {self.glare_radius}")
         if self.sampler not in SAMPLERS:
             raise NpsimInputError(f"night.sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
         if self.variant not in ("", "scalar_rgb", "llvm_ad_rgb"):

@@ -2,8 +2,10 @@
 
 Order (a simple camera pipeline): firefly removal (isolated Monte Carlo outliers,
 light-source pixels protected) -> exposure gain ``2**exposure_ev`` on the linear
-render -> optional horizontal motion blur of moving vehicles -> optional glare (bloom)
-around what exceeds sensor white -> heteroscedastic Gaussian noise
+render -> optional horizontal motion blur of moving vehicles -> lens glare (the optics' point-spread
+function: a share of *all* light scattered over a long-tailed kernel, :func:`lens_glare`, so that
+lamps far above white saturate a halo larger than themselves) -> optional bloom around what exceeds
+sensor white -> heteroscedastic Gaussian noise
 ``I_n = I_c + N(0, β1·I_c + β2)`` (shot + read noise, variance in linear units where
 1.0 = sensor white) -> white balance (per-channel gains; :func:`auto_white_balance` gives a camera's automatic ones) ->
 tone contrast (the camera's global tone curve around its mid-grey, :func:`tone_contrast`) ->
@@ -65,9 +67,16 @@ class CameraParams:
     bloom_threshold : linear level above which light glares.
     bloom_radius : σ of the PSF's core as a fraction of the image width (the wider lobes are
         3x and 9x it), so a preview at a smaller scale shows the same halo.
+    glare : share of the light that the lens (and windscreen) scatter out of the pixel it
+        images, in [0, 0.5] (0 = off, the default here; the chain's nights use ``night.glare``).
+        Applied to the whole linear image with the long-tailed PSF of :func:`lens_glare`, so it
+        conserves energy and leaves broad areas as they are: only sources far above white (lamp
+        heads at their visible radiance, :func:`.lights.visible_head_radiance`) get a saturated halo.
+    glare_radius : core radius r0 of that PSF as a fraction of the image width (a lens PSF is
+        fixed in angle, so a preview at a smaller scale shows the same halo).
     tone_contrast : slope of the camera's global tone curve in log luminance around
         ``tone_pivot`` (:func:`tone_contrast`; 1 = the plain sRGB camera, the default here). The
-        chain's nights use ``night.tone_contrast`` (0.9): real night photos hold a narrower range
+        chain's nights use ``night.tone_contrast`` (0.8): real night photos hold a narrower range
         between their median and their highlights than a linear sensor with an sRGB curve gives
         (docs/relight.md "The camera of real night photos").
     tone_pivot : linear level (1.0 = sensor white) the tone curve leaves unchanged (the camera's
@@ -92,6 +101,8 @@ class CameraParams:
     bloom: float = 0.0
     bloom_threshold: float = 1.0
     bloom_radius: float = 0.002
+    glare: float = 0.0
+    glare_radius: float = 0.0015
     highlight_knee: float = 0.5
     tone_contrast: float = 1.0
     tone_pivot: float = 0.025
@@ -107,6 +118,10 @@ class CameraParams:
         if not (float(self.bloom_threshold) >= 0 and float(self.bloom_radius) > 0):
             raise NpsimInputError(f"bloom_threshold must be >= 0 and bloom_radius > 0, got "
                                   f"{self.bloom_threshold}, {self.bloom_radius}")
+
+        if not (0.0 <= float(self.glare) <= 0.5 and 0.0 < float(self.glare_radius) <= 0.05):
+            raise NpsimInputError(f"glare must be in [0, 0.5] (0 = off) and glare_radius in (0, 0.05] image "
+                                  f"widths, got {self.glare}, {self.glare_radius}")
 
     def betas(self) -> tuple[float, float]:
         if self.beta1 is not None and self.beta2 is not None:
@@ -237,6 +252,59 @@ def bloom(linear: np.ndarray, strength: float, threshold: float = 1.0, radius: f
     return (lin + np.float32(strength) * (glare - excess)).astype(np.float32)
 
 
+#: Exponent β of the glare PSF's Moffat profile ``(1 + (r/r0)²)^-β``: 1.5 gives wings falling as
+#: r^-3, the long tail of a lens's veiling glare (stray light from surfaces, coatings, the windscreen).
+GLARE_BETA = 1.5
+#: The PSF is cut at this many core radii (the share of a β = 1.5 kernel beyond R is about r0/R,
+#: here < 2 %; the cut kernel is renormalised, so energy stays conserved).
+GLARE_EXTENT = 64.0
+
+
+def glare_kernel(r0_px: float, beta: float = GLARE_BETA, extent: float = GLARE_EXTENT) -> np.ndarray:
+    """The glare PSF on a pixel grid: Moffat ``(1 + (r/r0)²)^-β`` for r <= ``extent``·r0 (at least
+    8 px), integrated over each pixel (5 x 5 samples, so a core narrower than a pixel -- a preview
+    -- keeps its share of the tail), sum 1."""
+    r0 = float(r0_px)
+    R = max(8, int(np.ceil(float(extent) * r0)))
+    n = 5
+    t = (np.arange(-R * n, (R + 1) * n) + 0.5) / n - 0.5          # sub-pixel sample centres
+    r2 = t[:, None] ** 2 + t[None, :] ** 2
+    k = np.where(r2 <= R * R, (1.0 + r2 / r0 ** 2) ** (-float(beta)), 0.0)
+    k = k.reshape(2 * R + 1, n, 2 * R + 1, n).sum(axis=(1, 3))
+    return (k / k.sum()).astype(np.float32)
+
+
+def lens_glare(linear: np.ndarray, fraction: float, radius: float = 0.0015) -> np.ndarray:
+    """A lens's glare on a linear HDR image: ``(1 - f)·x + f·(K * x)``, K = :func:`glare_kernel`
+    with core radius ``radius`` x width (px), f = ``fraction``.
+
+    A real camera images a point source as a PSF with a long tail (veiling glare: scattering in the
+    glass, coatings, barrel and the windscreen; a few per cent of the light). Applied to every pixel
+    it conserves energy (the image sum is unchanged: reflected borders) and changes broad areas
+    little -- their scattered light is replaced by their neighbours' -- while a lamp head hundreds
+    of times above sensor white spreads a halo that itself exceeds white over several times the
+    head's area, and lifts the dark surroundings a little (docs/relight.md, "Glare").
+    ``fraction`` 0 returns the input. Convolution by FFT (float32, about 1 s at 2048x1024).
+    """
+    from scipy import fft as sfft
+
+    lin = np.asarray(linear, dtype=np.float32)
+    f = float(fraction)
+    if f <= 0:
+        return lin
+    H, W = lin.shape[:2]
+    k = glare_kernel(max(0.05, float(radius) * W))
+    R = k.shape[0] // 2
+    pad = cv2.copyMakeBorder(np.ascontiguousarray(lin), R, R, R, R, cv2.BORDER_REFLECT)
+    shape = (sfft.next_fast_len(pad.shape[0] + 2 * R, real=True), sfft.next_fast_len(pad.shape[1] + 2 * R, real=True))
+    fk = sfft.rfft2(k, s=shape)
+    fx = sfft.rfft2(pad, s=shape, axes=(0, 1))
+    conv = sfft.irfft2(fx * fk[..., None], s=shape, axes=(0, 1))
+    # Full convolution: output (i, j) sits at (i + R, j + R); the image starts R further in.
+    out = conv[2 * R:2 * R + H, 2 * R:2 * R + W]
+    return ((1.0 - f) * lin + f * out).astype(np.float32)
+
+
 #: Linear luminance below which a scene pixel counts as unlit (the night sky's ambient light alone
 #: leaves a grey surface around 1e-3): the meter reads only what the lights reveal.
 LIT_FLOOR = 2e-3
@@ -335,7 +403,7 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     Parameters
     ----------
     linear : (H, W, 3) float32 linear RGB (Mitsuba radiance units).
-    params : exposure, noise, white balance, motion blur, bloom.
+    params : exposure, noise, white balance, motion blur, glare, bloom.
     labels, light_classes : (H, W) maps of the render's size: motion blur needs both.
     """
     lin = np.asarray(linear, dtype=np.float32)
@@ -347,6 +415,8 @@ def apply_camera(linear: np.ndarray, params: CameraParams = CameraParams(), *, l
     if params.motion_blur_px > 1 and labels is not None and light_classes is not None \
             and np.asarray(light_classes).shape == lin.shape[:2]:
         x = motion_blur(x, moving_vehicle_mask(labels, light_classes), int(params.motion_blur_px))
+    if params.glare > 0:
+        x = lens_glare(x, float(params.glare), float(params.glare_radius))
     if params.bloom > 0:
         x = bloom(x, float(params.bloom), float(params.bloom_threshold), float(params.bloom_radius))
     b1, b2 = params.betas()

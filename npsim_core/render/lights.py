@@ -36,6 +36,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -463,3 +464,38 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
         states[lid] = LightState(id=lid, class_id=cid, on=on, strength=s, chromaticity=chroma,
                                  radiance=tuple(float(v) for v in rad), p=p, group=gid)
     return ActiveLights(states, int(seed), group_all_together, table.source)
+
+
+
+def visible_head_radiance(instance_map: np.ndarray, active: ActiveLights, table: LightTable,
+                          spot_ids: Iterable[int]) -> np.ndarray | None:
+    """The radiance of the visible heads of throwing lamps, for the camera's glare.
+
+    A lamp that lights the scene through a spot (street-lamp heads, car front lamps; ``spot_ids``,
+    the lights that have one) emits the spot's intensity ``I = throw.gain · L · A`` from its head's
+    area ``A``, so the head seen from inside the beam has radiance ``I / A = throw.gain · L`` (L =
+    the light's table radiance): 40 x L, about 10^4 times the road it lights, as real luminaires
+    (10^4-10^5 cd/m²) are over roads of 0.3-2 cd/m². The render shows the head capped at
+    ``throw.max_visible_radiance`` (fireflies; docs/relight.md) plus whatever light its geometry
+    catches (on stereo geometry the spot can light its own head a hundredfold) -- saturated
+    either way, but a camera's glare (:func:`.camera_post.lens_glare`) needs the head's own energy,
+    the same whatever the geometry. Returns an (H, W, 3) float32 map of that radiance on the heads'
+    pixels and NaN elsewhere (replace the linear render's pixels where it is finite), or None when
+    no head is lit.
+    """
+    gain = float(table.throw.get("gain", 20.0))
+    inst = np.asarray(instance_map)
+    lut: dict[int, tuple[float, float, float]] = {}
+    for lid in spot_ids:
+        st = active.lights.get(int(lid))
+        if st is not None and st.on and max(st.radiance) > 0:
+            lut[int(lid)] = tuple(gain * float(v) for v in st.radiance)
+    if not lut:
+        return None
+    ids = np.array(sorted(lut), np.int64)
+    vals = np.array([lut[int(i)] for i in ids], np.float32)
+    pos = np.clip(np.searchsorted(ids, inst), 0, ids.size - 1)
+    hit = ids[pos] == inst
+    if not hit.any():
+        return None
+    return np.where(hit[..., None], vals[pos], np.float32(np.nan)).astype(np.float32)
