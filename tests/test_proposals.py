@@ -97,7 +97,7 @@ def _car_frame(rear_color=(200, 20, 20), paint=(40, 60, 140)):
     lamp_rows = slice(row(0.84), row(0.69))
     img[lamp_rows, x0 + 4:x0 + 19] = rear_color
     img[lamp_rows, x1 - 19:x1 - 4] = rear_color
-    inst = np.where(lab == CAR, CAR * 1000, lab.astype(np.int32)).astype(np.int32)   # (uint8 lab: 26000 overflowed to 144)
+    inst = np.where(lab == CAR, CAR * 1000, lab.astype(np.int32))   # int32 first: in uint8, 26000 was 144
     truth = [np.zeros(lab.shape, bool), np.zeros(lab.shape, bool)]
     truth[0][lamp_rows, x0 + 4:x0 + 19] = True
     truth[1][lamp_rows, x1 - 19:x1 - 4] = True
@@ -709,8 +709,8 @@ def test_a_car_whose_cabin_shows_over_the_car_in_front_keeps_its_lamp_on_the_bod
 def test_a_car_cut_by_the_car_in_front_gets_the_lamp_its_end_face_strip_shows():
     """In a parked row the car in front (7 m) hides all but the inner 20 px of a car's end face at 10 m
     (under a quarter of its 90 px width); beside the strip the car's side recedes to 14 m. The strip
-    holds the inner lamp, whole: it is proposed on its truth. The old code looked for the face's inner edge from a third of a face width on, found
-    none and proposed no lamp on the car."""
+    holds the inner lamp, whole: it is proposed on its truth. The old code looked for the face's inner
+    edge from a third of a face width on, found none and proposed no lamp on the car."""
     img, lab, depth, intr, inst, truth = _car_frame()
     row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
     side = (slice(row(0.9), row(0.3)), slice(20, 55))
@@ -795,3 +795,19 @@ def test_a_few_columns_of_a_cut_car_seen_past_the_car_in_front_do_not_place_its_
     lab[notch], img[notch], depth[notch], inst[notch] = CAR, (40, 60, 140), 10.0, CAR * 1000
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+
+
+def test_the_boot_lid_seen_over_the_end_face_does_not_lift_the_lamps():
+    """Seen from 1.22 m, a car's boot lid (0.9 m up) shows over its end face as 6 rows of paint whose
+    depth grows upward (10.3-12 m), as wide as the body: the silhouette's full rows start at the lid's
+    top. The face's top comes from where the depth stops being the face's, and both lamps (the paint's
+    colour here: nothing to snap to) lie on their truth; the old code put them 6 rows high."""
+    img, lab, depth, intr, inst, truth = _car_frame(rear_color=(40, 60, 140))
+    row = lambda h: int(round(59.5 + (1.22 - h) * 50))  # noqa: E731
+    top = row(0.9)
+    lid = (slice(top - 6, top), slice(55, 145))
+    lab[lid], img[lid], inst[lid] = CAR, (40, 60, 140), CAR * 1000
+    depth[lid] = (10.0 + 0.3 * (top - np.arange(top - 6, top)))[:, None]
+    ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5

@@ -102,6 +102,10 @@ class ProposalParams:
     vehicle_body_top_m: tuple[float, float] = (0.6, 1.2)
     #: Typical body-top height (m), used where the silhouette cannot tell (narrow or occluded faces).
     vehicle_body_top_typical_m: float = 0.9
+    #: A found body top is moved down past the lid seen over the end face (rows whose depth is more than
+    #: ``vehicle_lid_tol_m``, +3 % of the depth, beyond the face's), at most ``vehicle_lid_max_m`` (0: off).
+    vehicle_lid_tol_m: float = 0.3
+    vehicle_lid_max_m: float = 0.3
     #: End faces narrower than this (pixels) take the typical body top.
     vehicle_small_face_px: int = 24
 
