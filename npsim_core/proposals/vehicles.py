@@ -153,8 +153,9 @@ def _below_lid(ctx: Context, y0: int, x0: int, m: np.ndarray, c0: int, c1: int, 
     lid shows over the end face and its depth grows row by row upward, while the face (a vertical plane)
     keeps one depth. Going up from the middle of rows r0..r1, the topmost row whose depth (median over
     the face's columns) is within ``vehicle_lid_tol_m`` (+3 % of the depth: predicted depth is warped)
-    of the middle row's; moved at most ``vehicle_lid_max_m`` of height down from r0. (0.1 m +1 % lost
-    0.04-0.14 recall: the warp reads a face 0.5-1 m deeper at one end.)"""
+    of the face's (the median over the lower half of rows r0..middle); moved at most
+    ``vehicle_lid_max_m`` of height down from r0, not at all when the middle row is off the face's
+    depth. (0.1 m + 1 % lost 0.04-0.14 recall: the warp reads a face 0.5-1 m deeper at one end.)"""
     p = ctx.params
     h, w = m.shape
     c0, c1 = max(c0, 0), min(c1, w - 1)
@@ -165,10 +166,12 @@ def _below_lid(ctx: Context, y0: int, x0: int, m: np.ndarray, c0: int, c1: int, 
     with warnings.catch_warnings():  # rows without valid depth stay NaN: not the face
         warnings.simplefilter("ignore", RuntimeWarning)
         dz = np.nanmedian(d, axis=1)
-    zf = dz[-1]
-    if not np.isfinite(zf):
+    if not np.isfinite(dz[dz.size // 2:]).any():
         return r0
+    zf = float(np.nanmedian(dz[dz.size // 2:]))  # the face's depth: rows just above the middle
     ok = np.abs(dz - zf) <= max(p.vehicle_lid_tol_m, 0.03 * zf)
+    if not ok[-1]:
+        return r0
     top = r0 + _run_from(ok, ok.size - 1, -1)
     return int(min(top, r0 + int(round(p.vehicle_lid_max_m * float(ctx.intrinsics.fy) / z))))
 
