@@ -203,7 +203,8 @@ def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float 
                                        - z * np.tan(p.camera_pitch_rad)) * float(ctx.intrinsics.fy) / z
             r0 = int(np.clip(round(row) - y0, 0, h - 1))
             r1 = max(r1, r0 + 1)
-        elif x0 is not None and ctx.depth is not None and p.vehicle_lid_max_m > 0:
+        if x0 is not None and ctx.depth is not None and p.vehicle_lid_max_m > 0 and \
+                c1 - c0 + 1 >= p.vehicle_small_face_px:  # (the typical height may fall on the lid too)
             r0 = _below_lid(ctx, y0, x0, m, c0, c1, r0, r1, z)
     return r0, r1
 
