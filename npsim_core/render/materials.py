@@ -172,13 +172,15 @@ class DayLight:
     sun : unit vector toward the sun; ratio : sun irradiance on a surface facing it over the sky
     light on an upward-facing surface (both in the same units); score : mean robust residual
     (log albedo) of the best hypothesis; shadow_fraction : share of sun-facing pixels found in
-    cast shadow.
+    cast shadow; above_height : (W,) height (m along world up, camera frame) up to which what
+    continues above the frame's top edge casts shadows, per column (None: unlimited).
     """
 
     sun: tuple[float, float, float]
     ratio: float
     score: float
     shadow_fraction: float
+    above_height: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 #: Ground bounce relative to the sky light (a downward surface sees the street, ~1/3 as bright).
@@ -217,18 +219,27 @@ _SHADOW_PENALTY = 0.15
 
 
 #: Labels that go on above the frame where they touch its top row (building, wall, fence,
-#: vegetation, pole): :func:`above_frame_depth`.
-_TALL_CLASSES = (11, 12, 13, 17, 21)
+#: vegetation): :func:`above_frame_depth`. Poles are left out: one is a few centimetres wide, and
+#: going on above the frame with the 4 m thickness of a façade it cast a wide band of shadow.
+_TALL_CLASSES = (11, 12, 13, 21)
+#: Thin objects (pole, polegroup, traffic light, sign): a shadow ray is inside them only within
+#: ``_THIN_M`` behind their visible surface (a façade's or car's thickness is ``_THICK_M``).
+_THIN_CLASSES = (17, 18, 19, 20)
+_THIN_M, _THICK_M = 0.5, 4.0
+#: Shadow-ray margins of the daylight estimate (relative, metres): the render geometry's ground
+#: and façades are fitted planes, not raw stereo (docs/relight.md "De-lit textures").
+_SUN_MARGIN, _SUN_OFFSET = 0.01, 0.05
 
 
 def above_frame_depth(depth: np.ndarray, labels: np.ndarray, rows: int = 3) -> np.ndarray:
     """(W,) depth (m) of what continues above the frame per column, NaN where nothing does.
 
-    A façade, wall, tree or pole cut by the image's top edge goes on upward; a vertical
+    A façade, wall or tree cut by the image's top edge goes on upward; a vertical
     surface keeps its z-depth up a column, so the median depth of its top ``rows`` rows stands
     for it. Without it, shadow rays toward a high sun leave the frame before they reach the
     building that casts the shadow (its upper floors are out of view), and the sun estimate
     preferred low suns whose rays hit visible geometry (docs/relight.md "De-lit textures").
+    How high it goes is not in the frame: :func:`estimate_daylight` fits it per segment.
     """
     top = np.asarray(depth, np.float64)[:rows]
     tall = np.isin(np.asarray(labels)[:rows], _TALL_CLASSES) & np.isfinite(top) & (top > 0)
@@ -238,51 +249,142 @@ def above_frame_depth(depth: np.ndarray, labels: np.ndarray, rows: int = 3) -> n
     return np.where(k >= (rows + 1) // 2, med, np.nan)
 
 
-def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *,
-                   steps: int = 24, min_dist: float = 0.5, max_dist: float = 40.0, thickness: float = 4.0,
-                   margin: float = 0.04, above: np.ndarray | None = None) -> np.ndarray:
-    """1 where camera-frame ``points`` (N, 3) see the sun along ``sun`` over the depth map, else 0.
+def _above_segments(labels: np.ndarray, above: np.ndarray) -> np.ndarray:
+    """(W,) id of the connected tall segment (:data:`_TALL_CLASSES`) each column's above-frame part
+    belongs to (0 = none): one unknown height each."""
+    import cv2
 
-    Screen-space shadow rays: ``steps`` points from ``min_dist`` to ``max_dist`` m (geometric)
-    toward the sun are projected into the image; a point more than ``margin`` (relative, plus
-    0.2 m) and up to ``thickness`` m behind the visible surface there is inside an object (the
-    visible surface occludes it). The margins keep stereo depth noise from casting shadows.
-    ``above`` ((W,) m, :func:`above_frame_depth`): what continues above the frame's top edge
-    per column; a ray point projected above the frame is tested against it the same way.
-    """
+    _, comp = cv2.connectedComponents(np.isin(labels, _TALL_CLASSES).astype(np.uint8), connectivity=4)
+    return np.where(np.isfinite(above), comp[0], 0)
+
+
+def far_depth(depth: np.ndarray) -> np.ndarray:
+    """(H, W) float64 depth with each pixel the farthest of its 3x3 neighbourhood (NaN stays NaN):
+    what shadow rays test against. A ray point rounded to a pixel of the ground a row nearer is
+    "behind" it by the ground's depth step per row (1.2 m at 20 m at 256 px wide), which cast
+    false shadows along low suns' rays at small sizes."""
+    import cv2
+
+    d = np.asarray(depth, np.float64)
+    ok = np.isfinite(d)
+    far = cv2.dilate(np.where(ok, d, 0.0).astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.float64)
+    return np.where(ok, far, np.nan)
+
+
+def thickness_map(labels: np.ndarray) -> np.ndarray:
+    """(H, W) thickness (m) behind each pixel's visible surface for shadow rays: thin objects
+    are thin (:data:`_THIN_CLASSES`)."""
+    return np.where(np.isin(labels, _THIN_CLASSES), _THIN_M, _THICK_M)
+
+
+def _shadow_rays(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *, steps: int, min_dist: float,
+                 max_dist: float, thickness, margin: float, offset: float, above: np.ndarray | None,
+                 up: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Screen-space shadow rays (:func:`sun_visibility`): (hit by the visible geometry (N,) bool,
+    the lowest height along ``up`` at which the ray is inside what continues above the frame
+    (N,) m, +inf if never, and that ray point's column (N,))."""
     H, W = depth.shape
+    thick = np.asarray(thickness, np.float64)
     t = np.geomspace(min_dist, max_dist, steps)
-    q = points[:, None, :] + t[None, :, None] * sun[None, None, :]
+    q = points[:, None, :] + t[None, :, None] * np.asarray(sun, np.float64)[None, None, :]
     z = q[..., 2]
     front = z > 0.1
     u = np.rint(intrinsics.fx * q[..., 0] / np.where(front, z, 1) + intrinsics.cx).astype(np.int64)
     v = np.rint(intrinsics.fy * q[..., 1] / np.where(front, z, 1) + intrinsics.cy).astype(np.int64)
     inside = front & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-    d = np.where(inside, depth[np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)], np.nan)
-    if above is not None:
-        over = front & (u >= 0) & (u < W) & (v < 0)
-        d = np.where(over, np.asarray(above, np.float64)[np.clip(u, 0, W - 1)], d)
-        inside = inside | over
+    vc, uc = np.clip(v, 0, H - 1), np.clip(u, 0, W - 1)
+    d = np.where(inside, depth[vc, uc], np.nan)
+    if thick.ndim == 2:  # per pixel (thin objects are thin)
+        thick = np.where(inside, thick[vc, uc], _THICK_M)
     with np.errstate(invalid="ignore"):
-        hit = inside & np.isfinite(d) & (z > d * (1 + margin) + 0.2) & (z < d + thickness)
-    return (~hit.any(axis=1)).astype(np.float32)
+        hit = (inside & np.isfinite(d) & (z > d * (1 + margin) + offset) & (z < d + thick)).any(axis=1)
+        h_over = np.full(len(points), np.inf)
+        u_over = np.zeros(len(points), np.int64)
+        if above is not None:
+            da = np.asarray(above, np.float64)[uc]
+            over = front & (u >= 0) & (u < W) & (v < 0) & np.isfinite(da) & (z > da * (1 + margin) + offset) \
+                & (z < da + _THICK_M)
+            if over.any():
+                h = q @ (np.asarray(up, np.float64) if up is not None else np.array([0.0, -1.0, 0.0]))
+                h = np.where(over, h, np.inf)
+                k = np.argmin(h, axis=1)
+                h_over = h[np.arange(len(points)), k]
+                u_over = uc[np.arange(len(points)), k]
+    return hit, h_over, u_over
+
+
+def sun_visibility(points: np.ndarray, sun: np.ndarray, depth: np.ndarray, intrinsics, *,
+                   steps: int = 24, min_dist: float = 0.5, max_dist: float = 40.0, thickness=_THICK_M,
+                   margin: float = 0.04, offset: float = 0.2, above: np.ndarray | None = None,
+                   above_height: np.ndarray | None = None, up: np.ndarray | None = None) -> np.ndarray:
+    """1 where camera-frame ``points`` (N, 3) see the sun along ``sun`` over the depth map, else 0.
+
+    Screen-space shadow rays: ``steps`` points from ``min_dist`` to ``max_dist`` m (geometric)
+    toward the sun are projected into the image; a point more than ``margin`` (relative, plus
+    ``offset`` m) and up to ``thickness`` m (a number, or (H, W) per pixel: :func:`thickness_map`)
+    behind the visible surface there is inside an object (the visible surface occludes it). The
+    margins keep stereo depth noise from casting shadows. ``above`` ((W,) m,
+    :func:`above_frame_depth`): what continues above the frame's top edge per column; a ray point
+    projected above the frame is tested against it the same way, up to ``above_height`` ((W,)
+    m along ``up``, world up in the camera frame; unlimited if not given).
+    """
+    hit, h_over, u_over = _shadow_rays(points, sun, depth, intrinsics, steps=steps, min_dist=min_dist,
+                                       max_dist=max_dist, thickness=thickness, margin=margin, offset=offset,
+                                       above=above, up=up)
+    if above is not None:
+        cap = np.inf if above_height is None else np.asarray(above_height, np.float64)[u_over]
+        hit = hit | (np.isfinite(h_over) & (h_over <= cap))
+    return (~hit).astype(np.float32)
+
+
+def _dark_ground(y: np.ndarray, lab: np.ndarray) -> np.ndarray:
+    """Observed cast shadow on ground samples (luminance ``y``, labels ``lab``): per label, below
+    0.55x its 75th percentile of luminance, or -- where most of the label lies in shadow, so
+    that percentile is itself a shadow -- below the split of its log luminance into two classes
+    (Otsu) when the two are more than 1.8x apart."""
+    dark = np.zeros(len(y), bool)
+    for c in np.unique(lab):
+        m = lab == c
+        yc = y[m]
+        dk = yc < 0.55 * np.percentile(yc, 75)
+        ly = np.log(np.maximum(yc, 1e-4))
+        hist, edges = np.histogram(ly, bins=64)
+        p = hist / max(hist.sum(), 1)
+        mids = 0.5 * (edges[1:] + edges[:-1])
+        w0 = np.cumsum(p)
+        mu = np.cumsum(p * mids)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            between = (mu[-1] * w0 - mu) ** 2 / (w0 * (1 - w0))
+        j = int(np.nanargmax(np.where(np.isfinite(between), between, -1)))
+        lo, hi = ly <= edges[j + 1], ly > edges[j + 1]
+        if lo.sum() >= 10 and hi.sum() >= 10 and np.median(ly[hi]) - np.median(ly[lo]) > np.log(1.8):
+            dk = dk | lo
+        dark[m] = dk
+    return dark
 
 
 def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, depth: np.ndarray, intrinsics,
                       pitch: float = 0.038, *, instances: np.ndarray | None = None, samples: int = 4000,
-                      seed: int = 0) -> DayLight:
+                      seed: int = 0, sun: np.ndarray | None = None) -> DayLight:
     """Sun direction and sun/sky ratio of a day photo from the cast shadows on its ground
     (docs/relight.md "De-lit textures").
 
     The ground (road, sidewalk, parking) has the most reliable normals and shows the cast
-    shadows. Observed shadow: a ground pixel darker than 0.55x its label's 75th percentile of
-    luminance. For each sun direction (elevation 10–85°, any azimuth) the shadows the reconstructed geometry casts (:func:`sun_visibility`, plus the pixels facing
-    away) are compared with the observed ones (a 10° x 20° grid, then 5° around the best); the
-    direction with the highest intersection over union wins (the photo's texture does not enter: a score of albedo constancy was dominated by
-    it and picked wrong suns from stereo geometry). The sun/sky ratio ``k`` follows from the
-    median luminance of lit over shadowed ground: ``lit/shadow = (k·n·s + sky)/sky``. Model of
-    the shading: ``k·max(0, n·s)·V + sky(n)``, ``sky(n) = (1+n·up)/2 + 0.3·(1−n·up)/2``.
-    ``score`` is 1 − IoU.
+    shadows. Observed shadow: :func:`_dark_ground`. For each sun direction (elevation 10–85°, any
+    azimuth; a 10° x 20° grid, then 5° around the best) the shadows the reconstructed geometry
+    casts (screen-space shadow rays, :func:`sun_visibility`, plus the pixels facing away) are
+    compared with the observed ones; the direction with the highest intersection over union
+    wins (the photo's texture does not enter: a score of albedo constancy was dominated by it and
+    picked wrong suns from stereo geometry). What continues above the frame's top edge
+    (:func:`above_frame_depth`) has a height the frame does not show: per tall segment it is
+    the one that explains the observed shadows best (ground samples whose ray enters it, in
+    order of the height where they do: the prefix with most shadowed minus lit samples) -- an
+    unlimited height made every high sun shadow the whole street, and the low sun won. Thin
+    objects are 0.5 m thick for the rays (:func:`thickness_map`). The sun/sky ratio ``k``
+    follows from the median luminance of lit over shadowed ground: ``lit/shadow = (k·n·s +
+    sky)/sky``. Model of the shading: ``k·max(0, n·s)·V + sky(n)``, ``sky(n) = (1+n·up)/2 +
+    0.3·(1−n·up)/2``. ``score`` is 1 − IoU. ``sun`` (unit, camera frame): no search, the ratio
+    and score of that sun.
     """
     from ..camera import backproject
 
@@ -299,14 +401,38 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
     lab = labels.ravel()[idx]
     pts = backproject(np.where(np.isfinite(depth), depth, 0), intrinsics).reshape(-1, 3)[idx].astype(np.float64)
     pts = pts + 0.03 * n  # off the surface, so it does not shadow itself
-    dark = np.zeros(len(y), bool)
-    for c in np.unique(lab):
-        m = lab == c
-        dark[m] = y[m] < 0.55 * np.percentile(y[m], 75)
+    dark = _dark_ground(y, lab)
     R_cw = np.array([[1.0, 0.0, 0.0], [0.0, -np.cos(pitch), -np.sin(pitch)], [0.0, -np.sin(pitch), np.cos(pitch)]])
-    dmap = np.asarray(depth, np.float64)
+    dmap = far_depth(depth)
     above = above_frame_depth(dmap, labels)
-    best = (-1.0, None, None, 0.0, 0.0)
+    seg_top = _above_segments(labels, above)
+    thick = thickness_map(labels)
+    up = _up_vector(pitch)
+    best: tuple = (-1.0, None, None, None, 0.0, 0.0)
+
+    def score(s: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """(IoU, lit samples, (W,) height of what continues above the frame) of sun ``s``."""
+        f = n @ s > 0
+        hit = np.zeros(len(y), bool)
+        h_over = np.full(len(y), np.inf)
+        u_over = np.zeros(len(y), np.int64)
+        if f.any():
+            hit[f], h_over[f], u_over[f] = _shadow_rays(
+                pts[f], s, dmap, intrinsics, steps=24, min_dist=0.5, max_dist=40.0, thickness=thick,
+                margin=_SUN_MARGIN, offset=_SUN_OFFSET, above=above, up=up)
+        shadow = ~f | hit
+        heights = np.full(above.shape, -np.inf)  # ends at the frame's top unless the shadows say otherwise
+        cand = ~shadow & np.isfinite(h_over)
+        seg = seg_top[u_over]
+        for g in np.unique(seg[cand]):
+            m = np.flatnonzero(cand & (seg == g))
+            o = m[np.argsort(h_over[m], kind="stable")]
+            gain = np.cumsum(np.where(dark[o], 1.0, -1.0))
+            j = int(np.argmax(gain))
+            if gain[j] > 0:
+                shadow[o[:j + 1]] = True
+                heights[seg_top == g] = h_over[o[j]]
+        return float((shadow & dark).sum() / max((shadow | dark).sum(), 1)), ~shadow, heights
 
     def search(elevations, azimuths) -> None:
         nonlocal best
@@ -314,20 +440,20 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
             for az_d in azimuths:
                 el, az = np.radians(el_d), np.radians(az_d)
                 s = R_cw @ np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-                f = n @ s > 0
-                vis = np.zeros(len(y), bool)
-                vis[f] = sun_visibility(pts[f], s, dmap, intrinsics, above=above) > 0
-                iou = float((~vis & dark).sum() / max((~vis | dark).sum(), 1))
+                iou, vis, heights = score(s)
                 if iou > best[0]:
-                    best = (iou, s, vis, el_d, az_d)
+                    best = (iou, s, vis, heights, el_d, az_d)
 
-    # Coarse (10° x 20°), then fine (5°) around the best.
-    search(np.arange(10, 81, 10), np.arange(0, 360, 20))
-    e0, a0 = best[3], best[4]
-    search([e for e in np.arange(e0 - 10, e0 + 11, 5) if 10 <= e <= 85], np.arange(a0 - 20, a0 + 21, 5) % 360)
-    iou, s, vis = best[:3]
+    if sun is not None:
+        s = np.asarray(sun, np.float64) / np.linalg.norm(sun)
+        best = (*score(s)[:1], s, *score(s)[1:], 0.0, 0.0)
+    else:
+        # Coarse (10° x 20°), then fine (5°) around the best.
+        search(np.arange(10, 81, 10), np.arange(0, 360, 20))
+        e0, a0 = best[4], best[5]
+        search([e for e in np.arange(e0 - 10, e0 + 11, 5) if 10 <= e <= 85], np.arange(a0 - 20, a0 + 21, 5) % 360)
+    iou, s, vis, heights = best[:4]
     cs = np.maximum(n @ s, 0.0)
-    up = _up_vector(pitch)
     cu = n @ up
     amb = 0.5 * (1 + cu) + _GROUND_BOUNCE * 0.5 * (1 - cu)
     lit, shd = vis & ~dark, ~vis & dark
@@ -336,7 +462,8 @@ def estimate_daylight(image: np.ndarray, labels: np.ndarray, normals: np.ndarray
         ratio = float(np.median(y[lit]) / max(np.median(y[shd]), 1e-6))
         k = (ratio - 1.0) * float(np.median(amb[lit])) / max(float(np.median(cs[lit])), 0.1)
     shadow = float((~vis & (cs > 0.2)).mean() / max((cs > 0.2).mean(), 1e-6))
-    return DayLight(tuple(float(v) for v in s), float(np.clip(k, 0.5, 10.0)), 1.0 - iou, shadow)
+    return DayLight(tuple(float(v) for v in s), float(np.clip(k, 0.5, 10.0)), 1.0 - iou, shadow,
+                    above_height=heights)
 
 
 def day_light_colours(image: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -432,10 +559,14 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     ns = n[f // 2::f, f // 2::f].reshape(-1, 3)
     vis = np.ones(len(pts), np.float32)
     above = above_frame_depth(depth, labels)
+    thick = thickness_map(labels)
+    dfar = far_depth(depth)
     sel = np.flatnonzero((ns @ s > 0) & np.isfinite(small.ravel()))
     for i in range(0, len(sel), 20000):
         j = sel[i:i + 20000]
-        vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, np.asarray(depth, np.float64), intrinsics, above=above)
+        vis[j] = sun_visibility(pts[j] + 0.03 * ns[j], s, dfar, intrinsics, above=above,
+                                above_height=light.above_height, up=up, thickness=thick, margin=_SUN_MARGIN,
+                                offset=_SUN_OFFSET)
     vis = cv2.blur(vis.reshape(small.shape), (3, 3))
     vis = cv2.resize(vis, (W, H), interpolation=cv2.INTER_LINEAR) if f > 1 else vis
     vis = vis[:H, :W]
