@@ -132,6 +132,8 @@ class ProposalParams:
     #: A wall (facade plane) more than this share of which differs from the wall reference gets its
     #: own reference (the mode of its colour: a narrow building between wider ones of other colour).
     window_rereference_share: float = 0.5
+    #: ... kept when the share of that wall that differs drops to this fraction of before or less.
+    window_rereference_keep: float = 0.65
     #: Leave building pixels beside sky or foliage (blended with them) out of the candidates (off: it
     #: loses more panes behind trees than it removes false ones at 512x256).
     window_skip_border: bool = False

@@ -75,8 +75,9 @@ def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref
     luminance (panes vary, the wall is one colour), its chroma the median of the pixels near that
     mode, refined by a box mean (``window_wall_kernel_frac``) over its pixels within the window
     thresholds of the mode, and over candidate pixels of that colour up to a quarter box beyond it
-    (the wall pieces at a depth step are ragged); kept where it halves the share of the wall that
-    differs (dense panes or glass can be the mode of a wall). Returns ``ref`` itself when no wall
+    (the wall pieces at a depth step are ragged); kept where the share of the wall that differs
+    drops to ``window_rereference_keep`` of what it was or less (dense panes or glass can be the
+    mode of a wall). Returns ``ref`` itself when no wall
     is redone.
     """
     share = float(params.window_rereference_share)
@@ -126,9 +127,9 @@ def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref
         base = np.array([mode, ab[0], ab[1]], np.float32)
         loc = np.stack([cv2.blur(f[..., c] * wl, (k, k), borderType=cv2.BORDER_REPLICATE) for c in range(3)], -1)
         loc = np.where((den > params.window_wall_min_share)[..., None], loc / np.maximum(den, 1e-6)[..., None], base)
-        # kept only when it makes the wall far less "different" (where dense panes or glass are
+        # kept only when it makes the wall clearly less "different" (where dense panes or glass are
         # the mode, both references leave about as much of it different)
-        if _differs(f, loc, params)[wm].mean() > 0.5 * odd[w_id] / area[w_id]:
+        if _differs(f, loc, params)[wm].mean() > params.window_rereference_keep * odd[w_id] / area[w_id]:
             continue
         if out is None:
             out = ref.copy()
