@@ -444,3 +444,32 @@ def test_multijitter_sampler_lowers_the_noise(street):
     assert mj < 0.75 * ind, (mj, ind)
     with pytest.raises(NpsimInputError, match="sampler"):
         BuildParams(sampler="sobol")
+
+
+def test_onebounce_integrator_agrees_with_path(street):
+    """The nights' path tracer at one bounce without the path's last BSDF ray (render/integrator.py,
+    ~10 % less render CPU): by default in a JIT variant at max_depth 3, and its image is Mitsuba's
+    ``path`` one within the Monte Carlo noise (mean over 16x16-pixel blocks: its distance to a path
+    render is about that between two path seeds); scalar scenes keep ``path``."""
+    from npsim_core.render.integrator import NAME
+
+    s, mesh = street
+    table = load_light_table()
+    a = activate_lights(s.lights, table, 3, image=s.image)
+    mats = estimate_materials(s.image, s.labels, albedo=s.albedo, roughness=s.roughness,
+                              light_classes=s.lights.class_map())
+    assert _build(s, mesh, a)[0].info["integrator"] == "path"  # scalar_rgb (before the LLVM scenes: it sets the variant)
+    one = build_scene(mesh, s.intrinsics, mats, table, s.lights, a, BuildParams(), variant="llvm_ad_rgb")
+    path = build_scene(mesh, s.intrinsics, mats, table, s.lights, a, BuildParams(integrator="path"),
+                       variant="llvm_ad_rgb")
+    assert one.info["integrator"] == NAME and path.info["integrator"] == "path"
+
+    def blocks(img):
+        return img.reshape(4, 16, 8, 16, 3).mean(axis=(1, 3))
+
+    x = blocks(render_linear(one, spp=64, seed=1))
+    y, z = (blocks(render_linear(path, spp=64, seed=k)) for k in (2, 3))
+    assert abs(x.mean() / y.mean() - 1) < 0.03, (x.mean(), y.mean())
+    assert np.abs(x - y).mean() < 2.0 * np.abs(y - z).mean() + 1e-4, (np.abs(x - y).mean(), np.abs(y - z).mean())
+    with pytest.raises(NpsimInputError, match="integrator"):
+        BuildParams(integrator="bdpt")

@@ -19,7 +19,7 @@ from ..refine.bilateral import FilterParams
 from ..refine.params import OPTIMIZER_FIELDS, PRESETS, RefineParams
 from ..refine.uncertainty import UncertaintyParams
 from ..render.denoise import DENOISERS, DenoiseParams
-from ..render.scene_builder import RENDER_SAMPLER, SAMPLERS
+from ..render.scene_builder import INTEGRATORS, RENDER_SAMPLER, SAMPLERS
 from .names import DEPTH_SOURCES, LIGHT_SOURCES
 
 __all__ = ["CameraSetup", "DepthSource", "ExportParams", "MeshParams", "NightParams", "ChainParams", "LightsParams",
@@ -153,6 +153,9 @@ class NightParams:
     sampler : Mitsuba sampler of the nights, previews and guides (``scene_builder.SAMPLERS``):
         ``multijitter`` (the default: stratified samples, lower noise at the same spp
         than ``independent``, the sampler before; ``benchmarks/render.py --frontier --samplers``).
+    integrator : path tracer of the nights and previews at max_depth 3 (``scene_builder.INTEGRATORS``):
+        ``onebounce`` (default, ``render/integrator.py``: Mitsuba's path without its last BSDF ray,
+        ~10 % less render CPU at the frontier's quality, docs/relight.md) or ``path``.
     iso : camera noise preset (0 = no noise).
     exposure_mode : ``auto`` (default): the camera meters the lit pixels of the night (geometric
         mean of their luminance, light sources, sky and ego vehicle left out) and exposes them to
@@ -199,6 +202,7 @@ class NightParams:
     final_spp: int = 16
     final_max_depth: int = 3
     sampler: str = RENDER_SAMPLER
+    integrator: str = "onebounce"
     iso: int = 1600
     exposure: float = 0.0
     exposure_mode: str = "auto"
@@ -241,6 +245,8 @@ class NightParams:
                                   f"image widths, got {self.glare}, {self.glare_radius}")
         if self.sampler not in SAMPLERS:
             raise NpsimInputError(f"night.sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
+        if self.integrator not in INTEGRATORS:
+            raise NpsimInputError(f"night.integrator must be one of {', '.join(INTEGRATORS)}, got {self.integrator!r}")
         if self.variant not in ("", "scalar_rgb", "llvm_ad_rgb"):
             raise NpsimInputError(f"night.variant must be '', 'scalar_rgb' or 'llvm_ad_rgb', got {self.variant!r}")
         if self.exposure_mode not in EXPOSURE_MODES:

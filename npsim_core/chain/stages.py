@@ -406,7 +406,7 @@ def night_scene_stage(inputs: dict, params, ctx):
     (:func:`lit_mesh`)."""
     from ..render.scene_builder import BuildParams, build_scene
 
-    light_table_path, variant, tolerance, far_limit, sampler = params
+    light_table_path, variant, tolerance, far_limit, sampler, integrator = params
     m: MeshResult = inputs["mesh"]
     s = inputs["geometry"].scene
     if m.mesh.width != s.width or m.mesh.height != s.height:
@@ -418,7 +418,8 @@ def night_scene_stage(inputs: dict, params, ctx):
     from ..chain.params import NightParams
 
     table = light_table(NightParams(light_table=light_table_path))
-    bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch, sampler=sampler)
+    bp = BuildParams(ego_headlights=True, camera_height=s.camera_height, camera_pitch=s.camera_pitch, sampler=sampler,
+                     integrator=integrator)
     t0 = time.perf_counter()
     mesh, what = lit_mesh(m, inputs["lights"].annotation, tolerance, far_limit)
     t_reduce = time.perf_counter() - t0
@@ -474,7 +475,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("materials", materials_stage, ("frame", "lights", "geometry"), lambda p: bool(p.night.delight), version=3),
     Stage("night_scene", night_scene_stage, ("geometry", "mesh", "materials", "lights"),
           lambda p: (p.night.light_table, p.night.variant, float(p.mesh.render_tolerance), float(p.mesh.far_limit),
-                     p.night.sampler),
+                     p.night.sampler, p.night.integrator),
           version=4, incremental=True),
     Stage("guides", guides_stage, ("frame", "mesh", "materials", "night_scene"), lambda p: p.night.denoiser_used,
           needs=guides_needs, version=2),
