@@ -28,6 +28,7 @@ import os
 import shutil
 import tempfile
 import threading
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -263,11 +264,14 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         seed = params.night.seed + k
         # What the manifest reads from the scene, taken before the frame's last night drops it
         # (``release_scene``: the denoiser's peak then comes without the scene; same files).
+        t_in = time.perf_counter()
         built, _, _, run = chain.night_inputs(params, cancel=cancel)
+        t_in = time.perf_counter() - t_in  # the scene and guides (the first night), counted as the night's
         night_timings.update(run.timings)
         render_mesh, area_ids = built.info.get("render_mesh", ""), set(built.area_keys)
         del built, run
         frame = chain.night_final(res, params, seed=seed, cancel=cancel, release_scene=k == n_nights - 1)
+        frame.timings["night_inputs"] = frame.timings.get("night_inputs", 0.0) + t_in
         release_free_memory()  # the render's and the denoiser's temporaries
         stem = f"{n}_night_{k}"
         put(staging / f"{stem}.png", write_image, frame.image)
@@ -286,7 +290,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                             "exposure": {k2: (None if isinstance(v, float) and not np.isfinite(v) else
                                               round(v, 6) if isinstance(v, float) else v)
                                          for k2, v in frame.exposure.items()},
-                            "seconds": round(frame.elapsed, 3),
+                            "seconds": round(frame.elapsed + t_in, 3),
                             "timings": {k2: round(v, 3) for k2, v in frame.timings.items()},
                             "realism": frame.realism})  # structure ratio + global stats (npsim_core.realism)
     # The night stages' times when they ran (their results are cached in the chain).
