@@ -214,3 +214,54 @@ def test_pane_cut_by_a_car_in_front_is_proposed_however_low():
     wins, _ = _windows(_run(img, labels, depth, noise))
     for key, g in vis.items():
         assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {key} (visible part) not proposed once"
+
+
+def _irregular_wall(merge: bool, fleck: bool):
+    """A wall 30 m away with two floors of five panes at irregular bays (no lattice fits them);
+    ``merge``: two panes of the lower floor 0.3 m apart joined by a half-dark mullion strip (one blob
+    over two panes); ``fleck``: a dark 0.35 x 0.5 m vent on the upper floor between two panes."""
+    img, labels, depth, noise = _canvas()
+    z = 30.0
+    _wall(img, labels, depth, -10.0, 10.0, 11.0, z)
+    gt = {}
+    xs = (-8.9, -4.6, -1.5, 2.2, 7.4)
+    for f, sill in enumerate((4.6, 7.9)):
+        for b, x in enumerate(xs):
+            _pane(img, gt, (f, b), x, x + 1.2, sill, sill + 1.5, z)
+    if merge:  # a second pane 0.3 m right of the lower floor's middle one, mullion half as dark
+        del gt[(0, 2)]
+        _pane(img, gt, (0, 2), -1.5, -0.3, 4.6, 6.1, z)
+        _pane(img, gt, (0, 5), 0.0, 1.2, 4.6, 6.1, z)
+        strip = np.zeros((H, W), bool)
+        strip[int(np.ceil(_v(6.1, z))):int(np.ceil(_v(4.6, z))), int(np.ceil(_u(-0.3, z))):int(np.ceil(_u(0.0, z)))] = True
+        img[strip] = (100, 96, 92)
+    if fleck:
+        m = np.zeros((H, W), bool)
+        m[int(np.ceil(_v(8.6, z))):int(np.ceil(_v(8.1, z))), int(np.ceil(_u(5.4, z))):int(np.ceil(_u(5.75, z)))] = True
+        img[m] = GLASS
+    return img, labels, depth, noise, gt, z
+
+
+def test_two_merged_panes_of_a_wall_without_a_lattice_are_two_windows():
+    """Two panes 0.3 m apart joined by a mullion darker than the wall are one blob, 1.9x the wall's
+    median window: with too few windows on a floor for the lattice, it stayed one window (Table 4's
+    merged neighbours). Cut where the wall shows through it, each pane is one window."""
+    img, labels, depth, noise, gt, z = _irregular_wall(merge=True, fleck=False)
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    for key in ((0, 2), (0, 5)):
+        assert sum(_iou(gt[key], w) >= 0.5 for w in wins.values()) == 1, f"pane {key} not one window"
+    for i, w in wins.items():
+        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
+        assert len(over) <= 1, f"window {i} spans panes {over}"
+
+
+def test_fragment_far_smaller_than_the_walls_windows_is_not_a_window():
+    """A dark vent a tenth of the wall's panes (0.35 x 0.5 m) passed every test of a pane and was
+    proposed; the wall's own windows say what one window is, and it pulled the wall's median down."""
+    img, labels, depth, noise, gt, z = _irregular_wall(merge=False, fleck=True)
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    hit = sum(1 for g in gt.values() if sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1)
+    assert hit == len(gt)
+    fleck = np.zeros((H, W), bool)
+    fleck[int(np.ceil(_v(8.6, z))):int(np.ceil(_v(8.1, z))), int(np.ceil(_u(5.4, z))):int(np.ceil(_u(5.75, z)))] = True
+    assert not any((w & fleck).any() for w in wins.values()), "the vent proposed as a window"

@@ -488,6 +488,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 have.append((r0, r1, a0, a1))
         fm = bld == b_id
         t_wall = _wall_direction(ctx, fm) if len(kept) >= 3 else None
+        # panes merged across a strip of wall: cut there before the rule drops them as too large
+        kept = _split_oversized(ctx, kept, fm, t_wall, ratio, chroma)
         n0 = {id(f): f for f in kept}
         kept = _median_rule(ctx, kept, fm, t_wall)  # before the grid: the cells stand in for what it drops
         dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
@@ -507,21 +509,23 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl.kind = "window"
                 kept.append([b_id, fl_level(ctx, nl), p.window_floor_tol_m if ctx.depth is not None
                              else max(2.0, m.shape[0] / 2.0), nl])
+        kept = _small_rule(ctx, kept, fm, t_wall)
         out.extend(_cap_lit(p, kept, float(fm.sum())) + other)
     return out
 
 
-def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
-    """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
-    (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
-    at least): a merged
-    row, a gable or an awning, never one pane.
-    Areas on the wall: pixels x (z / f)^2 / cos of the incidence on the wall (its direction ``t``,
-    :func:`_wall_direction`), each one pixel smaller across and down than in the image
-    (quantisation)."""
-    p = ctx.params
-    if len(wins) < p.window_median_min_count or ctx.depth is None:
-        return wins
+def _wall_areas(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None,
+                shrink: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Areas on the wall (m^2) of windows ``wins`` ([wall id, level, tol, Light]) of one wall
+    (``fm``, HxW bool; direction ``t``, :func:`_wall_direction`), and which are whole panes.
+
+    Area: pixels x (z / f)^2 / cos of the incidence on the wall (a pane down a receding wall is
+    foreshortened); with ``shrink`` each one pixel smaller across and down than in the image
+    (quantisation: a pane 1.4 px wide is 1 or 2 px in the image, not twice the size: the benefit of
+    the doubt for a large one; without, a small one's); NaN without depth at the window.
+    Whole: its box and a pixel around it all building, inside the frame (a pane cut by a tree, a
+    car or the frame's edge shows less than its size).
+    """
     K = ctx.intrinsics
     area = []
     for f in wins:
@@ -531,22 +535,32 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
         if z is None:
             area.append(np.nan)
             continue
-        # the wall's incidence: a pane down a receding wall is foreshortened by it
         cos = 1.0
         if t is not None:
             rx = (li.x0 + w / 2.0 - 0.5 - K.cx) / K.fx
             cos = max(0.1, abs(t[1] * rx - t[0]) / float(np.hypot(rx, 1.0)))
-        # one pixel less either way: a pane 1.4 px wide is 1 or 2 px in the image, not twice the size
-        n = max(float(li.mask.sum()) * (w - 1) * (h - 1) / float(w * h), 1.0)
+        n = max(float(li.mask.sum()) * (w - 1) * (h - 1) / float(w * h), 1.0) if shrink else float(li.mask.sum())
         area.append(n * z * z / (float(K.fx) * float(K.fy)) / cos)
-    a = np.asarray(area)
-    # The reference sizes leave out panes cut by something in front (a tree, a car, the frame's
-    # edge): their visible part is smaller than the pane.
     H, W = fm.shape
     B = ctx.labels == BUILDING
     whole = np.array([li.y0 > 0 and li.x0 > 0 and li.y0 + li.mask.shape[0] < H and li.x0 + li.mask.shape[1] < W
                       and B[li.y0 - 1:li.y0 + li.mask.shape[0] + 1, li.x0 - 1:li.x0 + li.mask.shape[1] + 1].all()
-                      for li in (f[3] for f in wins)])
+                      for li in (f[3] for f in wins)], bool)
+    return np.asarray(area, float), whole
+
+
+def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
+    """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
+    (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
+    at least): a merged
+    row, a gable or an awning, never one pane.
+    Areas on the wall: :func:`_wall_areas`."""
+    p = ctx.params
+    if len(wins) < p.window_median_min_count or ctx.depth is None:
+        return wins
+    a, whole = _wall_areas(ctx, wins, fm, t)
+    # The reference sizes leave out panes cut by something in front (a tree, a car, the frame's
+    # edge): their visible part is smaller than the pane.
     ref_a = np.where(whole, a, np.nan) if (whole & np.isfinite(a)).sum() >= p.window_median_min_count else a
     if np.isfinite(ref_a).sum() < p.window_median_min_count:
         return wins
@@ -566,6 +580,82 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
             li.kind = "shop"  # ground-floor glazing larger than the windows above: a shop front
             out.append(f)
     return out
+
+
+def _split_oversized(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None,
+                     ratio: np.ndarray, chroma: np.ndarray) -> list:
+    """Cut the windows larger than ``window_max_median_ratio`` x the median whole window of their
+    wall (``fm``; :func:`_wall_areas`) where the wall shows through them (:func:`_gap_split` at
+    ``window_oversized_gap_contrast``): two panes of a row (or a column) merged across a one-pixel
+    wall, which the lattice did not cut (too few windows on the wall, or the bays of a receding wall
+    a pixel off). One window is one pane: each piece is a window when it passes the size and fill of
+    one (``window_min_area_px``, ``window_height_m``, ``window_min_fill`` of its box and of it beyond
+    the window thresholds, and those pixels not a fragment by :func:`_small_rule`: the hull fill of
+    an L-shaped blob is not a pane); an oversized window without such a
+    gap stays as it is (most are whole panes of a wall whose median a row of smaller ones lowers)."""
+    p = ctx.params
+    c = float(p.window_oversized_gap_contrast)
+    if c <= 0 or len(wins) < p.window_median_min_count or ctx.depth is None:
+        return wins
+    a, whole = _wall_areas(ctx, wins, fm, t)
+    ok = whole & np.isfinite(a)
+    if ok.sum() < p.window_median_min_count:
+        return wins
+    med = float(np.median(a[ok]))
+    a_px, _ = _wall_areas(ctx, wins, fm, t, shrink=False)
+    med_px = float(np.median(a_px[ok]))
+    tl = -np.log(p.window_dark_ratio)
+    out = []
+    for k, (f, ai) in enumerate(zip(wins, a)):
+        li = f[3]
+        h, w = li.mask.shape
+        if not (np.isfinite(ai) and ai > p.window_max_median_ratio * med) or max(h, w) < 5:
+            out.append(f)
+            continue
+        dev = np.maximum(np.abs(ratio[li.y0:li.y0 + h, li.x0:li.x0 + w]) / tl,
+                         chroma[li.y0:li.y0 + h, li.x0:li.x0 + w] / p.window_chroma_delta)
+        pieces = _gap_split(li.mask, dev, c)
+        z = _median_depth(ctx, li)
+        min_h = p.window_height_m[0] * float(ctx.intrinsics.fy) / z if z else 2.0
+        # a piece is a pane when its pixels beyond the window thresholds (not the hull fill of an
+        # L-shaped blob) are one at least as large as the small rule's (:func:`_small_rule`)
+        good = []
+        for py, px, pm in pieces:
+            raw = (dev[py:py + pm.shape[0], px:px + pm.shape[1]] >= 1.0) & pm
+            if pm.sum() >= p.window_min_area_px and pm.mean() >= p.window_min_fill and pm.shape[0] >= min_h \
+                    and raw.sum() >= p.window_min_fill * pm.sum() \
+                    and a_px[k] * raw.sum() / li.mask.sum() >= med_px / p.window_max_median_ratio:
+                good.append((py, px, pm))
+        if len(good) < 2:
+            out.append(f)
+            continue
+        for py, px, pm in good:
+            nl = Light(li.class_id, li.y0 + py, li.x0 + px, pm, li.confidence)
+            nl.kind = "window"
+            nl.cut = getattr(li, "cut", False)
+            out.append([f[0], fl_level(ctx, nl), f[2], nl])
+    return out
+
+
+def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
+    """Drop the windows smaller than ``window_min_median_ratio`` x the median whole window of their
+    wall (``fm``; :func:`_wall_areas`, ``window_median_min_count`` whole windows at least), unless
+    they are a pane's visible part (cut by the frame or something in front, ``Light.cut``) or not
+    whole: the wall's windows say what one pane is, and a piece far smaller is a fragment (a pane's
+    frame, half a pane split by a mullion, a fleck of the wall), not a window. Such fragments also
+    pull the wall's median window down, so that its whole panes look oversized against it
+    (docs/proposals.md "Fifth pass")."""
+    p = ctx.params
+    r = float(p.window_min_median_ratio)
+    if r <= 0 or len(wins) < p.window_median_min_count or ctx.depth is None:
+        return wins
+    a, whole = _wall_areas(ctx, wins, fm, t, shrink=False)
+    ok = whole & np.isfinite(a)
+    if ok.sum() < p.window_median_min_count:
+        return wins
+    med = float(np.median(a[ok]))
+    return [f for f, ai, wh in zip(wins, a, whole)
+            if not (wh and np.isfinite(ai) and ai < r * med and not getattr(f[3], "cut", False))]
 
 
 def _cap_lit(p, wins: list, area: float) -> list:
