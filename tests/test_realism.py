@@ -440,12 +440,12 @@ def test_visible_head_radiance_is_the_spot_intensity_over_the_head_area():
 
 
 def test_a_fixed_night_through_the_default_camera_has_real_night_statistics():
-    """The camera inputs of the 2048x1024 fixture's SGM night (seed 0; the denoised linear render
-    with the ego vehicle composited, its metered exposure and white balance, the light states),
-    area-downsampled to 256x128 (``tests/data/night_camera_inputs_256.npz``, docs/relight.md
-    "Glare"). Through the chain's default camera all five global statistics are within 15 % of real
-    ACDC nights; the camera before the glare (tone 0.9, lamp heads capped) gave median 29, p99 205
-    and 0.08 % above 240 (2 of 5)."""
+    """The camera inputs of the 2048x1024 fixture's SGM night (seed 0, tree of 2026-11-26 02:06; the
+    denoised linear render with the ego vehicle composited, its metered exposure and white balance,
+    the light states), area-downsampled to 256x128 (``tests/data/night_camera_inputs_256.npz``,
+    docs/relight.md "Glare"). Through the chain's default camera all five global statistics are
+    within 15 % of real ACDC nights; the camera before the glare (tone 0.9, lamp heads as rendered)
+    gave median 28, p99 201 and 0.09 % above 240 (2 of 5)."""
     from pathlib import Path
 
     from npsim_core.chain import ChainParams

@@ -221,7 +221,7 @@ class NightParams:
     motion_blur_px: int = 0
     bloom: float = 0.0
     glare: float = 0.1
-    glare_radius: float = 0.0014
+    glare_radius: float = 0.0008
     light_table: str = ""
     variant: str = ""
     delight: bool = False

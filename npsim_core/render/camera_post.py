@@ -255,21 +255,22 @@ def bloom(linear: np.ndarray, strength: float, threshold: float = 1.0, radius: f
 #: Exponent β of the glare PSF's Moffat profile ``(1 + (r/r0)²)^-β``: 1.5 gives wings falling as
 #: r^-3, the long tail of a lens's veiling glare (stray light from surfaces, coatings, the windscreen).
 GLARE_BETA = 1.5
-#: The PSF is cut at this many core radii (the share of a β = 1.5 kernel beyond R is about r0/R,
-#: here < 2 %; the cut kernel is renormalised, so energy stays conserved).
-GLARE_EXTENT = 64.0
+#: The PSF ends at this many core radii, tapered smoothly to zero (the share of a β = 1.5 kernel
+#: beyond R is about r0/R; the kernel is renormalised, so energy stays conserved).
+GLARE_EXTENT = 96.0
 
 
 def glare_kernel(r0_px: float, beta: float = GLARE_BETA, extent: float = GLARE_EXTENT) -> np.ndarray:
-    """The glare PSF on a pixel grid: Moffat ``(1 + (r/r0)²)^-β`` for r <= ``extent``·r0 (at least
-    8 px), integrated over each pixel (5 x 5 samples, so a core narrower than a pixel -- a preview
+    """The glare PSF on a pixel grid: Moffat ``(1 + (r/r0)²)^-β`` for r <= R = ``extent``·r0 (at least
+    8 px), tapered by ``(1 - (r/R)²)²``, integrated over each pixel (5 x 5 samples, so a core narrower than a pixel -- a preview
     -- keeps its share of the tail), sum 1."""
     r0 = float(r0_px)
     R = max(8, int(np.ceil(float(extent) * r0)))
     n = 5
     t = (np.arange(-R * n, (R + 1) * n) + 0.5) / n - 0.5          # sub-pixel sample centres
     r2 = t[:, None] ** 2 + t[None, :] ** 2
-    k = np.where(r2 <= R * R, (1.0 + r2 / r0 ** 2) ** (-float(beta)), 0.0)
+    # Tapered to zero at R (no visible rim around a lamp's halo where a hard cut would be).
+    k = np.where(r2 <= R * R, (1.0 + r2 / r0 ** 2) ** (-float(beta)) * (1.0 - r2 / (R * R)) ** 2, 0.0)
     k = k.reshape(2 * R + 1, n, 2 * R + 1, n).sum(axis=(1, 3))
     return (k / k.sum()).astype(np.float32)
 
