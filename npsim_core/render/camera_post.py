@@ -102,7 +102,7 @@ class CameraParams:
     bloom_threshold: float = 1.0
     bloom_radius: float = 0.002
     glare: float = 0.0
-    glare_radius: float = 0.0015
+    glare_radius: float = 0.0008
     highlight_knee: float = 0.5
     tone_contrast: float = 1.0
     tone_pivot: float = 0.025
@@ -275,7 +275,7 @@ def glare_kernel(r0_px: float, beta: float = GLARE_BETA, extent: float = GLARE_E
     return (k / k.sum()).astype(np.float32)
 
 
-def lens_glare(linear: np.ndarray, fraction: float, radius: float = 0.0015) -> np.ndarray:
+def lens_glare(linear: np.ndarray, fraction: float, radius: float = 0.0008) -> np.ndarray:
     """A lens's glare on a linear HDR image: ``(1 - f)·x + f·(K * x)``, K = :func:`glare_kernel`
     with core radius ``radius`` x width (px), f = ``fraction``.
 
