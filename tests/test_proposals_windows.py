@@ -232,9 +232,8 @@ def _irregular_wall(merge: bool, fleck: bool):
         del gt[(0, 2)]
         _pane(img, gt, (0, 2), -1.5, -0.3, 4.6, 6.1, z)
         _pane(img, gt, (0, 5), 0.0, 1.2, 4.6, 6.1, z)
-        strip = np.zeros((H, W), bool)
-        strip[int(np.ceil(_v(6.1, z))):int(np.ceil(_v(4.6, z))), int(np.ceil(_u(-0.3, z))):int(np.ceil(_u(0.0, z)))] = True
-        img[strip] = (100, 96, 92)
+        rows = slice(int(np.ceil(_v(6.1, z))), int(np.ceil(_v(4.6, z))))
+        img[rows, int(np.ceil(_u(-0.3, z))):int(np.ceil(_u(0.0, z)))] = (100, 96, 92)
     if fleck:
         m = np.zeros((H, W), bool)
         m[int(np.ceil(_v(8.6, z))):int(np.ceil(_v(8.1, z))), int(np.ceil(_u(5.4, z))):int(np.ceil(_u(5.75, z)))] = True

@@ -197,7 +197,7 @@ class ProposalParams:
     window_shop_max_top_m: float = 3.2
     #: No whole window smaller than this many times the median whole window of its wall (a
     #: fragment: a frame, half a pane, a fleck of wall); a pane's visible part is kept. 0: off.
-    window_min_median_ratio: float = 0.4
+    window_min_median_ratio: float = 0.33
     #: A window larger than ``window_max_median_ratio`` x its wall's median is cut where its departure
     #: from the wall over a column (row) dips below this fraction of the peaks either side (0: never).
     window_oversized_gap_contrast: float = 0.6

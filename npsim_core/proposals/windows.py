@@ -590,9 +590,10 @@ def _split_oversized(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, f
     wall, which the lattice did not cut (too few windows on the wall, or the bays of a receding wall
     a pixel off). One window is one pane: each piece is a window when it passes the size and fill of
     one (``window_min_area_px``, ``window_height_m``, ``window_min_fill`` of its box and of it beyond
-    the window thresholds, and those pixels not a fragment by :func:`_small_rule`: the hull fill of
-    an L-shaped blob is not a pane); an oversized window without such a
-    gap stays as it is (most are whole panes of a wall whose median a row of smaller ones lowers)."""
+    the window thresholds, and those pixels at least 1 / ``window_max_median_ratio`` of the wall's
+    median whole window: the hull fill of an L-shaped blob is not a pane); an oversized window
+    without such a gap stays as it is (most are whole panes of a wall whose median a row of smaller
+    ones lowers)."""
     p = ctx.params
     c = float(p.window_oversized_gap_contrast)
     if c <= 0 or len(wins) < p.window_median_min_count or ctx.depth is None:
@@ -618,7 +619,7 @@ def _split_oversized(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, f
         z = _median_depth(ctx, li)
         min_h = p.window_height_m[0] * float(ctx.intrinsics.fy) / z if z else 2.0
         # a piece is a pane when its pixels beyond the window thresholds (not the hull fill of an
-        # L-shaped blob) are one at least as large as the small rule's (:func:`_small_rule`)
+        # L-shaped blob) make a whole pane: by the rule's own symmetry, over 1/1.5 of the median
         good = []
         for py, px, pm in pieces:
             raw = (dev[py:py + pm.shape[0], px:px + pm.shape[1]] >= 1.0) & pm
