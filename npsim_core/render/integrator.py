@@ -59,12 +59,18 @@ def register(mi) -> bool:
             L = si.emitter(scene, active).eval(si, active)  # emitters (and the sky) seen directly
             valid = active & si.is_valid()
             bsdf = si.bsdf(ray)
+
+            def nee(si_, bsdf_, active_, full_weight, scale=1.0):
+                """Next-event estimate at ``si_``: MIS-weighted against the BSDF's own sample, or at
+                weight 1 where ``full_weight`` (and for delta lights); times ``scale`` (the path's throughput)."""
+                a = active_ & mi.has_flag(bsdf_.flags(), mi.BSDFFlags.Smooth)
+                ds, em_w = scene.sample_emitter_direction(si_, sampler.next_2d(a), True, a)
+                a &= ds.pdf != 0.0
+                val, pdf = bsdf_.eval_pdf(ctx, si_, si_.to_local(ds.d), a)
+                return dr.select(a, scale * dr.select(ds.delta | full_weight, 1.0, mis(ds.pdf, pdf)) * val * em_w, 0.0)
+
             # first vertex: NEE, MIS-weighted against the BSDF sample below
-            a_em = valid & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth)
-            ds, em_w = scene.sample_emitter_direction(si, sampler.next_2d(a_em), True, a_em)
-            a_em &= ds.pdf != 0.0
-            val, pdf = bsdf.eval_pdf(ctx, si, si.to_local(ds.d), a_em)
-            L += dr.select(a_em, dr.select(ds.delta, 1.0, mis(ds.pdf, pdf)) * val * em_w, 0.0)
+            L += nee(si, bsdf, valid, mi.Bool(False))
             # the bounce: emitters it hits (MIS), then the second vertex
             bs, bw = bsdf.sample(ctx, si, sampler.next_1d(valid), sampler.next_2d(valid), valid)
             beta = dr.select(valid, bw, 0.0)
@@ -78,13 +84,7 @@ def register(mi) -> bool:
             # second vertex: NEE alone (weight 1 on diffuse, its MIS weight on glossy surfaces)
             alive2 = alive & si2.is_valid()
             bsdf2 = si2.bsdf(ray2)
-            a_em2 = alive2 & mi.has_flag(bsdf2.flags(), mi.BSDFFlags.Smooth)
-            ds3, em_w3 = scene.sample_emitter_direction(si2, sampler.next_2d(a_em2), True, a_em2)
-            a_em2 &= ds3.pdf != 0.0
-            val2, pdf2 = bsdf2.eval_pdf(ctx, si2, si2.to_local(ds3.d), a_em2)
-            glossy = mi.has_flag(bsdf2.flags(), mi.BSDFFlags.Glossy)
-            w2 = dr.select(ds3.delta | ~glossy, 1.0, mis(ds3.pdf, pdf2))
-            L += dr.select(a_em2, beta * w2 * val2 * em_w3, 0.0)
+            L += nee(si2, bsdf2, alive2, ~mi.has_flag(bsdf2.flags(), mi.BSDFFlags.Glossy), beta)
             return L, active, []
 
     mi.register_integrator(NAME, lambda props: OneBounce(props))
