@@ -83,6 +83,9 @@ class Light:
     #: Windows: ``window``, ``shop`` (a shop front) or ``office_band`` (a glass floor band), saved as
     #: ``meta.light_kinds``.
     kind: str | None = None
+    #: Windows: the visible part of a pane cut at its top or bottom by the frame or something in
+    #: front (kept however low, left out of the façade lattice fit; docs/proposals.md, "Fourth pass").
+    cut: bool = False
 
 
 @dataclass

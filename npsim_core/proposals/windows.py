@@ -494,7 +494,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         kept = _median_rule(ctx, kept, fm, t_wall)  # before the grid: the cells stand in for what it drops
         dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
         # the lattice from whole panes: a pane's visible part has another centre and width
-        fit = [i for i, f in enumerate(kept) if not getattr(f[3], "cut", False)]
+        fit = [i for i, f in enumerate(kept) if not f[3].cut]
         cells, merged = lattice_cells(ctx, fm, [kept[i] for i in fit], ratio, chroma, dropped, t_wall)
         merged = {fit[j] for j in merged}
         if cells:
@@ -633,7 +633,7 @@ def _split_oversized(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, f
         for py, px, pm in good:
             nl = Light(li.class_id, li.y0 + py, li.x0 + px, pm, li.confidence)
             nl.kind = "window"
-            nl.cut = getattr(li, "cut", False)
+            nl.cut = li.cut
             out.append([f[0], fl_level(ctx, nl), f[2], nl])
     return out
 
@@ -656,7 +656,7 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
         return wins
     med = float(np.median(a[ok]))
     return [f for f, ai, wh in zip(wins, a, whole)
-            if not (wh and np.isfinite(ai) and ai < r * med and not getattr(f[3], "cut", False))]
+            if not (wh and np.isfinite(ai) and ai < r * med and not f[3].cut)]
 
 
 def _cap_lit(p, wins: list, area: float) -> list:
