@@ -508,6 +508,110 @@ def day_light_colours(image: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray
     return sun / (sun @ w), sky
 
 
+#: Yaw of a vehicle's box against the camera's forward axis searched by :func:`vehicle_box_normals`
+#: (deg; parked and driving cars follow the street), the fewest columns a vehicle needs, and the
+#: largest visible side length and rear width of a car (m; other vehicles: bus, truck, train).
+_BOX_YAW_DEG, _BOX_MIN_COLUMNS = 30.0, 12
+_BOX_MAX = {26: (5.5, 2.3)}
+_BOX_MAX_OTHER = (25.0, 3.2)
+#: Relative depth residual above which a column counts as an outlier of the box fit.
+_BOX_OUTLIER = 0.1
+
+
+def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normals: np.ndarray,
+                        depth: np.ndarray, intrinsics, pitch: float = 0.038) -> np.ndarray:
+    """``normals`` (H, W, 3; camera frame) with each vehicle's normals replaced by those of an
+    upright box fitted to its depth, for de-lighting (docs/relight.md "Cars as boxes").
+
+    The vehicle fits (:func:`~npsim_core.geometry.surfaces._upright_columns`) smooth the inverse
+    depth along a car's columns (σ 32 px), so a rear face beside a long side takes part of the
+    side's slope (2048x1024 fixture: rear normals a median 68° off) and the de-lit rear keeps the
+    sun's step between the faces. Per vehicle (instance segment) the top view of its columns (the
+    median point per column, world horizontal plane) is fitted with the two visible faces of a box:
+    perpendicular lines at a yaw within ±30° of the camera's axis, each column on the face its ray
+    enters first (the farther of the two lines' hits, as a ray entering a convex box). Grid over
+    the yaw (2.5°) and the column where the faces meet; each face's offset is the median of its
+    columns; the fit with the least mean relative depth residual wins. Every pixel of a column
+    gets its face's normal (horizontal, facing the camera). Vehicles narrower than 12 columns, or
+    without depth, keep ``normals``. Pixels with non-finite normals stay non-finite.
+    """
+    from ..camera import backproject
+    from ..geometry.surfaces import VEHICLE_CLASSES, _segments
+
+    out = np.array(normals, np.float32, copy=True)
+    veh = np.isin(labels, VEHICLE_CLASSES) & np.isfinite(depth) & np.isfinite(normals).all(-1)
+    if not veh.any():
+        return out
+    seg = np.where(veh, _segments(labels, instances)[0], 0)
+    c, s = np.cos(pitch), np.sin(pitch)
+    # The world-from-camera rotation (x right, y up, z forward; it is its own inverse).
+    R = np.array([[1.0, 0.0, 0.0], [0.0, -c, -s], [0.0, -s, c]])
+    P = backproject(np.where(veh, depth, 0.0), intrinsics)
+    xw, zw = P[..., 0], -s * P[..., 1] + c * P[..., 2]
+    yaws = np.radians(np.arange(-_BOX_YAW_DEG, _BOX_YAW_DEG + 1e-6, 2.5))
+    for g in np.unique(seg[veh]):
+        m = seg == g
+        ys, xs = np.nonzero(m)
+        x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
+        mc = m[y0:y1, x0:x1]
+        cols = np.flatnonzero(mc.sum(0) >= 2)
+        if len(cols) < _BOX_MIN_COLUMNS:
+            continue
+        px = np.nanmedian(np.where(mc, xw[y0:y1, x0:x1], np.nan)[:, cols], axis=0)
+        pz = np.nanmedian(np.where(mc, zw[y0:y1, x0:x1], np.nan)[:, cols], axis=0)
+        d = np.hypot(px, pz)
+        if not (d > 0.1).all():
+            continue
+        rx, rz = px / d, pz / d
+        cls = int(np.bincount(labels[y0:y1, x0:x1][mc]).argmax())
+        max_len, max_wid = _BOX_MAX.get(cls, _BOX_MAX_OTHER)
+        best = (np.inf, None, None)
+        splits = np.unique(np.linspace(0, len(cols), 41).astype(int))
+        for th in yaws:
+            # Rear/front face normal (toward the camera) and side normal (toward the camera).
+            ma = -np.array([np.sin(th), np.cos(th)])
+            mb = np.array([np.cos(th), -np.sin(th)])
+            mb = mb if np.median(px * mb[0] + pz * mb[1]) < 0 else -mb
+            oa, ob = px * ma[0] + pz * ma[1], px * mb[0] + pz * mb[1]
+            ra, rb = rx * ma[0] + rz * ma[1], rx * mb[0] + rz * mb[1]
+            for k in splits:
+                for left_a in (True, False):
+                    sa = slice(0, k) if left_a else slice(k, None)
+                    sb = slice(k, None) if left_a else slice(0, k)
+                    a_off = np.median(oa[sa]) if oa[sa].size else None
+                    b_off = np.median(ob[sb]) if ob[sb].size else None
+                    la = a_off / np.minimum(ra, -1e-6) if a_off is not None and a_off < 0 else np.full(len(d), -np.inf)
+                    lb = b_off / np.minimum(rb, -1e-6) if b_off is not None and b_off < 0 else np.full(len(d), -np.inf)
+                    la = np.where(ra < -1e-3, la, -np.inf)
+                    lb = np.where(rb < -1e-3, lb, -np.inf)
+                    lam = np.maximum(la, lb)
+                    on_a = la >= lb
+                    # A car's side is at most 5.5 m long and its rear 2.3 m wide (as fitted).
+                    fin = np.isfinite(lam)
+                    qx, qz = np.where(fin, lam, 0.0) * rx, np.where(fin, lam, 0.0) * rz
+                    along, across = qx * ma[1] - qz * ma[0], qx * mb[1] - qz * mb[0]
+                    fa, fb_ = on_a & fin, ~on_a & fin
+                    if fa.sum() > 1 and np.ptp(along[fa]) > max_wid:
+                        continue
+                    if fb_.sum() > 1 and np.ptp(across[fb_]) > max_len:
+                        continue
+                    cost = float(np.mean(np.where(fin, np.minimum(np.abs(d - lam) / d, _BOX_OUTLIER), _BOX_OUTLIER)))
+                    if cost < best[0]:
+                        best = (cost, on_a, (ma, mb))
+        if best[1] is None:
+            continue
+        on_a, (ma, mb) = best[1], best[2]
+        face = np.where(on_a[:, None], np.array([ma[0], 0.0, ma[1]]), np.array([mb[0], 0.0, mb[1]])) @ R.T
+        col_n = np.full((x1 - x0, 3), np.nan)
+        col_n[cols] = face
+        # Columns with too few pixels take the nearest fitted column's face.
+        near = cols[np.clip(np.searchsorted(cols, np.arange(x1 - x0)), 0, len(cols) - 1)]
+        col_n = col_n[near]
+        sub = out[y0:y1, x0:x1]
+        sub[mc] = np.broadcast_to(col_n[None], (y1 - y0, x1 - x0, 3))[mc]
+    return out
+
+
 def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, depth: np.ndarray, intrinsics,
                  pitch: float = 0.038, params: MaterialParams = MaterialParams(), light: DayLight | None = None,
                  instances: np.ndarray | None = None) -> tuple[np.ndarray, DayLight]:
@@ -548,6 +652,8 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
     geo = np.isfinite(normals).all(-1) & np.isfinite(depth)
     valid = geo & np.isin(labels, PLANE_CLASSES)
     veh = geo & np.isin(labels, VEHICLE_CLASSES) if params.delit_vehicles else np.zeros_like(valid)
+    if veh.any():  # a box per vehicle: the stereo fits blur the rear into the side
+        normals = vehicle_box_normals(labels, instances, normals, depth, intrinsics, pitch)
     n = np.where((valid | veh)[..., None], normals, 0.0).astype(np.float64)
     up = _up_vector(pitch)
     s = np.asarray(light.sun)
