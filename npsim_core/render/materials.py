@@ -20,6 +20,7 @@ Otherwise a documented fallback:
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -516,6 +517,8 @@ _BOX_MAX = {26: (5.5, 2.3)}
 _BOX_MAX_OTHER = (25.0, 3.2)
 #: Relative depth residual above which a column counts as an outlier of the box fit.
 _BOX_OUTLIER = 0.1
+#: Input normals within this angle (deg) of their column's fitted face are kept.
+_BOX_AGREE_DEG = 20.0
 
 
 def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normals: np.ndarray,
@@ -567,6 +570,7 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
         max_len, max_wid = _BOX_MAX.get(cls, _BOX_MAX_OTHER)
         best = (np.inf, None, None)
         splits = np.unique(np.linspace(0, len(cols), 41).astype(int))
+        left = np.arange(len(cols))[None, :] < splits[:, None]          # (splits, columns)
         for th in yaws:
             # Rear/front face normal (toward the camera) and side normal (toward the camera).
             ma = -np.array([np.sin(th), np.cos(th)])
@@ -574,30 +578,27 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
             mb = mb if np.median(px * mb[0] + pz * mb[1]) < 0 else -mb
             oa, ob = px * ma[0] + pz * ma[1], px * mb[0] + pz * mb[1]
             ra, rb = rx * ma[0] + rz * ma[1], rx * mb[0] + rz * mb[1]
-            for k in splits:
-                for left_a in (True, False):
-                    sa = slice(0, k) if left_a else slice(k, None)
-                    sb = slice(k, None) if left_a else slice(0, k)
-                    a_off = np.median(oa[sa]) if oa[sa].size else None
-                    b_off = np.median(ob[sb]) if ob[sb].size else None
-                    la = a_off / np.minimum(ra, -1e-6) if a_off is not None and a_off < 0 else np.full(len(d), -np.inf)
-                    lb = b_off / np.minimum(rb, -1e-6) if b_off is not None and b_off < 0 else np.full(len(d), -np.inf)
-                    la = np.where(ra < -1e-3, la, -np.inf)
-                    lb = np.where(rb < -1e-3, lb, -np.inf)
+            for amask in (left, ~left):  # the rear on the left or on the right of the split
+                with np.errstate(all="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    a_off = np.nanmedian(np.where(amask, oa, np.nan), axis=1)[:, None]
+                    b_off = np.nanmedian(np.where(~amask, ob, np.nan), axis=1)[:, None]
+                    la = np.where((a_off < 0) & (ra < -1e-3), a_off / np.minimum(ra, -1e-6), -np.inf)
+                    lb = np.where((b_off < 0) & (rb < -1e-3), b_off / np.minimum(rb, -1e-6), -np.inf)
                     lam = np.maximum(la, lb)
                     on_a = la >= lb
-                    # A car's side is at most 5.5 m long and its rear 2.3 m wide (as fitted).
                     fin = np.isfinite(lam)
                     qx, qz = np.where(fin, lam, 0.0) * rx, np.where(fin, lam, 0.0) * rz
                     along, across = qx * ma[1] - qz * ma[0], qx * mb[1] - qz * mb[0]
+                    # A car's side is at most 5.5 m long and its rear 2.3 m wide (as fitted).
                     fa, fb_ = on_a & fin, ~on_a & fin
-                    if fa.sum() > 1 and np.ptp(along[fa]) > max_wid:
-                        continue
-                    if fb_.sum() > 1 and np.ptp(across[fb_]) > max_len:
-                        continue
-                    cost = float(np.mean(np.where(fin, np.minimum(np.abs(d - lam) / d, _BOX_OUTLIER), _BOX_OUTLIER)))
-                    if cost < best[0]:
-                        best = (cost, on_a, (ma, mb))
+                    wid = np.nanmax(np.where(fa, along, np.nan), 1) - np.nanmin(np.where(fa, along, np.nan), 1)
+                    lng = np.nanmax(np.where(fb_, across, np.nan), 1) - np.nanmin(np.where(fb_, across, np.nan), 1)
+                    cost = np.mean(np.where(fin, np.minimum(np.abs(d - lam) / d, _BOX_OUTLIER), _BOX_OUTLIER), 1)
+                cost = np.where((np.nan_to_num(wid) > max_wid) | (np.nan_to_num(lng) > max_len), np.inf, cost)
+                j = int(np.argmin(cost))
+                if cost[j] < best[0]:
+                    best = (float(cost[j]), on_a[j], (ma, mb))
         if best[1] is None:
             continue
         on_a, (ma, mb) = best[1], best[2]
@@ -607,8 +608,13 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
         # Columns with too few pixels take the nearest fitted column's face.
         near = cols[np.clip(np.searchsorted(cols, np.arange(x1 - x0)), 0, len(cols) - 1)]
         col_n = col_n[near]
+        # Normals within 20° of their column's face keep their own (what differs there is
+        # detail the box has not got), as do faces the input calls horizontal (a roof, a bonnet).
         sub = out[y0:y1, x0:x1]
-        sub[mc] = np.broadcast_to(col_n[None], (y1 - y0, x1 - x0, 3))[mc]
+        box = np.broadcast_to(col_n[None], (y1 - y0, x1 - x0, 3)).astype(np.float32)
+        agree = (sub * box).sum(-1) > np.cos(np.radians(_BOX_AGREE_DEG))
+        vert = mc & ~agree & (np.abs(sub @ _up_vector(pitch).astype(np.float32)) < 0.5)
+        sub[vert] = box[vert]
     return out
 
 
