@@ -517,8 +517,6 @@ _BOX_MAX = {26: (5.5, 2.3)}
 _BOX_MAX_OTHER = (25.0, 3.2)
 #: Relative depth residual above which a column counts as an outlier of the box fit.
 _BOX_OUTLIER = 0.1
-#: Input normals within this angle (deg) of their column's fitted face are kept.
-_BOX_AGREE_DEG = 20.0
 
 
 def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normals: np.ndarray,
@@ -608,12 +606,12 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
         # Columns with too few pixels take the nearest fitted column's face.
         near = cols[np.clip(np.searchsorted(cols, np.arange(x1 - x0)), 0, len(cols) - 1)]
         col_n = col_n[near]
-        # Normals within 20° of their column's face keep their own (what differs there is
-        # detail the box has not got), as do faces the input calls horizontal (a roof, a bonnet).
+        # Faces the input calls horizontal (a roof, a bonnet) keep their normals. Vertical ones
+        # take the box's even when close to it: at a grazing sun, 15° off turns a shaded rear's
+        # shading into a third of a sunlit one.
         sub = out[y0:y1, x0:x1]
         box = np.broadcast_to(col_n[None], (y1 - y0, x1 - x0, 3)).astype(np.float32)
-        agree = (sub * box).sum(-1) > np.cos(np.radians(_BOX_AGREE_DEG))
-        vert = mc & ~agree & (np.abs(sub @ _up_vector(pitch).astype(np.float32)) < 0.5)
+        vert = mc & (np.abs(sub @ _up_vector(pitch).astype(np.float32)) < 0.5)
         sub[vert] = box[vert]
     return out
 
