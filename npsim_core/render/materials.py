@@ -522,18 +522,22 @@ _BOX_OUTLIER = 0.1
 def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normals: np.ndarray,
                         depth: np.ndarray, intrinsics, pitch: float = 0.038) -> np.ndarray:
     """``normals`` (H, W, 3; camera frame) with each vehicle's normals replaced by those of an
-    upright box fitted to its depth, for de-lighting (docs/relight.md "Cars as boxes").
+    upright box fitted to its depth, for de-lighting (docs/relight.md "Cars as boxes for
+    de-lighting").
 
     The vehicle fits (:func:`~npsim_core.geometry.surfaces._upright_columns`) smooth the inverse
-    depth along a car's columns (σ 32 px), so a rear face beside a long side takes part of the
-    side's slope (2048x1024 fixture: rear normals a median 68° off) and the de-lit rear keeps the
-    sun's step between the faces. Per vehicle (instance segment) the top view of its columns (the
-    median point per column, world horizontal plane) is fitted with the two visible faces of a box:
-    perpendicular lines at a yaw within ±30° of the camera's axis, each column on the face its ray
-    enters first (the farther of the two lines' hits, as a ray entering a convex box). Grid over
-    the yaw (2.5°) and the column where the faces meet; each face's offset is the median of its
-    columns; the fit with the least mean relative depth residual wins. Every pixel of a column
-    gets its face's normal (horizontal, facing the camera). Vehicles narrower than 12 columns, or
+    depth along a car's columns (σ 32 px) and stereo smears a nearer car into the one behind it,
+    so a rear face beside a long side takes the side's slope (2048x1024 fixture: rear normals a
+    median 68° off) and the de-lit rear keeps the sun's step between the faces. Per vehicle
+    (instance segment) the top view of its columns (the median point per column, world
+    horizontal plane) is fitted with the two visible faces of a box: perpendicular lines at a yaw
+    within ±30° of the camera's axis, each column on the face its ray enters first (the farther
+    of the two lines' hits, as a ray entering a convex box). Grid over the yaw (2.5°), the column
+    where the faces meet (41 steps) and the side the rear is on; each face's offset is the median
+    of its columns; the least mean relative depth residual (truncated at 10 %) wins among boxes
+    whose visible side and rear fit a car (5.5 m, 2.3 m; other vehicles 25 m, 3.2 m). Every
+    vertical pixel of a column gets its face's normal (horizontal, facing the camera); pixels
+    the input calls horizontal (|n·up| >= 0.5) keep theirs. Vehicles narrower than 12 columns, or
     without depth, keep ``normals``. Pixels with non-finite normals stay non-finite.
     """
     from ..camera import backproject
@@ -551,6 +555,8 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
     xw, zw = P[..., 0], -s * P[..., 1] + c * P[..., 2]
     yaws = np.radians(np.arange(-_BOX_YAW_DEG, _BOX_YAW_DEG + 1e-6, 2.5))
     for g in np.unique(seg[veh]):
+        if g == 0:
+            continue
         m = seg == g
         ys, xs = np.nonzero(m)
         x0, x1, y0, y1 = xs.min(), xs.max() + 1, ys.min(), ys.max() + 1
@@ -632,9 +638,10 @@ def delit_albedo(image: np.ndarray, labels: np.ndarray, normals: np.ndarray, dep
        give the absolute level; relative albedos between and within classes come from the photo).
     4. Clamped where the estimate is unreliable: only façades, walls, fences and the ground
        (:data:`~npsim_core.geometry.surfaces.PLANE_CLASSES`, whose normals the surface fits
-       get right) are de-lit, and vehicles (``params.delit_vehicles``, the normals of their
-       fitted surfaces); every other pixel (vegetation, people, thin objects, pixels
-       without normals or depth) gets the prior fallback (:func:`fallback_albedo`).
+       get right) are de-lit, and vehicles (``params.delit_vehicles``, the normals of an
+       upright box fitted to each: :func:`vehicle_box_normals`); every other pixel (vegetation,
+       people, thin objects, pixels without normals or depth) gets the prior fallback
+       (:func:`fallback_albedo`).
        Albedo is limited to [0.01, 0.9] and to 4x its label's median (saturated or specular
        day pixels).
     """
