@@ -519,6 +519,16 @@ _BOX_MAX_OTHER = (25.0, 3.2)
 _BOX_OUTLIER = 0.1
 
 
+def _row_medians(a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Median of ``a`` (n >= 1,) over each row's ``mask`` (k, n) entries; NaN for an empty row (as
+    ``np.nanmedian``, which goes through masked arrays for short rows and was 10x slower here)."""
+    srt = np.sort(np.where(mask, a[None, :], np.inf), axis=1)
+    cnt = mask.sum(1)
+    lo = np.take_along_axis(srt, np.maximum(cnt - 1, 0)[:, None] // 2, 1)[:, 0]
+    hi = np.take_along_axis(srt, np.minimum(cnt // 2, srt.shape[1] - 1)[:, None], 1)[:, 0]
+    return np.where(cnt > 0, 0.5 * (lo + hi), np.nan)
+
+
 def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normals: np.ndarray,
                         depth: np.ndarray, intrinsics, pitch: float = 0.038) -> np.ndarray:
     """``normals`` (H, W, 3; camera frame) with each vehicle's normals replaced by those of an
@@ -585,8 +595,8 @@ def vehicle_box_normals(labels: np.ndarray, instances: np.ndarray | None, normal
             for amask in (left, ~left):  # the rear on the left or on the right of the split
                 with np.errstate(all="ignore"), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)
-                    a_off = np.nanmedian(np.where(amask, oa, np.nan), axis=1)[:, None]
-                    b_off = np.nanmedian(np.where(~amask, ob, np.nan), axis=1)[:, None]
+                    a_off = _row_medians(oa, amask)[:, None]
+                    b_off = _row_medians(ob, ~amask)[:, None]
                     la = np.where((a_off < 0) & (ra < -1e-3), a_off / np.minimum(ra, -1e-6), -np.inf)
                     lb = np.where((b_off < 0) & (rb < -1e-3), b_off / np.minimum(rb, -1e-6), -np.inf)
                     lam = np.maximum(la, lb)
