@@ -791,24 +791,6 @@ def _fit_toy(depth, labels, instances=None, **kw):
     return fit_surfaces(depth, valid, depth.astype(np.float32), labels, K, instances, SurfaceParams(**kw))
 
 
-def test_two_facades_of_one_label_at_different_depths_are_fitted_apart():
-    """One 'building' segment joining a far façade (70 m) and a near one (38 m) above a tree crown:
-    it is split at the stereo's jump, so the far façade stays flat up to the crown (unsplit, the
-    wide local fit bent it 15-20 % toward the near one behind the crown on the 2048x1024 fixture)."""
-    H, W = 128, 256
-    labels = np.full((H, W), 11, np.uint8)
-    depth = np.full((H, W), 70.0)
-    depth[:, 150:] = 38.0
-    labels[30:, 110:190] = 21                    # the crown hides where the façades meet, below row 30
-    depth[30:, 110:190] = 29.0
-    z, _, info = _fit_toy(depth, labels)
-    far = (labels == 11) & (np.arange(W)[None, :] < 150)
-    assert info["split"] >= 1
-    assert np.abs(z[far] / 70.0 - 1).max() < 0.02
-    z0, _, info0 = _fit_toy(depth, labels, split_jump=0.0)
-    assert info0["split"] == 0 and np.abs(z0[far] / 70.0 - 1).max() > 0.05
-
-
 def test_a_car_keeps_its_face_where_a_nearer_cars_disparity_spread_into_it():
     """A car (12 m) beside a nearer one (7.8 m): SGM gave the far car's pixels next to the near one
     the near one's depth over a band wider than the fattening window; those pixels are dropped

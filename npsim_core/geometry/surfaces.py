@@ -67,8 +67,6 @@ __all__ = ["SurfaceParams", "fit_surfaces", "PLANE_CLASSES", "VEHICLE_CLASSES", 
 PLANE_CLASSES = (6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 22, 4, 5)
 #: Vehicles: smooth per instance.
 VEHICLE_CLASSES = (26, 27, 28, 29, 30, 31)
-#: Split where their stereo jumps (two façades of one label at different depths).
-SPLIT_CLASSES = (11, 12, 13, 14, 15, 16)
 #: Thin objects: one depth per component.
 THIN_CLASSES = (17, 18, 19, 20)
 #: Irregular surfaces: a small window (people) or a moderate one (tree crowns, hedges).
@@ -109,9 +107,6 @@ class SurfaceParams:
         ``vegetation_v_factor`` times taller than wide; off = local planes with ``vegetation_sigma``.
     vehicle_matched_px : a vehicle's stereo within this many pixels along its row of a nearer segment
         and equal to that segment's depth (within 5 %) is dropped before the refit (0 = off).
-    split_jump, split_min_area : a façade, wall or fence segment is split where its stereo jumps by more
-        than ``split_jump`` (relative depth, between pixels at most a few pixels apart) into parts of at
-        least ``split_min_area`` pixels (at 2048 px wide), each fitted on its own (0 = off).
     """
 
     plane_sigma: float = 96.0
@@ -133,9 +128,7 @@ class SurfaceParams:
     fattening_margin: float = 0.05
     vegetation_upright: bool = True
     vegetation_v_factor: float = 2.0
-    split_jump: float = 0.15
     vehicle_matched_px: float = 64.0
-    split_min_area: int = 2000
 
 
 def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: SurfaceParams) -> np.ndarray:
@@ -164,60 +157,6 @@ def _segments(labels: np.ndarray, instances: np.ndarray | None) -> tuple[np.ndar
             seg[m] = comp[m] + n
             n += cnt - 1
     return seg, n
-
-
-def _split_at_jumps(seg: np.ndarray, n_seg: int, labels: np.ndarray, depth: np.ndarray, use: np.ndarray,
-                    jump: float, min_area: int, reach: int) -> tuple[np.ndarray, int]:
-    """Split the segments of :data:`SPLIT_CLASSES` where their stereo ``depth`` (at ``use`` pixels)
-    jumps by more than ``jump`` (relative) between two pixels at most ``reach`` apart along a row or
-    a column; the jump's span is the cut. Parts of at least ``min_area`` pixels become segments (new
-    ids after ``n_seg``); the cut and smaller parts go to the nearest part. One label, one segment
-    joined two façades 70 m and 38 m away behind a tree crown, and the wide local plane fit bent the
-    far one 20 % toward the near one (docs/relight.md "Nights of real frames")."""
-    H, W = seg.shape
-    q = np.where(use, 1.0 / np.where(use, depth, 1.0), np.nan)
-    cut = np.zeros((H, W), bool)
-    with np.errstate(invalid="ignore"):
-        for k in range(1, reach + 1):
-            a, b = q[:, :-k], q[:, k:]
-            j = np.abs(a - b) > jump * np.fmax(a, b)            # NaN (no stereo) compares False
-            for o in range(k + 1):
-                cut[:, o:W - k + o] |= j
-            a, b = q[:-k], q[k:]
-            j = np.abs(a - b) > jump * np.fmax(a, b)
-            for o in range(k + 1):
-                cut[o:H - k + o] |= j
-    # Closed over one pixel: stereo holes (occlusions, held-out pixels) open gaps in it.
-    cut = cv2.dilate(cut.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    split = np.isin(labels, SPLIT_CLASSES) & (seg > 0)
-    cand = np.unique(seg[cut & split])
-    out = seg.copy()
-    n = n_seg
-    for s in cand:
-        ys, xs = np.nonzero(seg == s)
-        if ys.size < 2 * min_area:
-            continue
-        sl = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
-        ms = seg[sl] == s
-        cnt, comp, st, _ = cv2.connectedComponentsWithStats((ms & ~cut[sl]).astype(np.uint8), connectivity=4)
-        big = [i for i in range(1, cnt) if st[i, cv2.CC_STAT_AREA] >= min_area]
-        if len(big) < 2:
-            continue
-        lut = np.zeros(cnt, np.int32)
-        lut[big] = np.arange(1, len(big) + 1)
-        part = lut[comp]
-        # The cut and the small parts join the nearest part.
-        _, near = cv2.distanceTransformWithLabels((part == 0).astype(np.uint8), cv2.DIST_L2, 3,
-                                                  labelType=cv2.DIST_LABEL_PIXEL)
-        seeds = part > 0
-        idx = np.zeros(int(near.max()) + 1, np.int32)
-        idx[near[seeds]] = part[seeds]
-        part = np.where(seeds, part, idx[near])
-        blk = out[sl]
-        for i in range(2, len(big) + 1):
-            n += 1
-            blk[ms & (part == i)] = n
-    return out, n
 
 
 def _local_planes(q: np.ndarray, w0: np.ndarray, uu: np.ndarray, vv: np.ndarray, sigma: float,
@@ -517,10 +456,6 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
     speckle = _speckle_mask(depth, valid, intrinsics.fx, W, p)
     use = valid & ~speckle
     seg, n_seg = _segments(labels, instances)
-    n_before = n_seg
-    if p.split_jump > 0:
-        seg, n_seg = _split_at_jumps(seg, n_seg, labels, depth, use, p.split_jump,
-                                     max(50, int(round(p.split_min_area * scale ** 2))), max(3, int(round(8 * scale))))
     # Edge fattening: no stereo within edge_px of a segment border.
     border = np.zeros((H, W), bool)
     border[:, 1:] |= seg[:, 1:] != seg[:, :-1]
@@ -537,7 +472,7 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
     coef_full = np.full((H, W, 3), np.nan)
     label_of_seg = np.zeros(n_seg + 1, np.int32)
     label_of_seg[seg.ravel()] = labels.ravel()
-    counts = {"segments": int(n_seg), "split": int(n_seg - n_before), "fitted": 0, "thin": 0, "unsupported": 0}
+    counts = {"segments": int(n_seg), "fitted": 0, "thin": 0, "unsupported": 0}
     # Bounding boxes of all segments at once.
     rows, cols = np.nonzero(seg)
     ids = seg[rows, cols]
