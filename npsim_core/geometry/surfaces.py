@@ -106,7 +106,8 @@ class SurfaceParams:
         depth a function of the column within the window, no slope along the rows) in a window
         ``vegetation_v_factor`` times taller than wide; off = local planes with ``vegetation_sigma``.
     vehicle_matched_px : a vehicle's stereo within this many pixels along its row of a nearer segment
-        and equal to that segment's depth (within 5 %) is dropped before the refit (0 = off).
+        and equal to that segment's depth (within 5 %) is dropped before the refit (0 = off, the
+        default; 64 measured in docs/geometry.md: better cars, but the proposals then change).
     """
 
     plane_sigma: float = 96.0
@@ -128,7 +129,7 @@ class SurfaceParams:
     fattening_margin: float = 0.05
     vegetation_upright: bool = True
     vegetation_v_factor: float = 2.0
-    vehicle_matched_px: float = 64.0
+    vehicle_matched_px: float = 0.0
 
 
 def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: SurfaceParams) -> np.ndarray:
@@ -622,8 +623,8 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
             for sv in np.unique(seg[np.isin(label_of_seg[seg], VEHICLE_CLASSES) & use]):
                 own[sv] = float(np.median(qs[(seg == sv) & use]))
             veh = np.isin(label_of_seg[seg], VEHICLE_CLASSES)
-            fat |= use & veh & _neighbour_matched(seg, qs, out_q, own[seg], max(1, int(round(p.vehicle_matched_px * scale))),
-                                                  p.fattening_margin)
+            radius = max(1, int(round(p.vehicle_matched_px * scale)))
+            fat |= use & veh & _neighbour_matched(seg, qs, out_q, own[seg], radius, p.fattening_margin)
         counts["fattening_dropped_fraction"] = round(float(fat.mean()), 4)
         if fat.any():
             redo = np.unique(seg[fat])
