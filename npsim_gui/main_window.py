@@ -216,7 +216,9 @@ class MainWindow(QMainWindow):
             if seq in self._nav_keys and isinstance(obj, (QAbstractSpinBox, QLineEdit)):
                 event.ignore()
                 return True
-        return super().eventFilter(obj, event)
+        # An application-wide filter also sees a few watched objects that are no QObject to
+        # PySide (the 3D view's QSurface with a timer event): the base class would raise there.
+        return super().eventFilter(obj, event) if isinstance(obj, QObject) else False
 
     def toggle_done(self) -> None:
         """Ctrl+D: this frame's 'done' flag (saved in its annotation's JSON)."""
