@@ -338,7 +338,9 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
       in view that looks faintly like a window and holds none is proposed (:func:`lattice_cells`,
       confidence 0.55), and windows spanning two or more of its cells are replaced by the cells;
     * the windows of a wall cover at most ``window_max_lit_share`` of it: the least confident
-      beyond that are dropped (a lit facade is lit per room, not as a whole).
+      beyond that are dropped (a lit facade is lit per room, not as a whole); a wall with fewer than
+      three windows is capped on its connected building region instead (a piece of a facade cut off
+      by a depth step, a tree or a pole: one pane is often over 40 % of such a piece).
 
     ``found``: [wall id, level, level tolerance, Light] per window; ``bld``: the wall ids
     (:func:`facades`); returns the new list.
@@ -349,6 +351,14 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
     out = []
     for f in found:
         f[3].kind = _kind(ctx, f[3])
+    _, reg_lab, reg_st, _ = cv2.connectedComponentsWithStats(B.astype(np.uint8), connectivity=4)
+
+    def _region_area(fm: np.ndarray) -> float:
+        """Pixels of the connected building region holding most of the wall ``fm``."""
+        lab = reg_lab[fm]
+        lab = lab[lab > 0]
+        return float(reg_st[int(np.bincount(lab).argmax()), cv2.CC_STAT_AREA]) if lab.size else float(fm.sum())
+
     regions: dict[int, list] = {}
     for f in found:
         regions.setdefault(f[0], []).append(f)
@@ -361,7 +371,9 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         wins = [f for f in fs if f[3].kind == "window"]
         other = [f for f in fs if f[3].kind != "window"]
         if len(wins) < 3:
-            out.extend(_cap_lit(p, wins, float((bld == b_id).sum())) + other)
+            # too few windows to tell a wall from a piece of one (a facade cut by a tree or a depth
+            # step): capped on the connected building region around it, not on the piece
+            out.extend(_cap_lit(p, wins, _region_area(bld == b_id)) + other)
             continue
         box = {id(f): (f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
                for f in wins}
@@ -554,14 +566,20 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
     (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
     at least): a merged
     row, a gable or an awning, never one pane.
-    Areas on the wall: :func:`_wall_areas`."""
+    Areas on the wall: :func:`_wall_areas`, the window judged one pixel smaller across and down
+    (quantisation), the median over its wall's whole windows at their full pixel area."""
     p = ctx.params
     if len(wins) < p.window_median_min_count or ctx.depth is None:
         return wins
     a, whole = _wall_areas(ctx, wins, fm, t)
+    # The window judged gets the benefit of one pixel of quantisation, the reference does not: a
+    # reference shrunk too makes every 1-px-wide pane one pixel, and a 2-px pane of the same row
+    # "oversized" (docs/proposals.md, "Sixth pass").
+    a_ref, _ = _wall_areas(ctx, wins, fm, t, shrink=False)
     # The reference sizes leave out panes cut by something in front (a tree, a car, the frame's
     # edge): their visible part is smaller than the pane.
-    ref_a = np.where(whole, a, np.nan) if (whole & np.isfinite(a)).sum() >= p.window_median_min_count else a
+    ref_a = np.where(whole, a_ref, np.nan) if (whole & np.isfinite(a_ref)).sum() >= p.window_median_min_count \
+        else a_ref
     if np.isfinite(ref_a).sum() < p.window_median_min_count:
         return wins
     med = float(np.nanmedian(ref_a))
