@@ -14,6 +14,14 @@ VEHICLE_GROUP = {26: 14, 27: 15, 28: 16}
 WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, MOVING_FRONT, MOVING_REAR, WINDOW_TRANSPORT = 2, 3, 4, 5, 6, 7
 #: Labels beside a parked vehicle's kerb side: sidewalk, parking, terrain, building, wall, fence, vegetation.
 KERBSIDE = (8, 9, 22, 11, 12, 13, 21)
+#: A lamp's visible part beside a cut (the car in front, the image border; :func:`_sliver_lamp`) is looked
+#: for at these heights (m above the ground), up to this far (m) from the cut, and is as tall as this (m).
+SLIVER_H_M, SLIVER_REACH_M, SLIVER_ROWS_M = (0.5, 0.95), 0.45, (0.07, 0.17)
+#: No sliver is looked for on a vehicle whose whole lamp (0.15 m) would be under this many pixels tall.
+SLIVER_MIN_LAMP_PX = 3.0
+SLIVER_LOCAL_PAINT, SLIVER_DIFF = True, 40.0
+#: Labels that never hide a vehicle's end face: ground, buildings, vegetation, sky (void included).
+BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 23)
 
 
 def _vehicles(ctx: Context):
@@ -439,6 +447,104 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     return lamps, n_snapped
 
 
+def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> bool:
+    """Whether a mean colour (8-bit RGB) departing from the paint looks like a lamp's: red by day, or
+    departing toward red (``red_share``, as the rear-lamp rule), or brighter than the paint (a white
+    or amber lamp) -- not the dark glass of a side window nor a shadow."""
+    r, g, b = (float(v) for v in c)
+    d = np.asarray(c, np.float64) - paint
+    dn = float(np.linalg.norm(d))
+    red = (r > 1.5 * max(g, b) and r > 50) or (dn > 10.0 and d[0] - max(d[1], d[2]) > red_share * dn)
+    return bool(red or float(d.mean()) > 20.0)
+
+
+def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, paint: np.ndarray,
+                 z: float) -> np.ndarray | None:
+    """The visible part of the lamp of a vehicle whose end face is cut at one side -- by the car in
+    front in a parked row (a nearer object right beside the silhouette) or by the image border -- or
+    None. In a parked row the car in front hides all of the end face but a strip at its inner end,
+    whose inner lamp shows as a sliver right beside the occluder's edge (0.08 m of paint beyond it,
+    then the corner with the side face): so the lamp is looked for there, not on a face laid out in
+    metres that the noisy depth cannot place to the pixel (docs/proposals.md, "Sixth pass").
+
+    Rows: heights ``SLIVER_H_M`` above the ground at the depth of the silhouette's columns
+    next to the cut. Columns: per row, from the silhouette's first column at the cut on, over
+    ``SLIVER_REACH_M``. In that window, the pixels that differ from the paint (any channel by
+    more than 40 levels of 8 bit) form the lamp when a connected part of them touches the cut (within a
+    pixel) and is as tall as a lamp (``SLIVER_ROWS_M``, rounded outward): its bounding box on
+    the silhouette and in the window is proposed."""
+    import cv2
+
+    p = ctx.params
+    H, W = ctx.shape
+    h, w = m.shape
+    has = m.any(1)
+    rows = np.flatnonzero(has)
+    if rows.size < 2 or ctx.depth is None:
+        return None
+    first = np.where(has, m.argmax(1), w)
+    last = np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
+    hts = ctx.height_above_ground(y0 + np.arange(h), z)
+    band = has & (hts >= SLIVER_H_M[0]) & (hts <= SLIVER_H_M[1])
+    br = np.flatnonzero(band)
+    if br.size < 1:
+        return None
+    # Which side is cut: beyond the silhouette's end in the band rows lies the frame's border or
+    # something nearer -- another vehicle or object (not ground, building, vegetation or sky) nearer
+    # than the silhouette's columns just inside (the car in front of a parked row is only 0.6-2 m nearer).
+    sides = []
+    k = max(1, int(round(W / 512)))
+    for beyond, inside in ((x0 + first[br] - 1, x0 + first[br] + 2 * k), (x0 + last[br] + 1, x0 + last[br] - 2 * k)):
+        off = (beyond < 0) | (beyond >= W)
+        bx = np.clip(beyond, 0, W - 1)
+        bd = ctx.depth[y0 + br, np.clip(beyond + (beyond - inside).clip(-1, 1) * k, 0, W - 1)]
+        own = ctx.depth[y0 + br, np.clip(inside, 0, W - 1)]
+        thing = ~np.isin(ctx.labels[y0 + br, bx], BACKGROUND)
+        with np.errstate(invalid="ignore"):
+            near = off | (thing & (bd < own))
+        sides.append(float(near.mean()))
+    if max(sides) < 0.5 or min(sides) >= 0.5:
+        return None
+    left = sides[0] >= 0.5                     # the cut is on the silhouette's left
+    ppm = float(ctx.intrinsics.fy) / z
+    reach = max(2, int(np.ceil(SLIVER_REACH_M * ppm)))
+    cols = np.arange(w)[None, :]
+    e = first[:, None] if left else last[:, None]
+    win = (cols - e >= 0) & (cols - e < reach) if left else (e - cols >= 0) & (e - cols < reach)
+    win &= band[:, None] & m
+    if win.sum() < 4:
+        return None
+    if SLIVER_LOCAL_PAINT:  # the paint right there: the end face beside the cut, not a lit side face
+        paint = np.median(img[win], axis=0)
+    diff = np.abs(img - paint).max(-1) > SLIVER_DIFF
+    cand = (win & diff).astype(np.uint8)
+    if not cand.any():
+        return None
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
+    touch = (cols - e <= 1) if left else (e - cols <= 1)
+    lo_h = max(2, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
+    hi_h = int(np.ceil(SLIVER_ROWS_M[1] * ppm)) + 1
+    if 0.15 * ppm < SLIVER_MIN_LAMP_PX:
+        return None
+    best, best_n = None, 0
+    for k in range(1, n):
+        bh, bw = int(stats[k, cv2.CC_STAT_HEIGHT]), int(stats[k, cv2.CC_STAT_WIDTH])
+        if not lo_h <= bh <= hi_h or bw > 0.3 * ppm + 1:
+            continue
+        blob = lab == k
+        if not _lamp_coloured(img[blob].mean(0), paint, p.vehicle_rear_red_share):
+            continue
+        t = int((blob & touch).sum())
+        if t > best_n:
+            best, best_n = k, t
+    if best is None:
+        return None
+    x, y, bw, bh = (int(v) for v in stats[best, :4])
+    out = np.zeros_like(m)
+    out[y:y + bh, x:x + bw] = True
+    return out & win
+
+
 def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     """Whether a lamp box lies on a surface receding from the camera (a vehicle's side, or across an
     edge onto something else) rather than on its end face: the depth of its columns (median over
@@ -539,6 +645,10 @@ def propose(ctx: Context) -> list[Group]:
         lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z) if placed else ([], 0)
         if z is not None:
             lamps = [b for b in lamps if not _on_side_face(ctx, y0, x0, b)]
+            if len(lamps) < 2:  # a cut end face: the visible part of the lamp beside the cut
+                sliver = _sliver_lamp(ctx, y0, x0, m, img, paint, z)
+                if sliver is not None and not any((sliver & b).any() for b in lamps):
+                    lamps.append(sliver)
         if distinct == len(lamps) == 2:
             conf += 0.15
         conf = float(np.clip(conf, 0, 1))
