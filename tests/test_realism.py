@@ -467,3 +467,70 @@ def test_a_fixed_night_through_the_default_camera_has_real_night_statistics():
     srgb, _ = apply_camera(lin, cam)
     st = global_stats(srgb)
     assert all(stats_within(st).values()), st
+
+
+def test_a_frame_without_albedo_maps_gets_a_delit_albedo_by_default_and_the_manifest_says_so(sgm_frame, tmp_path):
+    """Issue #25: the night's albedo is the day photo with the day's light divided out. It was the
+    per-class prior fallback unless ``night.delight`` was set; now de-lighting is the default for a
+    frame without albedo maps, and each night's manifest entry names the albedo it used."""
+    from npsim_core.chain import Chain, ChainParams
+    from npsim_core.chain.export import export_frame
+    from npsim_core.io import read_json
+
+    scene, _ = sgm_frame
+    assert scene.albedo is None
+    p = ChainParams().with_sets(["night.final_spp=1"])
+    assert p.night.delight
+    p = replace(p, lights=replace(p.lights, source="none"))
+    written = export_frame(Chain(scene), p, tmp_path, nights=1, kinds=("nights",))
+    night = read_json(written[-1])["nights"][0]
+    assert night["materials"].startswith("de-lit (sun "), night["materials"]
+
+
+def test_a_vehicle_surface_off_its_box_is_not_glossy():
+    """Stereo vehicle fits are smooth at the 5-px scale of ``geometry_roughness`` but their normals
+    wander from column to column; on glossy paint each column mirrored the street lamps in a white
+    vertical strip (the 2048x1024 fixture's seed 1). A car's rear here is flat (its depth a plane
+    facing the camera) while its normals swing ±25° across the columns: the paint is rough where
+    they are off the car's box, glossy where the normals are the box's."""
+    from npsim_core.camera import Intrinsics
+    from npsim_core.render.materials import estimate_materials
+
+    H, W = 64, 256
+    labels = np.full((H, W), 7, np.uint8)
+    labels[30:50, 100:150] = 26                                   # a car's rear, 1.8 m wide at 10 m
+    depth = np.full((H, W), 10.0, np.float32)
+    normals = np.zeros((H, W, 3), np.float32)
+    normals[...] = (0.0, -1.0, 0.0)
+    th = np.radians(25.0) * np.sin(2 * np.pi * (np.arange(W) - 100) / 32.0)
+    wobble = np.stack([np.sin(th), np.zeros(W), -np.cos(th)], -1).astype(np.float32)
+    normals[30:50] = np.where((labels[30:50] == 26)[..., None], wobble[None], normals[30:50])
+    flat = normals.copy()
+    flat[30:50, 100:150] = (0.0, 0.0, -1.0)
+    image = np.full((H, W, 3), 120, np.uint8)
+    kw = dict(depth=depth, intrinsics=Intrinsics.cityscapes(W, H), pitch=0.0, delight=False)
+    wob = estimate_materials(image, labels, normals=normals, **kw).roughness
+    glossy = estimate_materials(image, labels, normals=flat, **kw).roughness
+    car = labels == 26
+    far_off = car & (np.abs(np.degrees(th))[None, :] > 20)
+    assert far_off.sum() > 100 and wob[far_off].min() > 0.9        # strips' columns: rough
+    assert wob[car].mean() > 0.5
+    assert np.allclose(glossy[car], 0.25)                         # the box's own face keeps its gloss
+
+
+def test_few_parked_cars_have_their_headlamps_on():
+    """A parked car's low beams burn only while its engine runs: a few in a hundred parked cars.
+    The light table's 0.1-0.3 (SOLO's) switched on 3-4 parked cars' headlamps in the 2048x1024
+    fixture's nights, each with a saturated glare and a white spot on the road; over 400 parked
+    cars and four nights, fewer than 8 % are on (0.1-0.3 gave ~20 %), and moving cars' are on."""
+    from npsim_core.annotation import LightAnnotation
+    from npsim_core.render.lights import activate_lights, load_light_table
+
+    inst = np.zeros((40, 40), np.int32)
+    inst.ravel()[:400] = 3 * 1000 + 1 + np.arange(400)                # 400 parked_front lamps, no groups
+    inst.ravel()[400:500] = 5 * 1000 + 1 + np.arange(100)             # 100 moving_front lamps
+    ann, table = LightAnnotation(inst), load_light_table()
+    nights = [activate_lights(ann, table, seed) for seed in range(4)]
+    parked = np.mean([s.on for n in nights for i, s in n.lights.items() if i // 1000 == 3])
+    moving = np.mean([s.on for n in nights for i, s in n.lights.items() if i // 1000 == 5])
+    assert 0.0 < parked < 0.08 and moving > 0.9, (parked, moving)

@@ -269,6 +269,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
         t_in = time.perf_counter() - t_in  # the scene and guides (the first night), counted as the night's
         night_timings.update(run.timings)
         render_mesh, area_ids = built.info.get("render_mesh", ""), set(built.area_keys)
+        materials = built.info.get("materials", "")  # which albedo: the scene's, de-lit or the fallback
         del built, run
         frame = chain.night_final(res, params, seed=seed, cancel=cancel, release_scene=k == n_nights - 1)
         frame.timings["night_inputs"] = frame.timings.get("night_inputs", 0.0) + t_in
@@ -284,7 +285,7 @@ def _export_staged(chain: Chain, params: ChainParams, res: ChainResults, folder:
                             "denoiser": frame.denoiser,
                             "denoiser_quality": (params.denoise.oidn_quality if frame.denoiser == "oidn" else ""),
                             "max_depth": int(params.night.final_max_depth), "render_faces": frame.faces,
-                            "render_mesh": render_mesh,
+                            "render_mesh": render_mesh, "materials": materials,
                             "lights_on": on, "lights": len(frame.active.lights),
                             "lights_without_faces": sorted(int(i) for i in set(frame.active.lights) - area_ids),
                             "exposure": {k2: (None if isinstance(v, float) and not np.isfinite(v) else

@@ -191,9 +191,10 @@ class NightParams:
     variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
     delight : without albedo maps, estimate the day's sun and sky from the photo and the
         reconstructed geometry and divide them out of the photo
-        (:func:`npsim_core.render.materials.delit_albedo`); off (default) = the per-class prior
-        fallback: from SGM stereo geometry de-lighting halves the albedo error on road and
-        buildings but not on cars (docs/relight.md "De-lit textures").
+        (:func:`npsim_core.render.materials.delit_albedo`; on, the default since issue #25: on
+        the 2048x1024 fixture from SGM geometry it halves the albedo error of photo-as-albedo on
+        road, building and car); off = the per-class prior fallback (docs/relight.md "De-lit
+        textures"). The manifest's ``nights[k].materials`` says which albedo a night used.
     """
 
     seed: int = 0
@@ -224,7 +225,7 @@ class NightParams:
     glare_radius: float = 0.0008
     light_table: str = ""
     variant: str = ""
-    delight: bool = False
+    delight: bool = True
 
     def __post_init__(self) -> None:
         for name in ("final_max_depth", "preview_max_depth"):
