@@ -332,3 +332,35 @@ def test_candidate_opening_keeps_panes_in_place():
     rng = np.random.default_rng(3)
     r = rng.random((30, 40)) < 0.6
     assert not (_open2(r) & ~r).any()
+
+
+
+def test_panes_inside_a_wall_piece_the_reference_missed():
+    """A narrow building of its own colour whose colour the smooth wall reference missed is one blob
+    with its panes, too large for a window, and its panes were lost (2048x1024 default street: 20
+    true windows in such blobs). Inside a blob mostly of one colour, what differs from that colour
+    are its panes; a blob of which no colour fills half gives none."""
+    import cv2
+
+    from npsim_core.proposals.windows import _blob_panes
+
+    def feat(rgb):
+        lin = (rgb.astype(np.float32) / 255.0) ** 2.2
+        lum = 0.2126 * lin[..., 0] + 0.7152 * lin[..., 1] + 0.0722 * lin[..., 2]
+        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
+        return np.dstack([np.log(np.maximum(lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
+
+    rng = np.random.default_rng(0)
+    img = np.zeros((60, 30, 3), np.uint8)
+    img[:] = (118, 74, 52)                                      # the brown face
+    panes = [(8, 4), (8, 18), (34, 4), (34, 18)]
+    for y, x in panes:
+        img[y:y + 14, x:x + 8] = GLASS
+    img = np.clip(img.astype(int) + rng.integers(-4, 5, img.shape), 0, 255).astype(np.uint8)
+    blob = np.ones((60, 30), bool)
+    got = sorted((py, px, pm.shape) for py, px, pm in _blob_panes(feat(img), 0, 0, blob, PARAMS))
+    assert got == [(y, x, (14, 8)) for y, x in panes]
+    mixed = img.copy()                                          # no colour fills half of it
+    for k, col in enumerate(((118, 74, 52), (40, 60, 160), (200, 200, 90), (30, 30, 30))):
+        mixed[15 * k:15 * (k + 1)] = col
+    assert _blob_panes(feat(mixed), 0, 0, blob, PARAMS) == []

@@ -146,6 +146,9 @@ class ProposalParams:
     window_shadow_chroma_footed: float = 10.0
     #: Erode-and-split attempts on a blob that fails the fill or size test (joined panes).
     window_split_steps: int = 2
+    #: A blob too large for a window of which at least this share is one colour is a wall piece the
+    #: wall reference missed; its pixels differing from that colour are its panes (0: off).
+    window_blob_wall_share: float = 0.5
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
     #: A blob too large or ragged for one window is cut where its mean departure from the wall over a

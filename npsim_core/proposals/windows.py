@@ -252,6 +252,33 @@ def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray
                 or float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) > 0.5 * p.window_chroma_delta)
 
 
+def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tuple[int, int, np.ndarray]]:
+    """The panes inside a blob (``m`` at (y, x)) that is mostly wall: a wall piece whose colour the
+    smooth wall reference missed (a narrow building of its own colour, a shaded face) is one blob
+    with its panes, too large for a window. The blob's own wall colour is the mode of its log
+    luminance (the chroma of the pixels near it); when at least ``window_blob_wall_share`` of the
+    blob is within the window thresholds of that colour, the blob's pixels that differ from it are
+    the candidates (their 4-connected components, local (y, x, mask); each is then judged as any
+    blob); else none (no colour fills that much of it: panes of several colours merged)."""
+    h, w = m.shape
+    if m.sum() < 8 * p.window_min_area_px:
+        return []
+    f = feat[y:y + h, x:x + w]
+    lum = f[..., 0][m]
+    t = -np.log(p.window_dark_ratio)
+    step = t / 4.0
+    lo = float(lum.min())
+    hist = np.convolve(np.bincount(((lum - lo) / step).astype(np.int64)), [1, 2, 1], mode="same")
+    mode = lo + (int(hist.argmax()) + 0.5) * step
+    near = np.abs(lum - mode) < 0.5 * t
+    ab = np.median(f[..., 1:][m][near], axis=0)
+    base = np.array([mode, ab[0], ab[1]], np.float32)
+    odd = _differs(f, np.broadcast_to(base, f.shape), p) & m
+    if (m & ~odd).sum() < p.window_blob_wall_share * m.sum():
+        return []
+    return [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+
+
 def _cut_off(labels: np.ndarray, y: int, x: int, sub: np.ndarray) -> bool:
     """Whether a blob (``sub`` at (y, x)) is cut off at its top or bottom: over at least half its
     columns the pixel just above its top or just below its bottom is the image border or something
@@ -874,6 +901,13 @@ def propose(ctx: Context) -> list[Group]:
         why = accept(y0, x0, m)
         if why in ("fill", "size"):
             rejects.append((y0, x0, m))
+        if why == "size" and depth_ == 0 and p.window_blob_wall_share > 0:
+            # A wall piece whose colour the reference missed, with its panes: one blob too large for
+            # a window. Its own colour is the mode of it; what differs from that are its panes.
+            inner = _blob_panes(feat, y0, x0, m, p)
+            if inner:
+                stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in inner)
+                continue
         if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_gap_contrast > 0:
             # Panes of a receding row merged across one-pixel walls: cut where the wall shows through.
             dev = np.maximum(np.abs(ratio[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]) / t,
