@@ -19,6 +19,9 @@ KERBSIDE = (8, 9, 22, 11, 12, 13, 21)
 SLIVER_H_M, SLIVER_REACH_M, SLIVER_ROWS_M = (0.5, 0.95), 0.45, (0.07, 0.17)
 #: No sliver is looked for on a vehicle whose whole lamp (0.15 m) would be under this many pixels tall.
 SLIVER_MIN_LAMP_PX = 3.0
+#: ... and it starts at most this many pixels from the cut (1: right beside it; larger: a whole lamp
+#: seen past the occluder, above its boot).
+SLIVER_MAX_GAP = 1
 SLIVER_LOCAL_PAINT, SLIVER_DIFF = True, 40.0
 #: Labels that never hide a vehicle's end face: ground, buildings, vegetation, sky (void included).
 BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 23)
@@ -447,15 +450,16 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     return lamps, n_snapped
 
 
-def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> bool:
-    """Whether a mean colour (8-bit RGB) departing from the paint looks like a lamp's: red by day, or
+def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.ndarray:
+    """Whether colours (..., 3; 8-bit RGB) departing from the paint look like a lamp's: red by day, or
     departing toward red (``red_share``, as the rear-lamp rule), or brighter than the paint (a white
-    or amber lamp) -- not the dark glass of a side window nor a shadow."""
-    r, g, b = (float(v) for v in c)
-    d = np.asarray(c, np.float64) - paint
-    dn = float(np.linalg.norm(d))
-    red = (r > 1.5 * max(g, b) and r > 50) or (dn > 10.0 and d[0] - max(d[1], d[2]) > red_share * dn)
-    return bool(red or float(d.mean()) > 20.0)
+    or amber lamp) -- not the dark glass of a side window, a shadow or a wheel arch."""
+    c = np.asarray(c, np.float32)
+    r, g, b = c[..., 0], c[..., 1], c[..., 2]
+    d = c - np.asarray(paint, np.float32)
+    dn = np.sqrt((d * d).sum(-1))
+    red = ((r > 1.5 * np.maximum(g, b)) & (r > 50)) | ((dn > 10.0) & (d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn))
+    return red | (d.mean(-1) > 20.0)
 
 
 def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, paint: np.ndarray,
@@ -503,9 +507,12 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
         with np.errstate(invalid="ignore"):
             near = off | (thing & (bd < own))
         sides.append(float(near.mean()))
-    if max(sides) < 0.5 or min(sides) >= 0.5:
+    # The car in front of a parked row (and the frame's border) cuts a car on its side away from the
+    # image centre: a nearer car of the row is further out (beside it, toward the centre, only farther
+    # cars or the car's own side show, and noisy depth sometimes calls them nearer).
+    left = x0 + w / 2.0 < float(ctx.intrinsics.cx)
+    if sides[0 if left else 1] < 0.5:
         return None
-    left = sides[0] >= 0.5                     # the cut is on the silhouette's left
     ppm = float(ctx.intrinsics.fy) / z
     reach = max(2, int(np.ceil(SLIVER_REACH_M * ppm)))
     cols = np.arange(w)[None, :]
@@ -516,12 +523,12 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
         return None
     if SLIVER_LOCAL_PAINT:  # the paint right there: the end face beside the cut, not a lit side face
         paint = np.median(img[win], axis=0)
-    diff = np.abs(img - paint).max(-1) > SLIVER_DIFF
+    diff = (np.abs(img - paint).max(-1) > SLIVER_DIFF) & _lamp_coloured(img, paint, p.vehicle_rear_red_share)
     cand = (win & diff).astype(np.uint8)
     if not cand.any():
         return None
     n, lab, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
-    touch = (cols - e <= 1) if left else (e - cols <= 1)
+    dist = np.where(win, (cols - e) if left else (e - cols), reach)   # pixels from the cut, per row
     lo_h = max(2, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
     hi_h = int(np.ceil(SLIVER_ROWS_M[1] * ppm)) + 1
     if 0.15 * ppm < SLIVER_MIN_LAMP_PX:
@@ -532,9 +539,7 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
         if not lo_h <= bh <= hi_h or bw > 0.3 * ppm + 1:
             continue
         blob = lab == k
-        if not _lamp_coloured(img[blob].mean(0), paint, p.vehicle_rear_red_share):
-            continue
-        t = int((blob & touch).sum())
+        t = int((blob & (dist <= SLIVER_MAX_GAP)).sum())  # the blob most beside the cut
         if t > best_n:
             best, best_n = k, t
     if best is None:
