@@ -119,8 +119,9 @@ class ProposalParams:
     #: ... except the lower bound for a blob cut by the frame or by something in front (a car, a tree):
     #: its visible part can be any height.
     window_cut_any_height: bool = True
-    #: Smallest window blob (pixels).
-    window_min_area_px: int = 6
+    #: Smallest window blob (pixels; was 6: at 512x256 a far pane is 1 px wide and 3-5 px tall, and
+    #: from 1024 px up the candidates' 2x2 opening removes smaller specks anyway).
+    window_min_area_px: int = 3
     #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.
     window_min_fill: float = 0.55
     #: ... counting only the box's pixels not hidden by something in front (not building, not sky).
