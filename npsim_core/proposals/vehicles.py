@@ -18,11 +18,12 @@ KERBSIDE = (8, 9, 22, 11, 12, 13, 21)
 #: for at these heights (m above the ground), up to this far (m) from the cut, and is as tall as this (m).
 SLIVER_H_M, SLIVER_REACH_M, SLIVER_ROWS_M = (0.5, 0.95), 0.45, (0.07, 0.17)
 #: No sliver is looked for on a vehicle whose whole lamp (0.15 m) would be under this many pixels tall.
-SLIVER_MIN_LAMP_PX = 3.0
-#: ... and it starts at most this many pixels from the cut (1: right beside it; larger: a whole lamp
-#: seen past the occluder, above its boot).
+SLIVER_MIN_LAMP_PX = 2.0
+#: ... and it reaches to within this many pixels of the cut (a whole lamp further in, seen past the car
+#: in front, was tried: more false lamps than found, docs/proposals.md).
 SLIVER_MAX_GAP = 1
-SLIVER_LOCAL_PAINT, SLIVER_DIFF = True, 40.0
+#: ... from pixels departing from the paint beside the cut by more than this (8-bit, any channel).
+SLIVER_DIFF = 40.0
 #: Labels that never hide a vehicle's end face: ground, buildings, vegetation, sky (void included).
 BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 23)
 
@@ -462,93 +463,74 @@ def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.nda
     return red | (d.mean(-1) > 20.0)
 
 
-def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, paint: np.ndarray,
-                 z: float) -> np.ndarray | None:
-    """The visible part of the lamp of a vehicle whose end face is cut at one side -- by the car in
-    front in a parked row (a nearer object right beside the silhouette) or by the image border -- or
-    None. In a parked row the car in front hides all of the end face but a strip at its inner end,
-    whose inner lamp shows as a sliver right beside the occluder's edge (0.08 m of paint beyond it,
-    then the corner with the side face): so the lamp is looked for there, not on a face laid out in
-    metres that the noisy depth cannot place to the pixel (docs/proposals.md, "Sixth pass").
+def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float) -> np.ndarray | None:
+    """The visible part of a lamp of a vehicle cut on its side away from the image centre -- by the
+    car in front of a parked row, which stands further out, or by the frame's border -- or None
+    (local mask). The car in front hides all of the end face but a strip at its inner end, whose
+    inner lamp shows as a sliver right beside the occluder's edge; the face laid out in metres is a
+    few pixels off on predicted depth, so the lamp is looked for at the cut itself
+    (docs/proposals.md, "Sixth pass").
 
-    Rows: heights ``SLIVER_H_M`` above the ground at the depth of the silhouette's columns
-    next to the cut. Columns: per row, from the silhouette's first column at the cut on, over
-    ``SLIVER_REACH_M``. In that window, the pixels that differ from the paint (any channel by
-    more than 40 levels of 8 bit) form the lamp when a connected part of them touches the cut (within a
-    pixel) and is as tall as a lamp (``SLIVER_ROWS_M``, rounded outward): its bounding box on
-    the silhouette and in the window is proposed."""
+    The cut: over the rows at lamp heights (``SLIVER_H_M`` above the ground at depth ``z``), at least
+    half of the pixels just beyond the silhouette's outer end are off the frame or something other
+    than background (``BACKGROUND``) nearer than the silhouette two pixels (x W/512) inside. Per row,
+    a window from the silhouette's outer end inward over ``SLIVER_REACH_M``; its median colour is the
+    paint there (the end face's, not a lit side face's). Lamp pixels depart from it by more than
+    ``SLIVER_DIFF`` and look like a lamp (:func:`_lamp_coloured`: red, or brighter -- not glass, a
+    shadow or a wheel arch). The lamp is the connected part of them with the most pixels within
+    ``SLIVER_MAX_GAP`` of the cut, as tall as a lamp (``SLIVER_ROWS_M``, at least 2 px) and at most a
+    lamp wide (0.3 m): its bounding box within the window. None on vehicles whose whole lamp would be
+    under ``SLIVER_MIN_LAMP_PX`` tall, without depth, or when nothing fits."""
     import cv2
 
     p = ctx.params
     H, W = ctx.shape
     h, w = m.shape
-    has = m.any(1)
-    rows = np.flatnonzero(has)
-    if rows.size < 2 or ctx.depth is None:
+    ppm = float(ctx.intrinsics.fy) / z
+    if ctx.depth is None or 0.15 * ppm < SLIVER_MIN_LAMP_PX:
         return None
-    first = np.where(has, m.argmax(1), w)
-    last = np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
+    has = m.any(1)
     hts = ctx.height_above_ground(y0 + np.arange(h), z)
     band = has & (hts >= SLIVER_H_M[0]) & (hts <= SLIVER_H_M[1])
     br = np.flatnonzero(band)
-    if br.size < 1:
+    if br.size < 2:
         return None
-    # Which side is cut: beyond the silhouette's end in the band rows lies the frame's border or
-    # something nearer -- another vehicle or object (not ground, building, vegetation or sky) nearer
-    # than the silhouette's columns just inside (the car in front of a parked row is only 0.6-2 m nearer).
-    sides = []
+    left = x0 + w / 2.0 < float(ctx.intrinsics.cx)  # the cut side: away from the image centre
+    end = np.where(has, m.argmax(1), w) if left else np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
+    out_step = -1 if left else 1
     k = max(1, int(round(W / 512)))
-    for beyond, inside in ((x0 + first[br] - 1, x0 + first[br] + 2 * k), (x0 + last[br] + 1, x0 + last[br] - 2 * k)):
-        off = (beyond < 0) | (beyond >= W)
-        bx = np.clip(beyond, 0, W - 1)
-        bd = ctx.depth[y0 + br, np.clip(beyond + (beyond - inside).clip(-1, 1) * k, 0, W - 1)]
-        own = ctx.depth[y0 + br, np.clip(inside, 0, W - 1)]
-        thing = ~np.isin(ctx.labels[y0 + br, bx], BACKGROUND)
-        with np.errstate(invalid="ignore"):
-            near = off | (thing & (bd < own))
-        sides.append(float(near.mean()))
-    # The car in front of a parked row (and the frame's border) cuts a car on its side away from the
-    # image centre: a nearer car of the row is further out (beside it, toward the centre, only farther
-    # cars or the car's own side show, and noisy depth sometimes calls them nearer).
-    left = x0 + w / 2.0 < float(ctx.intrinsics.cx)
-    if sides[0 if left else 1] < 0.5:
-        return None
-    ppm = float(ctx.intrinsics.fy) / z
+    beyond, inside = x0 + end[br] + out_step, x0 + end[br] - out_step * 2 * k
+    off = (beyond < 0) | (beyond >= W)
+    bd = ctx.depth[y0 + br, np.clip(beyond + out_step * (k - 1), 0, W - 1)]
+    own = ctx.depth[y0 + br, np.clip(inside, 0, W - 1)]
+    thing = ~np.isin(ctx.labels[y0 + br, np.clip(beyond, 0, W - 1)], BACKGROUND)
+    with np.errstate(invalid="ignore"):  # NaN depth: not nearer
+        if float((off | (thing & (bd < own))).mean()) < 0.5:
+            return None
     reach = max(2, int(np.ceil(SLIVER_REACH_M * ppm)))
-    cols = np.arange(w)[None, :]
-    e = first[:, None] if left else last[:, None]
-    win = (cols - e >= 0) & (cols - e < reach) if left else (e - cols >= 0) & (e - cols < reach)
-    win &= band[:, None] & m
+    dist = (np.arange(w)[None, :] - end[:, None]) * -out_step     # pixels inward from the cut, per row
+    win = (dist >= 0) & (dist < reach) & band[:, None] & m
     if win.sum() < 4:
         return None
-    if SLIVER_LOCAL_PAINT:  # the paint right there: the end face beside the cut, not a lit side face
-        paint = np.median(img[win], axis=0)
-    diff = (np.abs(img - paint).max(-1) > SLIVER_DIFF) & _lamp_coloured(img, paint, p.vehicle_rear_red_share)
-    cand = (win & diff).astype(np.uint8)
+    paint = np.median(img[win], axis=0)
+    cand = win & (np.abs(img - paint).max(-1) > SLIVER_DIFF) & _lamp_coloured(img, paint, p.vehicle_rear_red_share)
     if not cand.any():
         return None
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
-    dist = np.where(win, (cols - e) if left else (e - cols), reach)   # pixels from the cut, per row
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=8)
     lo_h = max(2, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
     hi_h = int(np.ceil(SLIVER_ROWS_M[1] * ppm)) + 1
-    if 0.15 * ppm < SLIVER_MIN_LAMP_PX:
-        return None
+    beside = np.bincount(lab[cand & (dist <= SLIVER_MAX_GAP)], minlength=n)  # per part: pixels by the cut
     best, best_n = None, 0
-    for k in range(1, n):
-        bh, bw = int(stats[k, cv2.CC_STAT_HEIGHT]), int(stats[k, cv2.CC_STAT_WIDTH])
-        if not lo_h <= bh <= hi_h or bw > 0.3 * ppm + 1:
-            continue
-        blob = lab == k
-        t = int((blob & (dist <= SLIVER_MAX_GAP)).sum())  # the blob most beside the cut
-        if t > best_n:
-            best, best_n = k, t
+    for q in range(1, n):
+        bh, bw = int(stats[q, cv2.CC_STAT_HEIGHT]), int(stats[q, cv2.CC_STAT_WIDTH])
+        if lo_h <= bh <= hi_h and bw <= 0.3 * ppm + 1 and beside[q] > best_n:
+            best, best_n = q, int(beside[q])
     if best is None:
         return None
     x, y, bw, bh = (int(v) for v in stats[best, :4])
     out = np.zeros_like(m)
     out[y:y + bh, x:x + bw] = True
     return out & win
-
 
 def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     """Whether a lamp box lies on a surface receding from the camera (a vehicle's side, or across an
@@ -651,7 +633,7 @@ def propose(ctx: Context) -> list[Group]:
         if z is not None:
             lamps = [b for b in lamps if not _on_side_face(ctx, y0, x0, b)]
             if len(lamps) < 2:  # a cut end face: the visible part of the lamp beside the cut
-                sliver = _sliver_lamp(ctx, y0, x0, m, img, paint, z)
+                sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
                 if sliver is not None and not any((sliver & b).any() for b in lamps):
                     lamps.append(sliver)
         if distinct == len(lamps) == 2:
