@@ -41,6 +41,11 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
    patch of a crown a different way (median normal error 38-41° at 512-1024 px wide, from the
    depth), and the lamps drew that in the night; a crown is a vertical, smooth blob at the
    scale of the window. Depth AbsRel against the exact depth does not get worse.
+9. **Vehicles as boxes** (``vehicle_box``): a near vehicle's column profile becomes the two faces
+   of an upright box (:func:`_two_faces`): the column line rounded the corner between side and
+   rear over its window (glossy paint mirrored a lamp there as a vertical line) and followed a
+   nearer car's disparity band wider than the fattening window (a rear turned ~85° toward the
+   street, and the light on its glass lit the wrong surfaces); the band is an outlier to a box.
 
 Where a façade or ground segment has too little stereo support in the window, the local fit
 hands over (blended in the coefficients) to the segment's robust plane, so the surface goes on
@@ -107,7 +112,14 @@ class SurfaceParams:
         ``vegetation_v_factor`` times taller than wide; off = local planes with ``vegetation_sigma``.
     vehicle_matched_px : a vehicle's stereo within this many pixels along its row of a nearer segment
         and equal to that segment's depth (within 5 %) is dropped before the refit (0 = off, the
-        default; 64 measured in docs/geometry.md: better cars, but the proposals then change).
+        default; 64 measured in docs/geometry.md: better cars, but the proposals then change; with
+        ``vehicle_box`` the band is an outlier to the box anyway).
+    vehicle_box, vehicle_box_tolerance, vehicle_box_disparity, vehicle_box_min_face : vehicles whose
+        median disparity is at least ``vehicle_box_disparity`` px become the two visible faces of an
+        upright box (perpendicular vertical planes, a sharp corner; :func:`_two_faces`) when the
+        box's truncated residual is within ``vehicle_box_tolerance`` times the column line's
+        (+ 0.002) and each face is seen over at least ``vehicle_box_min_face`` columns; off = the
+        column line alone (docs/geometry.md, "Vehicles as boxes").
     """
 
     plane_sigma: float = 96.0
@@ -130,6 +142,10 @@ class SurfaceParams:
     vegetation_upright: bool = True
     vegetation_v_factor: float = 2.0
     vehicle_matched_px: float = 0.0
+    vehicle_box: bool = True
+    vehicle_box_tolerance: float = 1.5
+    vehicle_box_disparity: float = 20.0
+    vehicle_box_min_face: float = 64.0
 
 
 def _speckle_mask(depth: np.ndarray, valid: np.ndarray, fx: float, W: int, p: SurfaceParams) -> np.ndarray:
@@ -252,8 +268,9 @@ def _fattened(seg: np.ndarray, q: np.ndarray, radius: int, margin: float) -> np.
     return out
 
 
-def _upright_columns(q: np.ndarray, w0: np.ndarray, sigma: float, iterations: int, noise_px: float
-                     ) -> tuple[np.ndarray, np.ndarray] | None:
+def _upright_columns(q: np.ndarray, w0: np.ndarray, sigma: float, iterations: int, noise_px: float,
+                     box: tuple[float, float, float, float, float, float] | None = None,
+                     had: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """A vehicle as an upright surface: inverse depth per column of its bounding box, (q, dq/du).
 
     Per column the median of its stereo (``w0``) over rows, then a robust (Cauchy) local linear fit
@@ -264,7 +281,12 @@ def _upright_columns(q: np.ndarray, w0: np.ndarray, sigma: float, iterations: in
     noise ``noise_px`` a far car's slope is noise (at 57 m, 0.1 px of disparity turns its face
     by 45°), so it is believed only as far as the stereo resolves it (prior: tan of the angle to
     the camera ~ N(0, 1), i.e. slope σ_b = q/fx; ridge (σ_n/σ_b)² = (noise_px / (baseline q))²).
-    None when fewer than 3 columns have stereo.
+    ``box`` = (first column of the crop in the image, fx, cx, minimum disparity px, minimum face
+    px, tolerance), None = off: where the car's median disparity reaches the minimum, the profile
+    becomes the two faces of an upright box (:func:`_two_faces`, :func:`_box_within`) if their
+    truncated residual is within ``tolerance`` times the local line's (+ 0.002); ``had`` (the
+    vehicle's pixels with any stereo before the drops) tells the columns whose stereo was dropped
+    from those that never had any. None when fewer than 3 columns have stereo.
     """
     n = w0.sum(0).astype(np.float64)
     if (n >= 3).sum() < 3:
@@ -306,9 +328,116 @@ def _upright_columns(q: np.ndarray, w0: np.ndarray, sigma: float, iterations: in
         scale = max(1.4826 * float(np.median(np.abs(r[sel]))), 0.005)
         w = wc / (1.0 + (r / (2.385 * scale)) ** 2)
     qh = a + b * u
+    # The box only where the stereo resolves its faces (a far car's slope is noise: see above).
+    if box is not None and _NOMINAL_BASELINE * box[1] * float(np.median(med)) >= box[3]:
+        fit = _two_faces(u + box[0], qv, wc, box[1], box[2])
+        sel = wc > 0
+        if fit is not None and fit[2] <= box[5] * _truncated_cost(qv[sel], qh[sel], wc[sel]) + 0.002:
+            qh, b = _box_within(qh, b, fit, sel, box[4], None if had is None else had.sum(0) > 0)
     if not (qh > 1e-4).all():
         return None
     return qh, b
+
+
+def _truncated_cost(qv: np.ndarray, qh: np.ndarray, wc: np.ndarray, cap: float = 0.05) -> float:
+    """Weighted mean of the relative residuals of a column fit, each capped at ``cap``."""
+    r = np.minimum(np.abs(qv - qh) / np.maximum(np.abs(qv), 1e-9), cap)
+    return float((wc * r).sum() / max(wc.sum(), 1e-12))
+
+
+def _two_faces(U: np.ndarray, qv: np.ndarray, wc: np.ndarray, fx: float, cx: float, max_yaw_deg: float = 30.0,
+               yaw_step_deg: float = 2.5, steps: int = 41) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A vehicle's column profile as the two visible faces of an upright box (perpendicular vertical
+    planes), in inverse depth per column.
+
+    A vertical plane with horizontal normal (n_x, n_z) has ``q = k (n_x (U - cx)/fx + n_z)`` along
+    the columns (``k`` = 1 / its distance). The faces are n_A = (sin θ, cos θ) (rear or front, θ
+    within ``max_yaw_deg`` of facing the camera) and n_B = (cos θ, -sin θ) (the side); a ray enters
+    a convex box through the farther of the two planes, so ``q = min(q_A, q_B)`` -- a sharp corner
+    (a local line rounds it over its window, and a glossy rounded corner mirrors a lamp as a
+    vertical line). Grid over θ, the column where the faces meet (``steps``) and the side the rear
+    is on; each face's ``k`` is the weighted median of its columns; the least truncated relative
+    residual (:func:`_truncated_cost`) wins. Returns (q, dq/dU per column, cost) or None with
+    fewer than 6 supported columns (``wc`` > 0).
+    """
+    sel = wc > 0
+    if sel.sum() < 6:
+        return None
+    xt = (U - cx) / fx
+    us, qs, ws = xt[sel], qv[sel], wc[sel]
+    n = len(us)
+    splits = np.unique(np.linspace(0, n, steps).astype(int))
+    left = np.arange(n)[None, :] < splits[:, None]                      # (splits, columns)
+    best = (np.inf, None)
+    for th in np.radians(np.arange(-max_yaw_deg, max_yaw_deg + 1e-6, yaw_step_deg)):
+        sn, cs = np.sin(th), np.cos(th)
+        ha, hb = sn * us + cs, cs * us - sn
+        ka_all, kb_all = qs / ha, qs / np.where(np.abs(hb) > 1e-6, hb, np.nan)
+        for amask in (left, ~left):
+            with np.errstate(all="ignore"):
+                ka = _masked_median(ka_all, amask)
+                kb = _masked_median(kb_all, ~amask)
+                qa = np.where(np.isfinite(ka)[:, None], ka[:, None] * ha[None, :], np.inf)
+                qb = ka_b = np.where(np.isfinite(kb)[:, None], kb[:, None] * hb[None, :], np.inf)
+                qa = np.where(qa > 0, qa, np.inf)
+                qb = np.where(ka_b > 0, qb, np.inf)
+                qm = np.minimum(qa, qb)
+                r = np.minimum(np.abs(qm - qs[None, :]) / qs[None, :], 0.05)
+                r = np.where(np.isfinite(r), r, 0.05)
+                cost = (r * ws[None, :]).sum(1) / ws.sum()
+            j = int(np.argmin(cost))
+            if cost[j] < best[0]:
+                best = (float(cost[j]), (sn, cs, ka[j], kb[j]))
+    if best[1] is None:
+        return None
+    sn, cs, ka, kb = best[1]
+    ha, hb = sn * xt + cs, cs * xt - sn
+    qa = ka * ha if np.isfinite(ka) else np.full_like(xt, np.inf)
+    qb = kb * hb if np.isfinite(kb) else np.full_like(xt, np.inf)
+    qa, qb = np.where(qa > 0, qa, np.inf), np.where(qb > 0, qb, np.inf)
+    on_a = qa <= qb
+    qh = np.where(on_a, qa, qb)
+    if not np.isfinite(qh).all():
+        return None
+    b = np.where(on_a, ka * sn, kb * cs) / fx
+    return qh, b, best[0], on_a
+
+
+def _box_within(q_local: np.ndarray, b_local: np.ndarray, box: tuple, sel: np.ndarray, min_face: float,
+                had: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A vehicle's column profile from the box ``box`` (:func:`_two_faces`) and the local line.
+
+    Every face the box puts on the supported columns ``sel`` must be seen over at least
+    ``min_face`` columns, else the local line is kept whole (a corner a few tens of columns from
+    the end of the stereo is more likely SGM's error there -- next to its unmatched left border,
+    seed 1 -- than a face). Beyond the supported columns, columns that had stereo (``had``: dropped
+    as a nearer neighbour's band) take the box's face, which goes on as a plane; columns that never
+    had any (the border SGM cannot match) take the local line, shifted to meet the box.
+    """
+    qh, b, _, on_a = box
+    idx = np.flatnonzero(sel)
+    f = on_a[idx]
+    for face in (True, False):
+        cols = idx[f == face]
+        if cols.size and cols[-1] - cols[0] + 1 < min_face:
+            return q_local, b_local
+    qh, b = qh.copy(), b.copy()
+    i0, i1 = int(idx[0]), int(idx[-1])
+    for end, rng in ((i0, slice(0, i0)), (i1, slice(i1 + 1, len(qh)))):
+        if rng.stop > rng.start and had is not None and float(had[rng].mean()) < 0.5:
+            qh[rng] = q_local[rng] - q_local[end] + qh[end]
+            b[rng] = b_local[rng]
+    return qh, b
+
+
+def _masked_median(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Median of ``v`` (n,) over each row's ``mask`` (k, n) (NaN in ``v`` ignored; NaN for none)."""
+    vv = np.where(mask & np.isfinite(v)[None, :], v[None, :], np.inf)
+    srt = np.sort(vv, axis=1)
+    cnt = np.isfinite(srt).sum(1)
+    lo = np.take_along_axis(srt, np.maximum((cnt - 1) // 2, 0)[:, None], 1)[:, 0]
+    hi = np.take_along_axis(srt, np.maximum(cnt // 2, 0)[:, None], 1)[:, 0]
+    return np.where(cnt >= 3, 0.5 * (lo + hi), np.nan)
 
 
 def _kerbs(out_q: np.ndarray, coef: np.ndarray, labels: np.ndarray, intrinsics: Intrinsics,
@@ -520,8 +649,10 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
             if lab in VEHICLE_CLASSES and p.vehicle_upright:
                 sl = (slice(y0[s], y1[s] + 1), slice(x0[s], x1[s] + 1))
                 ms = seg[sl] == s
+                box = (float(x0[s]), fx, cx, p.vehicle_box_disparity * scale, p.vehicle_box_min_face * scale,
+                       p.vehicle_box_tolerance) if p.vehicle_box else None
                 qc = _upright_columns(qfull[sl], ms & use[sl], p.vehicle_column_sigma * scale, p.iterations,
-                                      p.vehicle_noise_px)
+                                      p.vehicle_noise_px, box, ms & valid[sl])
                 if qc is None:
                     cnt["unsupported"] += 1
                     continue
