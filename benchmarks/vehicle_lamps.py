@@ -2,6 +2,12 @@
 
     .venv/bin/python -m benchmarks.vehicle_lamps [--size 2048x1024] [--variant hard] [--seed 0]
                                                  [--out /tmp/vehicle_lamps.png]
+    .venv/bin/python -m benchmarks.vehicle_lamps --causes [--sizes 512x256,2048x1024]
+                                                 [--variants default,hard,lights] [--seeds 0,1,2]
+
+``--causes`` prints, per size and variant (seeds pooled), the true lamps by how much of them shows
+(under 4 px; a sliver, under 30 % of the whole lamp visible; partly hidden, 30-60 %; the rest) and
+how many of each are matched, and the false lamps -- the table of docs/proposals.md "Sixth pass".
 
 Runs the vehicles proposer alone on a synthetic street frame (the scene's depth and Cityscapes
 instance ids, as ``benchmarks.proposals``), matches vehicle lamps one-to-one at mask IoU >= 0.3
@@ -48,6 +54,49 @@ def lamp_matches(gt, pred, iou: float = 0.3) -> tuple[dict[int, int], dict[int, 
     return out, best
 
 
+def _visible(gt, depth, fy: float) -> dict[int, tuple[int, float]]:
+    """Per true lamp: its pixels and the share of the whole lamp (0.30 x 0.15 m at its depth) they are."""
+    from npsim_core.annotation import class_of
+
+    out = {}
+    for gid, a in gt.areas().items():
+        if class_of(gid) in LAMP_CLASSES:
+            z = float(np.nanmedian(depth[gt.instance_map == gid]))
+            out[gid] = (a, a / (0.30 * 0.15 * (fy / z) ** 2))
+    return out
+
+
+def causes(sizes: list[str], variants: list[str], seeds: list[int]) -> None:
+    """The ``--causes`` table (module doc)."""
+    import os
+
+    from benchmarks.proposals import frame
+    from npsim_core.proposals import ProposalParams, propose_lights
+
+    params = replace(ProposalParams(), categories=("vehicles",))
+    kinds = ("under 4 px", "sliver < 30 %", "partly hidden 30-60 %", "60 % or more visible")
+    print("| size | variant | " + " | ".join(f"{k} (matched / true)" for k in kinds) + " | false lamps |")
+    print("|---|---|" + "---|" * (len(kinds) + 1))
+    for size in sizes:
+        W, H = (int(v) for v in size.split("x"))
+        for variant in variants:
+            tot = {k: [0, 0] for k in kinds}
+            false = 0
+            for seed in seeds:
+                scene, inst = frame(W, H, seed, variant)
+                pred = propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst,
+                                      params).above(0.5)
+                match, best = lamp_matches(scene.lights, pred)
+                false += len(best) - len(match)
+                depth = scene.depth_gt if getattr(scene, "depth_gt", None) is not None else scene.depth
+                for gid, (a, vis) in _visible(scene.lights, depth, float(scene.intrinsics.fy)).items():
+                    k = kinds[0] if a < 4 else kinds[1] if vis < 0.3 else kinds[2] if vis < 0.6 else kinds[3]
+                    tot[k][0] += gid in match
+                    tot[k][1] += 1
+            print(f"| {size} | {variant} | " + " | ".join(f"{m} / {n}" for m, n in tot.values()) + f" | {false} |")
+    print(f"\n(load {os.getloadavg()[0]:.1f})")
+
+
 def main(argv: list[str] | None = None) -> int:
     import cv2
 
@@ -60,7 +109,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variant", default="hard")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="/tmp/vehicle_lamps.png")
+    ap.add_argument("--causes", action="store_true", help="the pooled table of true lamps by visibility")
+    ap.add_argument("--sizes", default="512x256,2048x1024")
+    ap.add_argument("--variants", default="default,hard,lights")
+    ap.add_argument("--seeds", default="0,1,2")
     args = ap.parse_args(argv)
+    if args.causes:
+        causes(args.sizes.split(","), args.variants.split(","), [int(v) for v in args.seeds.split(",")])
+        return 0
     W, H = (int(v) for v in args.size.split("x"))
     scene, inst = frame(W, H, args.seed, args.variant)
     params = replace(ProposalParams(), categories=("vehicles",))
