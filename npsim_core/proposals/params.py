@@ -122,6 +122,10 @@ class ProposalParams:
     #: Smallest window blob (pixels; was 6: at 512x256 a far pane is 1 px wide and 3-5 px tall, and
     #: from 1024 px up the candidates' 2x2 opening removes smaller specks anyway).
     window_min_area_px: int = 3
+    #: ... and a window of fewer pixels than this is at most this confident (kept at 0.5, not taken by
+    #: the editor's slider at 0.7 or 0.9: a few pixels say little).
+    window_tiny_px: int = 6
+    window_tiny_max_confidence: float = 0.6
     #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.
     window_min_fill: float = 0.55
     #: ... counting only the box's pixels not hidden by something in front (not building, not sky).

@@ -946,6 +946,8 @@ def propose(ctx: Context) -> list[Group]:
         for f in g:
             li = f[3]
             li.confidence = float(np.clip(li.confidence + (0.2 if regular else 0.0), 0, 1))
+            if li.mask.sum() < p.window_tiny_px:  # a few pixels say little: below the editor's sliders
+                li.confidence = min(li.confidence, p.window_tiny_max_confidence)
             members.append(li)
         members.sort(key=lambda li: (li.x0, li.y0))
         out.append(Group(WINDOWS_GROUP, members, float(np.mean([li.confidence for li in members]))))
