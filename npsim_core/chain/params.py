@@ -163,16 +163,21 @@ class NightParams:
         ``exposure_target`` within [``exposure_min``, ``exposure_max``] stops; ``manual``: exactly
         ``exposure`` stops (docs/relight.md, "Exposure").
     exposure : stops; in ``auto`` mode an exposure compensation added to the metered value.
-    exposure_target : linear level (1 = sensor white) the metered value is brought to.
+    exposure_target : linear level (1 = sensor white) the metered value is brought to. 0.027
+        (0.029 before de-lighting became the default), fitted with ``white_balance``,
+        ``tone_contrast`` and ``glare`` on four nights (SGM and exact depth, seeds 0 and 1 of the
+        2048x1024 fixture, de-lit albedo; docs/relight.md "De-lit textures").
     exposure_min, exposure_max : the automatic exposure's range, stops.
     white_balance : the camera's automatic white balance, the part of the way (in log gain) from
         the render's own white toward neutralising the lit pixels' mean colour (0 = off, 1 = full
-        grey world; :func:`~npsim_core.render.camera_post.auto_white_balance`). 0.25: a camera
-        under warm night light corrects it only partly (docs/relight.md "The camera of real
-        night photos").
+        grey world; :func:`~npsim_core.render.camera_post.auto_white_balance`). 0.3 (0.25 before
+        de-lighting, whose warm façades raised the lit R/B): a camera under warm night light
+        corrects it only partly (docs/relight.md "The camera of real night photos").
     tone_contrast : the camera's global tone curve, log-luminance slope around its mid-grey
         (1 = a linear sensor with the sRGB curve; :func:`~npsim_core.render.camera_post.tone_contrast`).
-        0.8 with the glare (0.9 before it; docs/relight.md "Glare").
+        0.73 with de-lit albedo (0.8 with the photo's fallback albedo, 0.9 before the glare;
+        docs/relight.md "Glare", "De-lit textures"): de-lit white cars and pale façades are as
+        bright as they are, and the camera holds them below the lamps.
     ego_headlights, group_all_together, noise : switches.
     probabilities : ((class_id, p), ...) overriding the light table's activation range with (p, p).
     denoise : remove the Monte Carlo noise before the camera noise (the on/off switch).
@@ -185,7 +190,9 @@ class NightParams:
     glare : share of all light the camera's lens and windscreen scatter over a long-tailed PSF
         (:func:`~npsim_core.render.camera_post.lens_glare`; 0 = off), with the heads of throwing
         lamps at their visible radiance: lamps get saturated halos larger than themselves, broad
-        areas stay (docs/relight.md "Glare").
+        areas stay (docs/relight.md "Glare"). 0.2, fitted (0.1 with the fallback albedo): chosen
+        and fitted, not measured on ACDC's camera (a lens alone scatters a few per cent; a car
+        camera's windscreen adds to it).
     glare_radius : the glare PSF's core radius, fraction of the image width.
     light_table : a user light table JSON merged over the default ('' = the default).
     variant : Mitsuba variant ('' = probed: llvm_ad_rgb when usable, else scalar_rgb).
@@ -208,11 +215,11 @@ class NightParams:
     iso: int = 1600
     exposure: float = 0.0
     exposure_mode: str = "auto"
-    exposure_target: float = 0.029
+    exposure_target: float = 0.027
     exposure_min: float = -3.0
     exposure_max: float = 4.0
-    white_balance: float = 0.25
-    tone_contrast: float = 0.8
+    white_balance: float = 0.3
+    tone_contrast: float = 0.73
     ego_headlights: bool = True
     group_all_together: bool = False
     noise: bool = True
@@ -221,7 +228,7 @@ class NightParams:
     denoiser: str = "oidn"
     motion_blur_px: int = 0
     bloom: float = 0.0
-    glare: float = 0.1
+    glare: float = 0.2
     glare_radius: float = 0.0008
     light_table: str = ""
     variant: str = ""

@@ -76,7 +76,7 @@ class CameraParams:
         fixed in angle, so a preview at a smaller scale shows the same halo).
     tone_contrast : slope of the camera's global tone curve in log luminance around
         ``tone_pivot`` (:func:`tone_contrast`; 1 = the plain sRGB camera, the default here). The
-        chain's nights use ``night.tone_contrast`` (0.8): real night photos hold a narrower range
+        chain's nights use ``night.tone_contrast`` (0.73): real night photos hold a narrower range
         between their median and their highlights than a linear sensor with an sRGB curve gives
         (docs/relight.md "The camera of real night photos").
     tone_pivot : linear level (1.0 = sensor white) the tone curve leaves unchanged (the camera's
