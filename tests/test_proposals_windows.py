@@ -388,3 +388,29 @@ def test_far_panes_one_pixel_wide_three_tall_are_proposed():
     assert hit >= 0.8 * len(gt), f"{hit} of {len(gt)} far panes proposed"
     # three pixels say little: kept at 0.5, below the editor's sliders (0.7, 0.9)
     assert all(props.confidence[i] <= PARAMS.window_tiny_max_confidence for i in wins)
+
+
+def test_small_dark_grey_pane_is_not_a_cast_shadow_but_a_large_one_is():
+    """A blob only darker than the wall and of its colour is taken for a cast shadow. Far panes with
+    a dark interior (0.85 m^2 on the wall, 12 px) keep the wall's grey too and were all dropped; a
+    cast shadow is large, so blobs under ``window_shadow_min_m2`` are not judged as one -- a 7 m^2
+    dark patch of the wall's colour still is a shadow."""
+    img, labels, depth, noise = _canvas()
+    z = 40.0
+    _wall(img, labels, depth, -12.0, 12.0, 15.0, z)
+    img[labels == 11] = (150, 150, 150)                # a grey wall
+    dark = (97, 97, 97)                                # its colour, darker
+    gt = {}
+    for f, sill in enumerate((5.0, 8.2, 11.4)):
+        for b in range(6):
+            x = -11.0 + 2.4 * b
+            _pane(img, gt, (f, b), x, x + 0.8, sill, sill + 1.1, z)
+            img[gt[(f, b)]] = dark
+    assert all(g.sum() >= 4 and g.sum() * (z / K.fy) ** 2 < PARAMS.window_shadow_min_m2 for g in gt.values())
+    shadow = np.zeros((H, W), bool)
+    shadow[int(_v(12.0, z)):int(_v(9.5, z)), int(_u(5.0, z)):int(_u(8.0, z))] = True
+    img[shadow] = dark
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    hit = sum(any(_iou(g, w) >= 0.5 for w in wins.values()) for g in gt.values())
+    assert hit >= 0.8 * len(gt), f"{hit} of {len(gt)} dark grey panes proposed"
+    assert not any((w & shadow).sum() > 0.3 * w.sum() for w in wins.values()), "the cast shadow proposed"

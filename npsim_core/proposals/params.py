@@ -149,6 +149,9 @@ class ProposalParams:
     #: ... and within this chroma distance when it runs down to the facade's foot (a pane has a sill;
     #: shade, lit by the blue sky only, drifts further from the wall's colour).
     window_shadow_chroma_footed: float = 10.0
+    #: ... judged only on blobs of at least this area on the wall (m^2, with depth): a cast shadow is
+    #: large; a smaller dark grey blob is a pane's part or a far pane with a dark interior.
+    window_shadow_min_m2: float = 1.0
     #: Erode-and-split attempts on a blob that fails the fill or size test (joined panes).
     window_split_steps: int = 2
     #: A blob too large for a window of which at least this share is one colour is a wall piece the

@@ -792,7 +792,7 @@ def propose(ctx: Context) -> list[Group]:
     (``window_min_fill``); a blob failing the fill or size test is eroded, split into its parts
     and each part grown back and tested again (``window_split_steps`` times at most). A darker blob
     with the wall's own colour, or running down to the ground with little tint, is a cast shadow
-    (``window_shadow_*``) and dropped. Then the grid per wall (:func:`regularise`). Floors:
+    (``window_shadow_*``; blobs of at least ``window_shadow_min_m2`` on the wall) and dropped. Then the grid per wall (:func:`regularise`). Floors:
     blobs of one wall whose centre heights (with
     depth; else image rows) lie within ``window_floor_tol_m`` (else half a window). Confidence
     0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows.
@@ -862,7 +862,8 @@ def propose(ctx: Context) -> list[Group]:
             return "fill"
         contrast = float(np.median(np.abs(ratio[y:y + h, x:x + w][sub])))
         dark = float(np.median(ratio[y:y + h, x:x + w][sub]))
-        if p.window_shadow_chroma > 0 and np.log(p.window_shadow_ratio) < dark < 0:
+        if p.window_shadow_chroma > 0 and np.log(p.window_shadow_ratio) < dark < 0 \
+                and (z is None or a * (z / fy) ** 2 >= p.window_shadow_min_m2):
             tint = float(np.median(chroma[y:y + h, x:x + w][sub]))
             # A pane sits on a sill; a shadow runs down to the facade's foot on the ground.
             below = np.zeros(w, bool)
