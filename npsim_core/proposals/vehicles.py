@@ -38,15 +38,19 @@ def _vehicles(ctx: Context):
             continue
         if ctx.instances is not None:
             inst = np.where(cmask, ctx.instances, 0)
-            ids = np.unique(inst[cmask])
-            per_instance = ids[ids >= 1000]
-            for iid in per_instance.tolist():  # one object may show as several components (occluded)
-                m = inst == iid
-                ys, xs = np.nonzero(m)
-                if ys.size < p.vehicle_min_area_px:
+            # Each instance's box from one sort of its pixels (a full-image comparison per instance took
+            # half the proposer's time on a street of 35 cars at 2048x1024).
+            ys, xs = np.nonzero(cmask & (inst >= 1000))
+            v = inst[ys, xs]
+            order = np.argsort(v, kind="stable")
+            ys, xs, v = ys[order], xs[order], v[order]
+            ids, starts, counts = np.unique(v, return_index=True, return_counts=True)
+            for iid, a, n in zip(ids.tolist(), starts.tolist(), counts.tolist()):  # one object may show as
+                if n < p.vehicle_min_area_px:                                       # several components
                     continue
-                y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
-                yield cls, int(y0), int(x0), m[y0:y1, x0:x1]
+                yy, xx = ys[a:a + n], xs[a:a + n]
+                y0, y1, x0, x1 = int(yy.min()), int(yy.max()) + 1, int(xx.min()), int(xx.max()) + 1
+                yield cls, y0, x0, inst[y0:y1, x0:x1] == iid
             rest = cmask & (inst < 1000)  # crowd regions / missing ids: components
         else:
             rest = cmask
@@ -117,6 +121,21 @@ def _step_column(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int
     return lo + int(np.nanargmax(step))
 
 
+def _nanpercentile_cols(d: np.ndarray, q: float) -> np.ndarray:
+    """``np.nanpercentile(d, q, axis=0)`` (linear interpolation) by one sort: NaN sorts last, so each
+    column's valid values come first (numpy's own goes column by column in Python). All-NaN columns give
+    NaN, without a warning."""
+    s = np.sort(d, axis=0)
+    n = np.isfinite(s).sum(0)
+    pos = q / 100.0 * np.maximum(n - 1, 0)
+    lo = np.floor(pos).astype(np.int64)
+    hi = np.minimum(lo + 1, np.maximum(n - 1, 0))
+    cols = np.arange(d.shape[1])
+    a, b = s[lo, cols], s[hi, cols]
+    out = a + (pos - lo) * (b - a)
+    return np.where(n > 0, out, np.nan)
+
+
 def _near_columns(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int) -> np.ndarray | None:
     """Columns whose body-row depth (30th percentile, running median over columns) is within
     ``max(vehicle_face_tol_m, vehicle_face_tol_rel x depth)`` of the densest depth among the nearer
@@ -128,9 +147,7 @@ def _near_columns(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: in
     if enough.sum() < 3:
         return None
     col = np.full(w, np.inf)
-    with warnings.catch_warnings():  # all-NaN columns (no valid depth) stay NaN, said below
-        warnings.simplefilter("ignore", RuntimeWarning)
-        col[enough] = np.nanpercentile(d[:, enough], 30, axis=0)
+    col[enough] = _nanpercentile_cols(d[:, enough], 30.0)  # all-NaN columns stay NaN, said below
     ok = np.isfinite(col)
     if not ok.any():
         return None
@@ -513,7 +530,12 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     if win.sum() < 4:
         return None
     paint = np.median(img[win], axis=0)
-    cand = win & (np.abs(img - paint).max(-1) > SLIVER_DIFF) & _lamp_coloured(img, paint, p.vehicle_rear_red_share)
+    ry, rx = np.flatnonzero(win.any(1)), np.flatnonzero(win.any(0))   # the window's box: colours only there
+    box = (slice(ry[0], ry[-1] + 1), slice(rx[0], rx[-1] + 1))
+    sub = img[box]
+    cand = np.zeros_like(win)
+    cand[box] = win[box] & (np.abs(sub - paint).max(-1) > SLIVER_DIFF) & \
+        _lamp_coloured(sub, paint, p.vehicle_rear_red_share)
     if not cand.any():
         return None
     n, lab, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=8)
