@@ -2,7 +2,7 @@
 
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
-                                                      [--oracle] [--per-member-grouping]
+                                                      [--oracle] [--per-member-grouping] [--no-active-group]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -35,13 +35,24 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
   the slider's default (0.90); "Propose lights" itself: 1.
+* **active group** (the default since issue #26's seventh pass): a ground-truth group of n lights of
+  which k (1 <= k < n) are there, all in *one* proposed group that holds nothing else and has the
+  right class, is completed with 1 (double-click one of its lights -- Select tool, or Ctrl+double-click
+  with the drawing tool -- it becomes the editor's active group) + (n - k) draws: the replay draws
+  them with the session's active group set, and ``EditorSession.lights_created`` joins each to it in
+  the draw's own undo step. These groups are done first, one after another (a double-click on the
+  next one switches the active group), then **one** Esc per frame ends the active group when
+  anything else is drawn after them (groups from scratch, ungrouped lights): the end is counted only
+  where the next thing drawn must not join. Their class-key runs come first in the class-key
+  sequence. ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k)).
 
 ``--oracle`` adds a column that accepts exactly the proposals matching a ground-truth light at
 IoU >= 0.5 (with their proposed groups restricted to them): the ceiling of these proposals. With
 the editor's real grouping a group drawn from scratch costs its strokes and one Ctrl+G, so a
 proposal saves its light's stroke, a proposed group kept exactly saves that Ctrl+G too, and a
-group kept in part costs one click more than drawing it would (click it, Ctrl+G): what proposals
-save follows the share of lights matched at IoU >= 0.5 and of groups proposed exactly.
+group kept in part costs the double-click that activates it in place of the Ctrl+G (with
+``--no-active-group``: one click more than drawing it would, click it and Ctrl+G): what proposals
+save follows the share of lights matched at IoU >= 0.5 and of groups proposed at least in part.
 
 The ground truth is the synthetic street's exact annotation (docs/synthetic.md); the proposals
 get the scene's depth and camera (``propose_for_scene``).
@@ -111,12 +122,33 @@ def _band_cost(instance_map: np.ndarray, lights: set[int], members: set[int]) ->
     return runs + (len(lights) - len(boxes))
 
 
+def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, int]:
+    """Ground-truth groups the editor's active group completes: ground-truth group id -> the one group of
+    ``session`` that holds exactly the group's lights it has (k of n, 1 <= k < n), with the right class,
+    and no other of them (every missing light is drawn while that group is active: module doc)."""
+    from npsim_core.annotation import class_of
+
+    out = {}
+    for gk, grp in gt.groups.items():
+        have = {match[m][0] for m in grp.members if m in match}
+        if not have or len(have) == len(grp.members):
+            continue
+        gids = {session.ann.group_of(p) for p in have}
+        if len(gids) != 1 or None in gids:
+            continue
+        gid = gids.pop()
+        if set(session.ann.groups[gid].members) == have and class_of(gid) == grp.class_id:
+            out[gk] = gid
+    return out
+
+
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
-                   per_member_grouping: bool = False) -> None:
+                   per_member_grouping: bool = False, active_group: bool = True) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
-    action model (module doc)."""
+    action model (module doc); ``active_group``: complete a proposed group that misses lights by
+    double-clicking it and drawing them (False: select it, Ctrl+G, the model before)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -147,22 +179,46 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
         if iou < TOUCH_UP_IOU:
             count("touch up", 1, class_of(g))
     drawn: set[int] = set()
-    for g in gt.instance_ids():
-        if g in match:
-            continue
+
+    def draw(g: int) -> int:
+        # One stroke, as the tools run it: new light, paint, lights_created (joins the active group).
+        session.begin_stroke("draw")
         cmd, nid = new_instance(session.ann, class_of(g))
         do(cmd)
         do(paint(session.ann, gt.instance_map == g, nid, overwrite=True))
+        session.lights_created([nid])
+        session.end_stroke()
         match[g] = (nid, 1.0)
         count("draw", 1, class_of(g))
         drawn.add(nid)
+        return nid
+
+    # Groups a proposal holds in part first: double-click one of its lights (it becomes the active
+    # group), draw the missing lights (they join it); then the rest, after one Esc when anything follows.
+    completed = _completable(session, gt, match) if active_group and not per_member_grouping else {}
+    active_drawn: set[int] = set()
+    for gk, gid in sorted(completed.items(), key=lambda kv: (len({class_of(m) for m in gt.groups[kv[0]].members
+                                                                   if m not in match}), kv[0])):
+        session.set_active_group(gid)  # the double-click (Select tool / Ctrl+double-click)
+        count("group", 1, gt.groups[gk].class_id)
+        active_drawn |= {draw(m) for m in gt.groups[gk].members if m not in match}
+    session.set_active_group(None)
+    rest = [g for g in gt.instance_ids() if g not in match]
+    if completed and rest:
+        count("group", 1, gt.groups[min(completed)].class_id)  # Esc (or a double-click on the background)
+    for g in rest:
+        draw(g)
     wanted = {frozenset(match[m][0] for m in grp.members): grp.class_id for grp in gt.groups.values()}
-    # Class keys: by class (the older model), else whenever the class drawn changes, group by group.
+    # Class keys: by class (the older model), else whenever the class drawn changes, group by group
+    # (the groups completed through the active group first).
     if per_member_grouping:
         for c in {class_of(i) for i in drawn}:
             count("class keys", 1, c)
     else:
-        runs = sorted((sorted(class_of(i) for i in m & drawn) for m in wanted), key=lambda cs: (len(set(cs)), cs))
+        def runs_of(groups):
+            return sorted((sorted(class_of(i) for i in m & drawn) for m in groups), key=lambda cs: (len(set(cs)), cs))
+        first = [m for m in wanted if m & active_drawn]
+        runs = runs_of(first) + runs_of([m for m in wanted if not m & active_drawn])
         in_group = set().union(*wanted) if wanted else set()
         seq = [c for cs in runs for c in cs] + sorted(class_of(i) for i in drawn - in_group)
         for k, c in enumerate(seq):
@@ -234,6 +290,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="also accept exactly the proposals that match a ground-truth light at IoU >= 0.5 "
                          "(an oracle confidence: the ceiling of these proposals)")
     ap.add_argument("--per-member-grouping", action="store_true", help="the older action model (module doc)")
+    ap.add_argument("--no-active-group", action="store_true",
+                    help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
+                         "double-clicking it active (the model before; module doc)")
     args = ap.parse_args(argv)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     from PySide6.QtCore import QCoreApplication
@@ -265,12 +324,15 @@ def main(argv: list[str] | None = None) -> int:
                     book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
                     book.accept_above(s, 0.5 if t == ORACLE else t)
                     counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
-                finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping)
+                finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
+                               active_group=not args.no_active_group)
                 check_equal(gt, s.ann)
                 s.shutdown()
                 rows.append((variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat))
     load = os.getloadavg()[0]
-    model = "per-member grouping (older model)" if args.per_member_grouping else "group by group (module doc)"
+    model = ("per-member grouping (older model)" if args.per_member_grouping else
+             "group by group, partial groups by select + Ctrl+G (--no-active-group)" if args.no_active_group else
+             "group by group, partial groups completed through the active group (module doc)")
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))

@@ -833,3 +833,47 @@ def test_class_filter_narrows_the_palette(qtbot, tmp_path):
     pal.filter_edit.clear()
     assert shown() == set(range(1, 22))
     close_window(win)
+
+
+def test_double_click_on_a_light_makes_its_group_active(qtbot, tmp_path):
+    """Completing a group missing a light is one gesture: double-click one of its lights (Select tool,
+    or Ctrl+double-click with a drawing tool), then draw; the drawn light joins in the same undo step."""
+    win = open_window(qtbot, make_folder(tmp_path))  # top row = windows_group 13001
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_V)
+    qtbot.mouseDClick(c.viewport(), LEFT, NOMOD, vp(c, WINDOW_XS[2] + 4, 35))
+    assert s.active_group == 13001 and s.current_id is None
+    win.editor.refresh_now()
+    assert any("(active" in it.text() for it in c._group_items if hasattr(it, "text"))  # the box says so
+    key(qtbot, win, Qt.Key.Key_B)
+    win.editor.brush_spin.setValue(2)
+    drag(qtbot, c, [(WINDOW_XS[0] + 4, 64), (WINDOW_XS[0] + 5, 68)])  # a new light (no N needed)
+    new = s.current_id
+    assert new not in range(1001, 1007) and s.ann.group_of(new) == 13001
+    assert s.ann.groups[13001].members == tuple(range(1001, 1007)) + (new,)
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)  # one undo: the light and its membership go together
+    assert new not in s.ann.instance_ids() and s.ann.groups[13001].members == tuple(range(1001, 1007))
+    s.ann.validate()
+    # double-click on the background ends it: the next light stays ungrouped
+    key(qtbot, win, Qt.Key.Key_V)
+    qtbot.mouseDClick(c.viewport(), LEFT, NOMOD, vp(c, WINDOW_XS[1] + 15, 55))
+    assert s.active_group is None
+    close_window(win)
+
+
+def test_ctrl_double_click_activates_with_a_drawing_tool(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    s, c = win.editor.session, win.editor.canvas
+    key(qtbot, win, Qt.Key.Key_S)  # superpixel tool: a plain double-click draws, Ctrl+ activates
+    before = s.ann.instance_map.copy()
+    qtbot.mouseDClick(c.viewport(), LEFT, CTRL, vp(c, WINDOW_XS[3] + 4, 35))
+    assert s.active_group == 13001
+    np.testing.assert_array_equal(s.ann.instance_map, before)  # the Ctrl+click drew nothing
+    drag(qtbot, c, [(WINDOW_XS[3] + 4, 64), (WINDOW_XS[3] + 5, 68)])
+    new = s.current_id
+    assert new not in range(1001, 1007) and s.ann.group_of(new) == 13001
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    assert new not in s.ann.instance_ids() and s.ann.groups[13001].members == tuple(range(1001, 1007))
+    key(qtbot, win, Qt.Key.Key_Escape)
+    assert s.active_group is None
+    close_window(win)

@@ -388,6 +388,17 @@ class EditorCanvas(QGraphicsView):
             return
         super().mouseReleaseEvent(event)
 
+    def mouseDoubleClickEvent(self, event) -> None:  # noqa: N802
+        # Qt sends press, release, double-click, release: the first click has acted already; the
+        # handler may give the double-click a meaning (activate a group), else it is swallowed as before.
+        if (self._pan_last is None and not self._space and self.handler is not None
+                and hasattr(self.handler, "double_click")):
+            x, y = self.image_pos(event.position())
+            if self.handler.double_click(x, y, event):
+                event.accept()
+                return
+        super().mouseDoubleClickEvent(event)
+
     def _update_band(self) -> None:
         band = getattr(self.handler, "band_rect", lambda: None)()
         if band is None:

@@ -346,7 +346,11 @@ class AnnotationEditor(QWidget):
         A["group"] = self._action("Group selection", "group", self.group_selected)
         A["ungroup"] = self._action("Ungroup", "ungroup", self.ungroup_selected)
         A["delete"] = self._action("Delete selection", "delete", self.delete_selected)
-        A["activate"] = self._action("Activate group (new lights join it)", "activate", self.toggle_active_group)
+        A["activate"] = self._action("Activate group (new lights join it; or double-click a light of it)", "activate",
+                                     self.toggle_active_group)
+        A["activate"].setToolTip("The selected group becomes active: the lights drawn next join it (one undo step "
+                                 "each). Faster: double-click a light of the group with the Select tool, or "
+                                 "Ctrl+double-click with any tool; double-click the background or Esc ends it.")
         A["escape"] = self._action("Clear selection", "escape", self.clear_selection)
         A["filter"] = self._action("Filter classes", "filter", self.focus_class_filter)
         A["split"] = self._action("One light per region", "split", self.split_box.toggle)
@@ -485,7 +489,7 @@ class AnnotationEditor(QWidget):
         elif len(groups) == 1:
             s.set_active_group(groups.pop())
             self.show_message(f"active group {light_class(class_of(s.active_group)).name} {s.active_group}: "
-                              "new lights join it (A or Esc ends)")
+                              "new lights join it (A, Esc or a double-click on the background ends)")
         else:
             self.show_message("select one group (or one of its lights) to make it active")
 

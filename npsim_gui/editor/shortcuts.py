@@ -109,6 +109,8 @@ KEYMAP: tuple[Shortcut, ...] = (
     _s("undo", "Ctrl+Z", "Undo", EDIT),
     _s("redo", ("Ctrl+Shift+Z", "Ctrl+Y"), "Redo", EDIT),
     _s("", "Right click", "Make the light under the mouse the current one", EDIT),
+    _s("", "Double-click", "Select/Group tool (Ctrl+double-click: any tool): the group of the light under the "
+       "mouse becomes active, the lights drawn next join it; on the background: ends it", EDIT),
     # ---- proposals
     _s("propose", PROPOSAL_KEYS["propose"], "Propose lights automatically (a dashed layer apart from the "
        "annotation; computed in the background)", PROPOSALS),

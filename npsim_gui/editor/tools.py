@@ -28,7 +28,7 @@ from enum import Enum
 import numpy as np
 from PySide6.QtCore import Qt
 
-from npsim_core.annotation import class_of, is_light_class
+from npsim_core.annotation import class_of, is_light_class, light_class
 from npsim_core.annotation_ops import erase, new_instance, paint, snap_to_superpixels, split_paint
 from npsim_core.superpixels import disk_index, line_pixels, similar_superpixels, superpixel_index
 
@@ -168,6 +168,36 @@ class ToolController:
             self._sp_release()
         self.session.end_stroke()
         self._last = None
+
+    def double_click(self, x: float, y: float, event=None) -> bool:
+        """A double-click (the canvas calls it for the second press): with the Select or Group tool, or
+        Ctrl held with any tool (a Ctrl+click draws nothing), the group of the light under the mouse
+        becomes the active group -- the lights drawn next join it (``EditorSession.lights_created``, in
+        their own undo step) -- and on the background the active group ends. That completes a proposed
+        group missing some lights in one gesture. False when it does nothing (a drawing tool without
+        Ctrl: its first click was a stroke). The next stroke starts a new light."""
+        button = event.button() if event is not None else Qt.MouseButton.LeftButton
+        if button != Qt.MouseButton.LeftButton or not (
+                self.tool in (Tool.SELECT, Tool.GROUP) or _mods(event) & Qt.KeyboardModifier.ControlModifier):
+            return False
+        s = self.session
+        iid = s.instance_at(int(np.floor(x)), int(np.floor(y)))
+        if not iid:
+            if s.active_group is not None:
+                s.set_active_group(None)
+                s.message.emit("no active group: new lights are ungrouped")
+            return True
+        gid = s.ann.group_of(iid)
+        if gid is None:
+            s.message.emit(f"light {iid} is in no group: select lights and Ctrl+G, then double-click one of "
+                           "them to add the lights drawn next")
+            return True
+        s.set_active_group(gid)
+        s.set_selection({gid})
+        s.set_current(None)  # the next stroke starts a new light (which joins), not a stroke into this one
+        s.message.emit(f"active group {light_class(class_of(gid)).name} {gid}: new lights join it "
+                       "(double-click the background or Esc ends)")
+        return True
 
     def shows_path(self) -> bool:
         """True while a drag whose effect comes on release is under way (the canvas draws its path)."""
