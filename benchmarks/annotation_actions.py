@@ -3,6 +3,7 @@
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
+                                                      [--compare]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -44,7 +45,9 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   next one switches the active group), then **one** Esc per frame ends the active group when
   anything else is drawn after them (groups from scratch, ungrouped lights): the end is counted only
   where the next thing drawn must not join. Their class-key runs come first in the class-key
-  sequence. ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k)).
+  sequence (the double-click also picks the clicked light's class, which often saves that key: not
+  credited here, conservatively). ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
+  ``--compare`` replays each frame both ways on the same proposals and prints both summaries.
 
 ``--oracle`` adds a column that accepts exactly the proposals matching a ground-truth light at
 IoU >= 0.5 (with their proposed groups restricted to them): the ceiling of these proposals. With
@@ -290,6 +293,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="also accept exactly the proposals that match a ground-truth light at IoU >= 0.5 "
                          "(an oracle confidence: the ceiling of these proposals)")
     ap.add_argument("--per-member-grouping", action="store_true", help="the older action model (module doc)")
+    ap.add_argument("--compare", action="store_true",
+                    help="also replay every frame without the active group (same proposals: a same-tree "
+                         "before/after) and print its summary")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
                          "double-clicking it active (the model before; module doc)")
@@ -307,7 +313,8 @@ def main(argv: list[str] | None = None) -> int:
     w, h = parse_size(args.size)
     thresholds = [float(t) for t in args.thresholds.split(",") if t] + ([ORACLE] if args.oracle else [])
     kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")
-    rows = []
+    rows, rows_before = [], []  # rows_before: --compare, the same frames and proposals without the active group
+    models = [True, False] if args.compare else [not args.no_active_group]
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -316,19 +323,21 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                s = EditorSession()
-                s.load(scene.image, scene.labels, None)
-                counts = dict.fromkeys(kinds, 0)
-                by_cat: dict[tuple[str, str], int] = {}
-                if t is not None:
-                    book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
-                    book.accept_above(s, 0.5 if t == ORACLE else t)
-                    counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
-                finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
-                               active_group=not args.no_active_group)
-                check_equal(gt, s.ann)
-                s.shutdown()
-                rows.append((variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat))
+                for active in models:
+                    s = EditorSession()
+                    s.load(scene.image, scene.labels, None)
+                    counts = dict.fromkeys(kinds, 0)
+                    by_cat: dict[tuple[str, str], int] = {}
+                    if t is not None:
+                        book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
+                        book.accept_above(s, 0.5 if t == ORACLE else t)
+                        counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
+                    finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
+                                   active_group=active)
+                    check_equal(gt, s.ann)
+                    s.shutdown()
+                    row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
+                    (rows if active == models[0] else rows_before).append(row)
     load = os.getloadavg()[0]
     model = ("per-member grouping (older model)" if args.per_member_grouping else
              "group by group, partial groups by select + Ctrl+G (--no-active-group)" if args.no_active_group else
@@ -347,6 +356,20 @@ def main(argv: list[str] | None = None) -> int:
                for t in [None] + thresholds}
         print(f"| {variant} | {tot[None]:.1f} | " + " | ".join(
             f"{tot[t]:.1f} ({100 * (1 - tot[t] / tot[None]):.0f} % fewer)" for t in thresholds) + " |")
+    if rows_before:
+        print("\nThe same frames and proposals with --no-active-group (partial groups: select + Ctrl+G), "
+              "mean actions:\n")
+        print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
+              + " |")
+        print("|---|---|" + "---|" * len(thresholds))
+        for variant in dict.fromkeys(r[0] for r in rows_before):
+            tot = {t: np.mean([sum(r[3].values()) for r in rows_before if r[0] == variant and r[2] == t])
+                   for t in [None] + thresholds}
+            grp = {t: np.mean([r[3]["group"] for r in rows_before if r[0] == variant and r[2] == t])
+                   for t in [None] + thresholds}
+            print(f"| {variant} | {tot[None]:.1f} | " + " | ".join(
+                f"{tot[t]:.1f} ({100 * (1 - tot[t] / tot[None]):.0f} % fewer; group {grp[t]:.1f})"
+                for t in thresholds) + " |")
     # What the actions are spent on: mean per frame, per kind of action and category of light or group.
     cats = ("windows", "vehicles", "street lamps", "signals", "other")
     spent = ("draw", "group", "remove", "touch up", "class fix", "ungroup")

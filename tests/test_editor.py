@@ -865,9 +865,10 @@ def test_ctrl_double_click_activates_with_a_drawing_tool(qtbot, tmp_path):
     win = open_window(qtbot, make_folder(tmp_path))
     s, c = win.editor.session, win.editor.canvas
     key(qtbot, win, Qt.Key.Key_S)  # superpixel tool: a plain double-click draws, Ctrl+ activates
+    key(qtbot, win, Qt.Key.Key_2)  # another class picked: the double-click takes the window's
     before = s.ann.instance_map.copy()
     qtbot.mouseDClick(c.viewport(), LEFT, CTRL, vp(c, WINDOW_XS[3] + 4, 35))
-    assert s.active_group == 13001
+    assert s.active_group == 13001 and s.current_class == 1  # the clicked window's class is drawn next
     np.testing.assert_array_equal(s.ann.instance_map, before)  # the Ctrl+click drew nothing
     drag(qtbot, c, [(WINDOW_XS[3] + 4, 64), (WINDOW_XS[3] + 5, 68)])
     new = s.current_id

@@ -175,7 +175,7 @@ class ToolController:
         becomes the active group -- the lights drawn next join it (``EditorSession.lights_created``, in
         their own undo step) -- and on the background the active group ends. That completes a proposed
         group missing some lights in one gesture. False when it does nothing (a drawing tool without
-        Ctrl: its first click was a stroke). The next stroke starts a new light."""
+        Ctrl: its first click was a stroke). The next stroke starts a new light of the clicked light's class."""
         button = event.button() if event is not None else Qt.MouseButton.LeftButton
         if button != Qt.MouseButton.LeftButton or not (
                 self.tool in (Tool.SELECT, Tool.GROUP) or _mods(event) & Qt.KeyboardModifier.ControlModifier):
@@ -194,7 +194,10 @@ class ToolController:
             return True
         s.set_active_group(gid)
         s.set_selection({gid})
-        s.set_current(None)  # the next stroke starts a new light (which joins), not a stroke into this one
+        # The next stroke starts a new light (which joins) of the clicked light's class (the pane or lamp
+        # missing is mostly of its neighbour's class), not a stroke into the clicked light.
+        s.set_current_class(class_of(iid))
+        s.set_current(None)
         s.message.emit(f"active group {light_class(class_of(gid)).name} {gid}: new lights join it "
                        "(double-click the background or Esc ends)")
         return True
