@@ -236,20 +236,30 @@ def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray
     at least half the window thresholds (log luminance or Lab chroma). The wall reference is a
     smoothed estimate; at the edge between two wall colours (a gable of other brick, a plinth) it
     calls a strip of plain wall different, but the ring around that strip is the same wall."""
+    d = _ring_contrast(feat, B, y, x, sub, p.window_ring_px, p)
+    return d is None or bool(max(d) > 0.5)
+
+
+def _ring_contrast(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, r: int,
+                   p) -> tuple[float, float] | None:
+    """How much a blob (``sub`` at (y, x)) differs from the building pixels (``B``) in a ring ``r`` px
+    wide around it: the medians' log-luminance difference over the window threshold
+    (-ln ``window_dark_ratio``) and their Lab chroma distance over ``window_chroma_delta`` (1: as
+    different as a window pixel must be from the wall reference); None when the ring holds fewer
+    than 3 building pixels."""
     H, W = B.shape
-    r = p.window_ring_px
     h, w = sub.shape
     ya, yb, xa, xb = max(0, y - r), min(H, y + h + r), max(0, x - r), min(W, x + w + r)
     blob = np.zeros((yb - ya, xb - xa), np.uint8)
     blob[y - ya:y - ya + h, x - xa:x - xa + w] = sub
     ring = (cv2.dilate(blob, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) & (blob == 0) & B[ya:yb, xa:xb]
-    if ring.sum() < 3:
-        return True
+    if ring.sum() < 3 or not blob.any():
+        return None
     f = feat[ya:yb, xa:xb]
     inner, outer = np.median(f[blob > 0], axis=0), np.median(f[ring], axis=0)
     t = -np.log(p.window_dark_ratio)
-    return bool(abs(float(inner[0] - outer[0])) > 0.5 * t
-                or float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) > 0.5 * p.window_chroma_delta)
+    return (abs(float(inner[0] - outer[0])) / t,
+            float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) / p.window_chroma_delta)
 
 
 def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tuple[int, int, np.ndarray]]:
@@ -795,7 +805,8 @@ def propose(ctx: Context) -> list[Group]:
     (``window_shadow_*``; blobs of at least ``window_shadow_min_m2`` on the wall) and dropped. Then the grid per wall (:func:`regularise`). Floors:
     blobs of one wall whose centre heights (with
     depth; else image rows) lie within ``window_floor_tol_m`` (else half a window). Confidence
-    0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows.
+    0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows, then rescored
+    from the contrast to the wall around it and its height (:func:`_window_confidence`).
     """
     p = ctx.params
     B = ctx.labels == BUILDING
@@ -949,10 +960,52 @@ def propose(ctx: Context) -> list[Group]:
             li.confidence = float(np.clip(li.confidence + (0.2 if regular else 0.0), 0, 1))
             if li.mask.sum() < p.window_tiny_px:  # a few pixels say little: below the editor's sliders
                 li.confidence = min(li.confidence, p.window_tiny_max_confidence)
+            li.confidence = _window_confidence(p, li.confidence, _confidence_features(ctx, feat, B, li, len(g)))
             members.append(li)
         members.sort(key=lambda li: (li.x0, li.y0))
         out.append(Group(WINDOWS_GROUP, members, float(np.mean([li.confidence for li in members]))))
     return out
+
+
+def _confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light, n_group: int) -> dict:
+    """What a window's final confidence is judged on (:func:`_window_confidence`): the contrast to
+    the building pixels in a ring around it (:func:`_ring_contrast`, 0 without a ring), its area and
+    box (px), height (m; NaN without depth), the size of its windows_group; kind, cut and position
+    are there to be logged beside it (docs/proposals.md "Seventh pass" was fitted on them)."""
+    d = _ring_contrast(feat, B, li.y0, li.x0, li.mask, max(2, ctx.params.window_ring_px), ctx.params)
+    z = _median_depth(ctx, li)
+    h, w = li.mask.shape
+    return {"ring_lum": d[0] if d else 0.0, "ring_chroma": d[1] if d else 0.0, "area_px": float(li.mask.sum()),
+            "h_px": float(h), "w_px": float(w),
+            "h_m": h * z / float(ctx.intrinsics.fy) if z is not None else float("nan"),
+            "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
+            "y0": li.y0, "x0": li.x0}
+
+
+def _window_confidence(p, conf: float, x: dict) -> float:
+    """A window's final confidence from its first one ``conf`` and its features ``x``
+    (:func:`_confidence_features`; docs/proposals.md "Seventh pass").
+
+    The first confidence (fill, contrast to the wall reference, a floor of three) hardly told a
+    true window from a false one (most false windows cover no true light at all: flecks of wall,
+    balcony slabs, edges between wall colours). What does is how much the window differs from the
+    wall right around it and how tall it is: a logistic score
+    ``window_conf_bias + w . (conf, ring log-luminance contrast, ring chroma contrast, height m)``
+    (``window_conf_weights``; contrasts over the window thresholds, clipped at 3; height clipped at
+    2.5 m, 1 m without depth) mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5
+    confident are rescored, into [0.5, 1): the set kept at 0.5 does not change, only its order.
+    A window of fewer than ``window_tiny_px`` pixels stays at most ``window_tiny_max_confidence``.
+    """
+    wts = p.window_conf_weights
+    if conf < 0.5 or not any(wts):
+        return conf
+    h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
+    v = (conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5))
+    z = p.window_conf_bias + float(np.dot(wts, v))
+    out = 0.5 + 0.5 / (1.0 + np.exp(-z))
+    if x["area_px"] < p.window_tiny_px:
+        out = min(out, p.window_tiny_max_confidence)
+    return float(out)
 
 
 def _runs_cut(score: np.ndarray, thr: float) -> np.ndarray:
