@@ -989,10 +989,11 @@ def _window_confidence(p, conf: float, x: dict) -> float:
     The first confidence (fill, contrast to the wall reference, a floor of three) hardly told a
     true window from a false one (most false windows cover no true light at all: flecks of wall,
     balcony slabs, edges between wall colours). What does is how much the window differs from the
-    wall right around it and how tall it is: a logistic score
-    ``window_conf_bias + w . (conf, ring log-luminance contrast, ring chroma contrast, height m)``
-    (``window_conf_weights``; contrasts over the window thresholds, clipped at 3; height clipped at
-    2.5 m, 1 m without depth) mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5
+    wall right around it, how tall it is, and how many pixels it has (a small one is rarely traced
+    within the editor's touch-up IoU, 0.7): a logistic score ``window_conf_bias + w . (conf, ring
+    log-luminance contrast, ring chroma contrast, height m, ln pixels)`` (``window_conf_weights``;
+    contrasts over the window thresholds, clipped at 3; height clipped at 2.5 m, 1 m without depth)
+    mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5
     confident are rescored, into [0.5, 1): the set kept at 0.5 does not change, only its order.
     A window of fewer than ``window_tiny_px`` pixels stays at most ``window_tiny_max_confidence``.
     """
@@ -1000,7 +1001,7 @@ def _window_confidence(p, conf: float, x: dict) -> float:
     if conf < 0.5 or not any(wts):
         return conf
     h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
-    v = (conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5))
+    v = (conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5), np.log(max(x["area_px"], 1.0)))
     z = p.window_conf_bias + float(np.dot(wts, v))
     out = 0.5 + 0.5 / (1.0 + np.exp(-z))
     if x["area_px"] < p.window_tiny_px:
