@@ -486,7 +486,7 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     (local mask). The car in front hides all of the end face but a strip at its inner end, whose
     inner lamp shows as a sliver right beside the occluder's edge; the face laid out in metres is a
     few pixels off on predicted depth, so the lamp is looked for at the cut itself
-    (docs/proposals.md, "Sixth pass").
+    (docs/proposals.md, "Sixth pass: vehicle lamps beside the cut").
 
     The cut: over the rows at lamp heights (``SLIVER_H_M`` above the ground at depth ``z``), at least
     half of the pixels just beyond the silhouette's outer end are off the frame or something other
