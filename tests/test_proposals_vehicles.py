@@ -69,10 +69,12 @@ def _lamps(props, threshold=0.5):
 
 
 def test_a_car_hidden_behind_the_car_in_front_gets_the_visible_sliver_of_its_rear_lamp():
-    """In a row parked left of the road the car in front (9 m, 1 m nearer, further left) hides all of a car's end face at 10 m but its
-    inner 8 px: the right lamp shows as a 4 px sliver beside the occluder's edge (27 % of it), its side
-    recedes to the right, and predicted depth has bled the nearer car into the strip. That sliver is proposed (IoU >= 0.5), as a rear lamp. The old code found no
-    inner edge of the face (the strip is under a tenth of the face) and proposed no lamp on the car."""
+    """In a row parked left of the road the car in front (9 m, 1 m nearer, further left) hides all of
+    a car's end face at 10 m but its inner 8 px: the right lamp shows as a 4 px sliver beside the
+    occluder's edge (27 % of it), its side recedes to the right, and predicted depth has bled the
+    nearer car into the strip. That sliver is proposed (IoU >= 0.5), as a rear lamp. The old code
+    found no inner edge of the face (the strip is under a tenth of the face) and proposed no lamp on
+    the car."""
     img, lab, depth, inst, intr = _frame(cx=160.0)            # a row parked left of the road
     side = (slice(_row(0.9), _row(0.3)), slice(145, 175))
     lab[side], img[side], inst[side] = CAR, (28, 42, 100), CAR * 1000 + 1

@@ -476,7 +476,8 @@ def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.nda
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     d = c - np.asarray(paint, np.float32)
     dn = np.sqrt((d * d).sum(-1))
-    red = ((r > 1.5 * np.maximum(g, b)) & (r > 50)) | ((dn > 10.0) & (d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn))
+    leans_red = d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn
+    red = ((r > 1.5 * np.maximum(g, b)) & (r > 50)) | ((dn > 10.0) & leans_red)
     return red | (d.mean(-1) > 20.0)
 
 
