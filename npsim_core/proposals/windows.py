@@ -964,7 +964,8 @@ def propose(ctx: Context) -> list[Group]:
             members.append(li)
         members.sort(key=lambda li: (li.x0, li.y0))
         out.append(Group(WINDOWS_GROUP, members, float(np.mean([li.confidence for li in members]))))
-    return out
+    from .window_groups import regroup_windows  # per floor of each building, not of each wall piece
+    return regroup_windows(ctx, out, feat)
 
 
 def _confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light, n_group: int) -> dict:

@@ -1,0 +1,296 @@
+"""Window groups an annotator keeps: one windows_group per floor of each building (docs/proposals.md,
+"Window groups").
+
+The windows proposer (:mod:`.windows`) groups per floor of each *wall piece*: a façade is cut where its
+plane steps or its colour changes, and a tree, a pole or a car in front cuts it into pieces. An
+annotator (and the synthetic street's truth) groups per floor of each *building*. This joins the
+proposer's groups of one floor across such cuts when they lie on one wall plane, in one wall colour,
+and what lies between them is that wall (or something in front of it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core import Context, Group, Light
+
+BUILDING = 11
+
+
+def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[str, np.ndarray]:
+    """Per window: box (rows, columns), centre, median depth (m, NaN without), floor level (m above the
+    ground with depth, else centre row) and the wall colour around it (median of ``feat`` over the
+    building pixels of the box grown by half its height, other windows left out)."""
+    H, W = ctx.shape
+    n = len(lights)
+    occ = np.zeros((H, W), bool)
+    for li in lights:
+        h, w = li.mask.shape
+        occ[li.y0:li.y0 + h, li.x0:li.x0 + w] |= li.mask
+    wall = (ctx.labels == BUILDING) & ~occ
+    t = {k: np.zeros(n) for k in ("y0", "y1", "x0", "x1", "cu", "cv", "z", "level")}
+    t["wall"] = np.full((n, 3), np.nan)
+    for i, li in enumerate(lights):
+        h, w = li.mask.shape
+        ys, xs = np.nonzero(li.mask)
+        t["y0"][i], t["y1"][i], t["x0"][i], t["x1"][i] = li.y0, li.y0 + h, li.x0, li.x0 + w
+        t["cu"][i], t["cv"][i] = li.x0 + xs.mean(), li.y0 + ys.mean()
+        z = np.nan
+        if ctx.depth is not None:
+            d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
+            d = d[np.isfinite(d)]
+            z = float(np.median(d)) if d.size else np.nan
+        t["z"][i] = z
+        t["level"][i] = float(ctx.height_above_ground(t["cv"][i], z)) if np.isfinite(z) else t["cv"][i]
+        r = max(2, h // 2)
+        ya, yb, xa, xb = max(li.y0 - r, 0), min(li.y0 + h + r, H), max(li.x0 - r, 0), min(li.x0 + w + r, W)
+        sel = wall[ya:yb, xa:xb]
+        if sel.any():
+            t["wall"][i] = np.median(feat[ya:yb, xa:xb][sel], axis=0)
+    return t
+
+
+def _median_colour(c: np.ndarray) -> np.ndarray:
+    """Median wall colour of windows (rows of ``c``; NaN rows: no wall seen around that window)."""
+    ok = np.all(np.isfinite(c), axis=1)
+    return np.median(c[ok], axis=0) if ok.any() else np.full(3, np.nan)
+
+
+def _same_colour(a: np.ndarray, b: np.ndarray, lum: float, chroma: float) -> bool:
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return False
+    return abs(float(a[0] - b[0])) <= lum and float(np.hypot(a[1] - b[1], a[2] - b[2])) <= chroma
+
+
+def _on_one_plane(t: dict, idx: np.ndarray, tol: float) -> bool:
+    """Whether the windows ``idx`` lie on one plane: inverse depth is affine in the image coordinates
+    on a plane, so fit 1/z = a + b u + c v and allow ``tol`` of the depth off it."""
+    z = t["z"][idx]
+    if not np.all(np.isfinite(z)) or idx.size < 4:
+        ok = np.isfinite(z)
+        if ok.sum() < 2:
+            return True
+        # too few for a plane: a line along the row (a wall is vertical, the row nearly level)
+        A = np.stack([np.ones(ok.sum()), t["cu"][idx][ok]], 1)
+    else:
+        A = np.stack([np.ones(idx.size), t["cu"][idx], t["cv"][idx]], 1)
+        ok = np.ones(idx.size, bool)
+    iz = 1.0 / z[ok]
+    if A.shape[0] <= A.shape[1]:
+        return True
+    coef, *_ = np.linalg.lstsq(A, iz, rcond=None)
+    return bool(np.max(np.abs(A @ coef - iz) * z[ok]) <= tol)
+
+
+def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour: np.ndarray,
+                 lum: float, chroma: float, tol: float) -> tuple[bool, float]:
+    """Whether the wall between window ``i`` (left) and ``j`` (right) along their floor is one wall:
+    its building pixels (others are something in front) mostly of ``colour`` and, with depth, on the
+    line of inverse depth between the two windows; and the share of that band the building shows
+    (1: nothing in front)."""
+    H, W = ctx.shape
+    xa, xb = int(t["x1"][i]), int(t["x0"][j])
+    if xb <= xa:
+        return True, 1.0
+    cols = np.arange(xa, xb)
+    f = (cols - (t["x1"][i] - 1)) / max(t["x0"][j] - t["x1"][i] + 1, 1.0)
+    # the floor's band grown by half a pane up and down: the wall between floors, not only between panes
+    top = t["y0"][i] + f * (t["y0"][j] - t["y0"][i])
+    bot = t["y1"][i] + f * (t["y1"][j] - t["y1"][i])
+    grow = 0.5 * (bot - top)
+    top, bot = np.round(top - grow).astype(int), np.round(bot + grow).astype(int)
+    ya, yb = max(int(top.min()), 0), min(int(bot.max()), H)
+    if yb <= ya:
+        return True, 1.0
+    rows = np.arange(ya, yb)[:, None]
+    band = (rows >= top[None]) & (rows < bot[None])
+    bld = band & (ctx.labels[ya:yb, xa:xb] == BUILDING)
+    shown = float(bld.sum()) / max(float(band.sum()), 1.0)
+    if bld.sum() < 2:
+        return True, shown  # all hidden: a tree, a pole or a car in front
+    fv = feat[ya:yb, xa:xb][bld]
+    off = (np.abs(fv[:, 0] - colour[0]) > lum) | (np.hypot(fv[:, 1] - colour[1], fv[:, 2] - colour[2]) > chroma)
+    if off.mean() > 0.5:  # panes nobody proposed lie between, too
+        return False, shown
+    if ctx.depth is not None and np.isfinite(t["z"][i]) and np.isfinite(t["z"][j]):
+        iz = 1.0 / t["z"][i] + (1.0 / t["z"][j] - 1.0 / t["z"][i]) * f
+        d = ctx.depth[ya:yb, xa:xb]
+        want = np.broadcast_to(1.0 / iz[None], d.shape)[bld]
+        got = d[bld]
+        good = np.isfinite(got)
+        if good.sum() >= 2 and (np.abs(got[good] - want[good]) > tol * want[good]).mean() > 0.3:
+            return False, shown
+    return True, shown
+
+
+def _along(t: dict, fx: float, cx: float) -> np.ndarray:
+    """(n, 2) top-view positions of the windows' centres (sideways, forward in metres; with no depth the
+    centre column and 0)."""
+    z = t["z"]
+    has = np.isfinite(z)
+    x = np.where(has, (t["cu"] - cx) * np.where(has, z, 0.0) / fx, t["cu"])
+    return np.stack([x, np.where(has, z, 0.0)], 1)
+
+
+def _spacing(pos: np.ndarray, idx: np.ndarray, cu: np.ndarray) -> float:
+    """Median distance between neighbouring windows (along the row) of ``idx``; NaN for one window."""
+    if idx.size < 2:
+        return float("nan")
+    o = idx[np.argsort(cu[idx])]
+    return float(np.median(np.hypot(*np.diff(pos[o], axis=0).T)))
+
+
+def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, idx: np.ndarray,
+                     lum: float, chroma: float, tol: float) -> list[np.ndarray]:
+    """Cut one group's windows (sorted along the row) between two buildings: where the wall colour
+    around neighbouring windows changes (``lum`` / ``chroma``), or where the step to the next window
+    is over ``SPLIT_STEPS`` x the group's median step over wall that shows (nothing in front; the
+    blank wall between two blocks of one plane and colour, which an occluder's gap does not show;
+    panes under ``SPLIT_MIN_PX`` wide are too quantised to tell)."""
+    if idx.size < 2:
+        return [idx]
+    o = idx[np.argsort(t["cu"][idx])]
+    c = t["wall"][o]
+    dl = np.abs(np.diff(c[:, 0]))
+    dc = np.hypot(*np.diff(c[:, 1:], axis=0).T)
+    cut = (dl > lum) | (dc > chroma)  # NaN (no wall seen) compares False: no cut
+    if idx.size >= 4 and np.median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX:
+        step = np.hypot(*np.diff(pos[o], axis=0).T)
+        for k in np.nonzero(step > SPLIT_STEPS * float(np.median(step)))[0]:
+            _, shown = _gap_is_wall(ctx, feat, t, int(o[k]), int(o[k + 1]), c[k], lum, chroma, tol)
+            cut[k] |= shown >= VISIBLE_SHARE
+    ends = np.nonzero(cut)[0] + 1
+    return np.split(o, ends)
+
+
+#: A step along a floor over this many of its median steps, over visible wall, is a building's end.
+BLANK_STEPS = 1.6
+SPLIT_STEPS = 1.6
+#: Median pane width (px) at least, for a cut at a blank step.
+SPLIT_MIN_PX = 3
+#: The share of a gap's band the building shows for the gap to count as visible wall.
+VISIBLE_SHARE = 0.6
+#: Steps at most this many median steps are joined across something in front.
+HIDDEN_STEPS = 4.0
+
+
+def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None = None) -> list[Group]:
+    """Regroup the proposed windows into one windows_group per floor of each building.
+
+    Parameters
+    ----------
+    ctx : Context
+        The proposers' inputs (image, labels, depth in metres or None, camera).
+    groups : list of Group
+        The windows proposer's groups (one per floor of each wall piece); their lights, masks and
+        confidences are kept as they are.
+    feat : (H, W, 3) float, optional
+        Log linear luminance and centred Lab a, b (``windows._features``); computed when None.
+
+    Returns
+    -------
+    list of Group
+        First each group is cut where its windows' step along the row exceeds ``BLANK_STEPS`` x its
+        median step over wall nothing hides (:func:`_split_at_blanks`). Then two groups are joined,
+        nearest first, when their floor levels are within ``window_floor_tol_m`` (m above the
+        ground; without depth half a pane's height in rows), the wall around them is of one colour
+        (``window_block_lum`` / ``window_block_chroma``), their windows lie on one plane (inverse
+        depth affine in the image, within 5 % of the depth), the building pixels between the nearest
+        two along the floor are that wall (:func:`_gap_is_wall`) and that step is at most
+        ``BLANK_STEPS`` (visible wall) or ``HIDDEN_STEPS`` (something in front) x the median step
+        (of the groups, else 2.5 pane widths). Group confidence: the mean of its members'.
+    """
+    if not groups:
+        return groups
+    p = ctx.params
+    if feat is None:
+        from .windows import _features
+        feat = _features(ctx)
+    lights = [li for g in groups for li in g.members]
+    t = _window_table(ctx, lights, feat)
+    pos = _along(t, float(ctx.intrinsics.fx), float(ctx.intrinsics.cx))
+    lum, chroma = p.window_block_lum, p.window_block_chroma
+    tol = 0.05
+    has_depth = ctx.depth is not None
+    gof0 = np.repeat(np.arange(len(groups)), [len(g.members) for g in groups])
+    parts: list[np.ndarray] = []
+    cls: list[int] = []
+    for g in range(len(groups)):
+        for part in _split_at_blanks(ctx, feat, t, pos, np.nonzero(gof0 == g)[0], lum, chroma, tol):
+            parts.append(part)
+            cls.append(groups[g].class_id)
+    n = len(parts)
+    gof = np.empty(len(lights), int)
+    for k, part in enumerate(parts):
+        gof[part] = k
+    level = np.array([np.median(t["level"][q]) for q in parts])
+    pane_h = np.array([np.median(t["y1"][q] - t["y0"][q]) for q in parts])
+    width_m = np.where(np.isfinite(t["z"]), (t["x1"] - t["x0"]) * t["z"] / float(ctx.intrinsics.fx),
+                       t["x1"] - t["x0"])
+    parent = np.arange(n)
+    # per cluster root: its windows, floor level, wall colour and column range (updated on a join)
+    idx_of = {k: parts[k] for k in range(n)}
+    lev_of = {k: float(np.median(t["level"][parts[k]])) for k in range(n)}
+    col_of = {k: _median_colour(t["wall"][parts[k]]) for k in range(n)}
+    span_of = {k: (t["x0"][parts[k]].min(), t["x1"][parts[k]].max()) for k in range(n)}
+    step_of = {k: _spacing(pos, parts[k], t["cu"]) for k in range(n)}
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return int(a)
+
+    floor_tol = p.window_floor_tol_m if has_depth else None
+    la, lb = np.meshgrid(level, level, indexing="ij")
+    tol_ab = floor_tol if floor_tol is not None else 0.5 * np.minimum.outer(pane_h, pane_h)
+    x0 = np.array([span_of[k][0] for k in range(n)])
+    x1 = np.array([span_of[k][1] for k in range(n)])
+    gap = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
+    cand = np.triu((np.abs(la - lb) <= tol_ab) & (gap >= 0), 1)
+    for a, b in sorted(zip(*np.nonzero(cand)), key=lambda ab: gap[ab]):
+        ra, rb = root(int(a)), root(int(b))
+        if ra == rb:
+            continue
+        ia, ib = idx_of[ra], idx_of[rb]
+        (xa0, xa1), (xb0, xb1) = span_of[ra], span_of[rb]
+        if min(xa1, xb1) - max(xa0, xb0) > 0:
+            continue  # overlapping along the floor: two walls one behind the other, or two floors
+        if abs(lev_of[ra] - lev_of[rb]) > (floor_tol if floor_tol is not None else
+                                          0.5 * float(np.median(t["y1"][ia] - t["y0"][ia]))):
+            continue
+        ca, cb = col_of[ra], col_of[rb]
+        if not _same_colour(ca, cb, lum, chroma):
+            continue
+        both = np.concatenate([ia, ib])
+        if has_depth and not _on_one_plane(t, both, tol):
+            continue
+        left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
+        i = int(left[np.argmax(t["x1"][left])])
+        j = int(right[np.argmin(t["x0"][right])])
+        wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
+        if not wall:
+            continue
+        steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
+        step = max(steps) if steps else 2.5 * float(np.median(width_m[both]))
+        d = float(np.hypot(*(pos[i] - pos[j])))
+        if d > (BLANK_STEPS if shown >= VISIBLE_SHARE else HIDDEN_STEPS) * step:
+            continue
+        parent[rb] = ra
+        idx_of[ra] = both
+        lev_of[ra] = float(np.median(t["level"][both]))
+        col_of[ra] = _median_colour(t["wall"][both])
+        span_of[ra] = (min(xa0, xb0), max(xa1, xb1))
+        step_of[ra] = max(steps) if steps else float("nan")  # the step across the join is a gap, not a bay
+    clusters: dict[int, list[int]] = {}
+    for k in range(n):
+        clusters.setdefault(root(k), []).append(k)
+    res = []
+    for ks in clusters.values():
+        idx = np.concatenate([parts[k] for k in ks])
+        if len(ks) == 1 and idx.size == len(groups[int(gof0[idx[0]])].members):
+            res.append(groups[int(gof0[idx[0]])])  # unchanged
+            continue
+        ms = sorted((lights[k] for k in idx), key=lambda li: (li.x0, li.y0))
+        res.append(Group(cls[ks[0]], ms, float(np.mean([li.confidence for li in ms]))))
+    return res

@@ -1,0 +1,110 @@
+"""Window groups an annotator keeps: one windows_group per floor of each building (issue #26 item 4;
+docs/proposals.md "Window groups").
+
+Painted facades facing the camera at a known depth (pinhole 150 px focal length at 256x128, camera
+1.22 m high, level): the wall, dark panes at metric positions, sky above, road below, and a tree in
+front where a test needs one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from npsim_core.camera import Intrinsics
+from npsim_core.proposals import ProposalParams, propose_lights
+
+W, H = 256, 128
+K = Intrinsics(150.0, 150.0, 127.5, 63.5, W, H)
+PARAMS = ProposalParams(categories=("windows",), camera_pitch_rad=0.0)
+GLASS, LEAVES = (38, 48, 60), (52, 96, 40)
+Z = 25.0
+FLOORS = ((3.6, 5.2), (6.6, 8.2))  # pane bottom and top (m above the ground)
+
+
+def _u(x_m: float) -> int:
+    return int(round(K.cx + K.fx * x_m / Z))
+
+
+def _v(h_m: float) -> int:
+    return int(round(K.cy - K.fy * (h_m - PARAMS.camera_height_m) / Z))
+
+
+def _street():
+    img = np.zeros((H, W, 3), np.uint8)
+    img[:] = (150, 180, 215)
+    labels = np.full((H, W), 23, np.uint8)
+    depth = np.full((H, W), np.nan, np.float32)
+    g = _v(0.0)
+    labels[g:], img[g:] = 7, (90, 90, 95)
+    return img, labels, depth
+
+
+def _building(img, labels, depth, x0_m, x1_m, colour, bays):
+    """A wall from x0_m to x1_m (m sideways) up to 10 m at depth Z, with 1.2 m panes on both floors at
+    the sideways positions ``bays`` (m, left edges); returns the panes' true masks."""
+    img[_v(10.0):_v(0.0), _u(x0_m):_u(x1_m)] = colour
+    labels[_v(10.0):_v(0.0), _u(x0_m):_u(x1_m)] = 11
+    depth[_v(10.0):_v(0.0), _u(x0_m):_u(x1_m)] = Z
+    panes = []
+    for lo, hi in FLOORS:
+        for x in bays:
+            m = np.zeros((H, W), bool)
+            m[_v(hi):_v(lo), _u(x):_u(x + 1.2)] = True
+            img[m] = GLASS
+            panes.append((lo, m))
+    return panes
+
+
+def _groups_per_floor(img, labels, depth, panes):
+    """Per floor: the set of proposed windows_groups holding the windows that match its panes."""
+    rng = np.random.default_rng(0)
+    img = np.clip(img.astype(int) + rng.integers(-4, 5, (H, W, 1)), 0, 255).astype(np.uint8)
+    props = propose_lights(img, labels, depth, K, None, PARAMS)
+    ann = props.annotation
+    group_of = {m: gid for gid, g in ann.groups.items() if g.class_id == 13 for m in g.members}
+    out: dict[float, set[int]] = {}
+    for lo, m in panes:
+        ids, n = np.unique(ann.instance_map[m], return_counts=True)
+        best = int(ids[np.argmax(n)])
+        assert best // 1000 == 1 and n.max() >= 0.5 * m.sum(), "the pane is proposed (else the test says nothing)"
+        out.setdefault(lo, set()).add(group_of[best])
+    return out, ann
+
+
+def test_one_group_per_floor_across_a_tree_in_front():
+    img, labels, depth = _street()
+    bays = [-11.0, -8.6, -6.2, -3.8, 2.6, 5.0, 7.4, 9.8]
+    panes = _building(img, labels, depth, -12.0, 11.5, (172, 152, 128), bays)
+    # a tree 10 m away, taller than the wall, hides it between x = -2 m and 1.5 m (and no pane)
+    tree = np.zeros((H, W), bool)
+    tree[_v(11.0):_v(0.0), _u(-2.0):_u(1.5)] = True
+    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    per_floor, ann = _groups_per_floor(img, labels, depth, panes)
+    assert all(len(g) == 1 for g in per_floor.values()), per_floor  # old code: two groups per floor
+    assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]  # floors stay apart
+
+
+def test_adjacent_buildings_of_different_colour_keep_their_own_groups():
+    img, labels, depth = _street()
+    # one plane, the bays' rhythm runs on across the join: only the colour tells them apart
+    left = _building(img, labels, depth, -12.0, -1.6, (172, 152, 128), [-11.0, -8.6, -6.2, -3.8])
+    right = _building(img, labels, depth, -1.6, 11.5, (150, 150, 150), [-1.2, 1.2, 3.6, 6.0, 8.4])
+    per_left, _ = _groups_per_floor(img, labels, depth, left)
+    per_right, _ = _groups_per_floor(img, labels, depth, right)
+    for lo, _hi in FLOORS:
+        assert len(per_left[lo]) == 1 and len(per_right[lo]) == 1
+        assert per_left[lo] != per_right[lo]
+
+
+def test_blank_wall_between_two_buildings_of_one_colour_splits_the_floor():
+    # Two blocks in one colour on one plane: the bays' rhythm breaks over wall nothing hides.
+    img, labels, depth = _street()
+    panes = _building(img, labels, depth, -12.0, 11.5, (172, 152, 128),
+                      [-11.0, -8.6, -6.2, -3.8, 3.8, 6.2, 8.6])
+    left = [(lo, m) for lo, m in panes if m[:, :_u(0.0)].any()]
+    right = [(lo, m) for lo, m in panes if m[:, _u(0.0):].any()]
+    per_left, _ = _groups_per_floor(img, labels, depth, left)
+    per_right, _ = _groups_per_floor(img, labels, depth, right)
+    for lo, _hi in FLOORS:  # old code: one group per floor over both blocks
+        assert len(per_left[lo]) == 1 and len(per_right[lo]) == 1
+        assert per_left[lo] != per_right[lo]
