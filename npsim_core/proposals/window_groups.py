@@ -10,6 +10,7 @@ and what lies between them is that wall (or something in front of it).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .core import Context, Group, Light
@@ -106,6 +107,9 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
     band = (rows >= top[None]) & (rows < bot[None])
     bld = band & (ctx.labels[ya:yb, xa:xb] == BUILDING)
     shown = float(bld.sum()) / max(float(band.sum()), 1.0)
+    if shown < VISIBLE_SHARE:
+        # beside something in front the wall's edge pixels mix with it (colour, depth bleed)
+        bld = cv2.erode(bld.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     if bld.sum() < 2:
         return True, shown  # all hidden: a tree, a pole or a car in front
     fv = feat[ya:yb, xa:xb][bld]
