@@ -194,8 +194,9 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     Returns
     -------
     list of Group
-        First each group is cut where its windows' step along the row exceeds ``BLANK_STEPS`` x its
-        median step over wall nothing hides (:func:`_split_at_blanks`). Then two groups are joined,
+        First each group is cut between two buildings: where the wall colour around neighbouring
+        windows changes, or where the step along the row exceeds ``SPLIT_STEPS`` x its median step
+        over wall nothing hides (:func:`_split_at_blanks`). Then two groups are joined,
         nearest first, when their floor levels are within ``window_floor_tol_m`` (m above the
         ground; without depth half a pane's height in rows), the wall around them is of one colour
         (``window_block_lum`` / ``window_block_chroma``), their windows lie on one plane (inverse
@@ -224,9 +225,6 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
             parts.append(part)
             cls.append(groups[g].class_id)
     n = len(parts)
-    gof = np.empty(len(lights), int)
-    for k, part in enumerate(parts):
-        gof[part] = k
     level = np.array([np.median(t["level"][q]) for q in parts])
     pane_h = np.array([np.median(t["y1"][q] - t["y0"][q]) for q in parts])
     width_m = np.where(np.isfinite(t["z"]), (t["x1"] - t["x0"]) * t["z"] / float(ctx.intrinsics.fx),
