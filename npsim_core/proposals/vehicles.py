@@ -26,6 +26,10 @@ SLIVER_MAX_GAP = 1
 SLIVER_DIFF = 40.0
 #: Labels that never hide a vehicle's end face: ground, buildings, vegetation, sky (void included).
 BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 23)
+#: End faces whose whole lamp (0.15 m) is under this many pixels tall get their lamp boxes by pixel centres
+#: from the face's edges, under a body top from the silhouette's full-width rows when that is at most
+#: ``SMALL_TOP_MOVE`` rows from the face's (docs/proposals.md, "Seventh pass: far vehicle lamps").
+SMALL_LAMP_PX, SMALL_TOP_MOVE = 3.0, 2
 
 
 def _vehicles(ctx: Context):
@@ -351,6 +355,32 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     return r0, r1, c0, c1, z, placed
 
 
+def _centres_in(lo: float, hi: float) -> tuple[int, int]:
+    """First and last integer whose pixel centre lies in [lo, hi] (the nearest one when none does)."""
+    a, b = int(np.ceil(lo)), int(np.floor(hi))
+    if b < a:
+        a = b = int(round((lo + hi) / 2.0))
+    return a, b
+
+
+def _unblur(blob: np.ndarray, lamp_h: float, lamp_w: float) -> np.ndarray:
+    """A small lamp's pixels from the blob of colour it leaves in the photo: the blob less a pixel at
+    each end of every direction in which it is at least 3 px and more than 1.4 px thicker than the lamp
+    (``lamp_h`` x ``lamp_w`` px): a lamp's colour bleeds a pixel around it (antialiasing, and the day
+    render's edge blur), and its label holds the pixels whose centres it covers."""
+    import cv2
+
+    ys, xs = np.nonzero(blob)
+    if ys.size == 0:
+        return blob
+    out = blob.astype(np.uint8)
+    if ys.max() - ys.min() + 1 >= max(3.0, lamp_h + 1.4):
+        out = cv2.erode(out, np.ones((3, 1), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    if xs.max() - xs.min() + 1 >= max(3.0, lamp_w + 1.4):
+        out = cv2.erode(out, np.ones((1, 3), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return out.astype(bool) if out.any() else blob
+
+
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
     """The connected part of ``mask`` nearest to (row r, column c) (a lamp, not the shading beside it)."""
     import cv2
@@ -385,7 +415,20 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     r0, r1, c0, c1 = face
     fh, fw = r1 - r0 + 1, c1 - c0 + 1
     cc0, cc1 = max(c0, 0), min(c1, w - 1)
-    if z is not None:
+    small = z is not None and 0.15 * float(ctx.intrinsics.fy) / z < SMALL_LAMP_PX
+    if small:
+        # A lamp of a few pixels: the pixels whose centres lie in its metric box, as the photo's labels
+        # are (docs/proposals.md, "Seventh pass: far vehicle lamps"), under the body's top edge: the
+        # silhouette's first full-width row (a narrow face's r0 is the typical body height, a row or two
+        # off at 50-60 m) when near r0.
+        ppm = float(ctx.intrinsics.fy) / z
+        fill = m[:, cc0:cc1 + 1].sum(1)
+        body = _run(fill >= 0.95 * max(1, fill.max()))
+        top = (body[0] if body is not None and abs(body[0] - r0) <= SMALL_TOP_MOVE else r0) - 0.5
+        lr0, lr1 = _centres_in(top + p.vehicle_lamp_rows_m[0] * ppm, top + p.vehicle_lamp_rows_m[1] * ppm)
+        a, b = _centres_in(-0.5 + p.vehicle_lamp_cols_m[0] * ppm, -0.5 + p.vehicle_lamp_cols_m[1] * ppm)
+        plate = p.vehicle_plate_half_m * ppm
+    elif z is not None:
         ppm = float(ctx.intrinsics.fy) / z
         lr0 = r0 + int(np.floor(p.vehicle_lamp_rows_m[0] * ppm))
         lr1 = max(lr0, r0 + int(np.ceil(p.vehicle_lamp_rows_m[1] * ppm)) - 1)
@@ -420,6 +463,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             full = max(1, (min(br1, h - 1) - max(br0, 0) + 1) * (min(bc1, w - 1) - max(bc0, 0) + 1))
             n = int(cand.sum())
             if n >= max(1, full // 3) and n <= 3 * full:
+                if small:
+                    cand = _unblur(cand, 0.15 * ppm, 0.30 * ppm)
                 ys, xs = np.nonzero(cand)
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
                 snapped, blob = True, cand
