@@ -442,3 +442,41 @@ def test_contrasting_panes_reach_the_default_slider_and_a_faint_fleck_does_not()
     assert set(conf) == {0, 1, "fleck"}, conf
     assert conf[0] >= 0.9 and conf[1] >= 0.9, conf
     assert 0.5 <= conf["fleck"] < 0.9, conf
+
+
+
+def _ledge_scene(z: float, color, y0_m: float, y1_m: float, out_m: float):
+    """A wall facing the camera with one floor of five panes, and a ledge (a balcony slab's shaded
+    face, an awning's valance) of ``color`` from 3.5 m left to right, ``y0_m``..``y1_m`` high,
+    ``out_m`` out of the wall (its depth nearer by that much). Returns the scene, the true panes and
+    the ledge's pixel mask."""
+    img, labels, depth, noise = _canvas()
+    _wall(img, labels, depth, -8.0, 8.0, 7.5, z)
+    gt = {}
+    for b in range(5):
+        _pane(img, gt, b, -6.6 + 3.0 * b, -5.4 + 3.0 * b, 4.9, 6.4, z)
+    uu, vv = np.arange(W)[None, :], np.arange(H)[:, None]
+    ledge = (uu >= _u(-3.5, z)) & (uu < _u(3.5, z)) & (vv >= _v(y1_m, z)) & (vv < _v(y0_m, z))
+    img[ledge] = color
+    depth[ledge] = z - out_m
+    road = vv[:, 0] > _v(0.0, z)  # the road's depth: the wall's at its foot, nearer below
+    depth[road] = K.fy * PARAMS.camera_height_m / (vv[road] + 0.5 - K.cy)
+    return (img, labels, depth, noise), gt, ledge
+
+
+def test_balcony_slab_before_the_wall_is_not_a_window():
+    """A balcony slab's shaded face under a floor of panes is dark like glass and a pane's height,
+    but 1 m nearer than the wall above and below it: not a window; the panes still are."""
+    scene, gt, slab = _ledge_scene(16.0, (58, 58, 60), 4.0, 4.6, 1.0)
+    wins, _ = _windows(_run(*scene))
+    assert not any((w & slab).sum() >= 0.3 * w.sum() for w in wins.values())
+    assert sum(1 for g in gt.values() if any(_iou(g, w) >= 0.5 for w in wins.values())) == 5
+
+
+def test_awning_valance_over_a_shop_is_not_a_window():
+    """An awning's valance of a strong colour juts 1.3 m out over the ground floor: nearer than the
+    wall above it and the ground floor below it, so not a window of the facade."""
+    scene, gt, awning = _ledge_scene(16.0, (120, 30, 34), 2.6, 3.2, 1.3)
+    wins, _ = _windows(_run(*scene))
+    assert not any((w & awning).sum() >= 0.3 * w.sum() for w in wins.values())
+    assert sum(1 for g in gt.values() if any(_iou(g, w) >= 0.5 for w in wins.values())) == 5

@@ -166,6 +166,14 @@ class ProposalParams:
     #: A blob is cut where a run of its columns (rows) holds under this share of its height (width)
     #: with fuller ones on both sides: panes joined by a frame or a sill line (0: never).
     window_gap_occupancy: float = 0.25
+    #: Blob pixels nearer than the wall in their image column (read 2 px above and below the blob) by
+    #: this (m; 0: no test) and this share of the depth jut out of it: awnings, balcony slabs, their
+    #: undersides -- not glass (windows._ledge_split). A blob mostly nearer and lower than
+    #: ``window_ledge_keep_m`` is dropped (a dormer's pane stands before its roof, but is taller).
+    window_ledge_step_m: float = 0.3
+    window_ledge_rel: float = 0.05
+    window_ledge_min_share: float = 0.2
+    window_ledge_keep_m: float = 0.8
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).

@@ -289,6 +289,67 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     return [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
 
 
+def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int, x: int, m: np.ndarray,
+                 p) -> list[tuple[int, int, np.ndarray]]:
+    """A candidate blob (``m`` at (y, x)) without what juts out of the wall: awnings, balcony slabs
+    and their shaded undersides are building-labelled and dark like glass, but nearer than the wall
+    (a pane is flush with it or recessed). On a vertical wall the depth along an image column is
+    constant, so the wall's depth in a column is read 2 px above the blob's top and below its bottom
+    there, linearly between the two down the column (columns with anything but building or ground on
+    either side are not judged). Blob pixels nearer
+    than that by ``window_ledge_step_m`` (and ``window_ledge_rel`` x depth) are a ledge: dropped, and
+    the rest's 4-connected components returned (local (y, x, mask)); a blob mostly ledge and lower
+    than ``window_ledge_keep_m`` is dropped whole (a dormer's pane stands in front of its roof, but
+    is a pane's height). The blob unchanged when nothing is nearer or no depth is given."""
+    if depth is None or p.window_ledge_step_m <= 0:
+        return [(0, 0, m)]
+    H, W = labels.shape
+    h, w = m.shape
+    has = m.any(0)
+    if not has.any():
+        return [(0, 0, m)]
+    cols = x + np.arange(w)
+    top = y + np.argmax(m, axis=0) - 2
+    bot = y + h - 1 - np.argmax(m[::-1], axis=0) + 2
+    sides = []
+    for rows in (top, bot):
+        ok = has & (rows >= 0) & (rows < H)
+        v = np.full(w, np.nan)
+        v[ok] = np.where(np.isin(labels[rows[ok], cols[ok]], (BUILDING,) + GROUND), depth[rows[ok], cols[ok]], np.nan)
+        sides.append(v)
+    # Judged only in columns with wall (or the ground at its foot) on both sides: beside a car, a
+    # pole or the frame the edge pixels mix the depths of both and look nearer.
+    seen = np.isfinite(sides[0]) & np.isfinite(sides[1])
+    if not seen.any():
+        return [(0, 0, m)]
+    # the wall between the two readings, row by row: a pitched camera's column is not vertical, and a
+    # steeply receding wall's depth then changes down the column
+    frac = (np.arange(h)[:, None] + y - top[None, :]) / np.maximum(bot - top, 1)[None, :]
+    ref = np.where(seen[None, :], sides[0][None, :] + frac * (sides[1] - sides[0])[None, :], -np.inf)
+    d = depth[y:y + h, x:x + w]
+    with np.errstate(invalid="ignore"):  # -inf in columns not judged: never near
+        gap = np.maximum(p.window_ledge_step_m, p.window_ledge_rel * ref)
+        near = m & np.isfinite(d) & (d < ref - gap)
+    n = int(near.sum())
+    if n < p.window_ledge_min_share * m.sum():  # a few pixels nearer are depth noise, not a ledge
+        return [(0, 0, m)]
+    if n >= 0.5 * m.sum():
+        rows = np.flatnonzero(near.any(1))
+        if (rows[-1] - rows[0] + 1) * float(np.median(d[near])) / fy >= p.window_ledge_keep_m:
+            return [(0, 0, m)]  # a pane's height standing before the wall: a dormer, not a ledge
+    rest = m & ~near
+    return [(py, px, pm) for py, px, pm, _ in components(rest, p.window_min_area_px, connectivity=4)]
+
+
+def _juts_out(ctx: Context, li: Light) -> bool:
+    """Whether most of a proposed window is a ledge (:func:`_ledge_split`): an awning's valance or a
+    balcony slab the facade lattice took for a cell."""
+    if ctx.depth is None or ctx.params.window_ledge_step_m <= 0:
+        return False
+    rest = _ledge_split(ctx.depth, ctx.labels, float(ctx.intrinsics.fy), li.y0, li.x0, li.mask, ctx.params)
+    return sum(int(pm.sum()) for _, _, pm in rest) < 0.5 * li.mask.sum()
+
+
 def _cut_off(labels: np.ndarray, y: int, x: int, sub: np.ndarray) -> bool:
     """Whether a blob (``sub`` at (y, x)) is cut off at its top or bottom: over at least half its
     columns the pixel just above its top or just below its bottom is the image border or something
@@ -902,7 +963,8 @@ def propose(ctx: Context) -> list[Group]:
         return None
 
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
-    stack = [(y0, x0, m, 0) for y0, x0, m, _ in components(cand, p.window_min_area_px, connectivity=4)]
+    stack = [(y0 + ly, x0 + lx, lm, 0) for y0, x0, m, _ in components(cand, p.window_min_area_px, connectivity=4)
+             for ly, lx, lm in _ledge_split(ctx.depth, ctx.labels, fy, y0, x0, m, p)]
     rejects = []  # blobs too large or too ragged for one window: the facade grid may cut them (regularise)
     while stack:
         y0, x0, m, depth_ = stack.pop()
@@ -942,6 +1004,8 @@ def propose(ctx: Context) -> list[Group]:
                     gy0, gx0 = ys.min(), xs.min()
                     stack.append((y0 + gy0, x0 + gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1], depth_ + 1))
     found = regularise(ctx, found, ratio, chroma, B, bld, rejects)
+    # The grid and the lattice propose cells of their own: the same tests on every final window.
+    found = [f for f in found if not _juts_out(ctx, f[3])]
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
