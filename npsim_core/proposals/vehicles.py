@@ -408,7 +408,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     distances from the axis, two that disagree stay as found (their pixels), and a lamp that does
     not stand out mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
     silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
-    are never returned.
+    are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
+    snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`).
     """
     p = ctx.params
     h, w = m.shape
