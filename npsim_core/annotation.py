@@ -655,26 +655,52 @@ def discover_items(path: str | Path) -> list[AnnotationItem]:
     ``path`` may be a scene folder (``scene.json`` or one ``*_rgb.png``), a
     folder of scene folders, a folder of images with optional label pairs
     (``X.png`` + ``X_labelIds.png``, ``X_rgb.png`` + ``X_labelIds.png``,
-    Cityscapes ``X_leftImg8bit.png`` + ``X_gtFine_labelIds.png``), or one image file.
-    Annotation files are written next to each image.
+    Cityscapes ``X_leftImg8bit.png`` + ``X_gtFine_labelIds.png``), a Cityscapes or ACDC dataset
+    tree (its root, a folder inside it or one of its images: labels from ``gtFine/`` / ``gt/``),
+    or one image file. Annotation files are written next to each image.
     """
     path = Path(path)
     if path.is_file():
         items = _image_items(path.parent, [path])
         if not items:
             raise NpsimInputError(f"{path}: not an image NPSim can annotate (png/jpg/bmp/tif)")
+        if items[0].labels_path is None:  # a dataset image: its labels live in the layout's gt tree
+            items = _dataset_items(path) or items
         return items
     if not path.is_dir():
         raise NpsimInputError(f"{path}: no such file or folder")
     one = _scene_folder_item(path)
     if one is not None:
         return [one]
+    dataset = _dataset_items(path)
+    if dataset:
+        return dataset
     items = [it for sub in sorted(p for p in path.iterdir() if p.is_dir())
              if (it := _scene_folder_item(sub)) is not None]
     items += _image_items(path, sorted(path.iterdir()))
     if not items:
         raise NpsimInputError(f"{path}: found no scene folders or images to annotate")
     return items
+
+
+def _dataset_items(path: Path) -> list[AnnotationItem]:
+    """Labelled frames of a Cityscapes (``leftImg8bit/`` + ``gtFine/``) or ACDC (``rgb_anon/`` +
+    ``gt/``) tree: ``path`` is its root, a folder inside its image tree, or one of its images.
+    Annotation files go beside each image, where ``npsim run``/``batch`` look for them. Empty for
+    other layouts."""
+    from .datasets import detect_layout, iter_dataset
+
+    folder = path.parent if path.is_file() else path
+    if detect_layout(folder) == "folder":
+        return []
+    want = path.resolve() if path.is_file() else None
+    out = []
+    for src in iter_dataset(folder):
+        if want is not None and src.image_path.resolve() != want:
+            continue
+        base = annotation_stem(src.image_path)
+        out.append(AnnotationItem(base, src.image_path, src.label_path, src.image_path.parent, base))
+    return out
 
 
 def annotation_stem(image_path: str | Path) -> str:

@@ -272,6 +272,28 @@ def test_discover_items(tmp_path):
         discover_items(tmp_path / "missing")
 
 
+def test_discover_items_in_dataset_trees(tmp_path):
+    """A Cityscapes or ACDC image keeps its labels in the layout's gt tree: the editor opened on the
+    root, a city folder or the image itself finds them (it used to find no labels, or nothing)."""
+    img, lab = np.zeros((4, 6, 3), np.uint8), np.full((4, 6), 7, np.uint8)
+    cs = tmp_path / "cs"
+    write_image(cs / "leftImg8bit/val/town/t_000001_000019_leftImg8bit.png", img)
+    write_image(cs / "gtFine/val/town/t_000001_000019_gtFine_labelIds.png", lab)
+    write_image(cs / "leftImg8bit/val/town/t_000002_000019_leftImg8bit.png", img)  # no labels: left out
+    image = cs / "leftImg8bit/val/town/t_000001_000019_leftImg8bit.png"
+    for where in (cs, cs / "leftImg8bit/val/town", image):
+        items = discover_items(where)
+        assert [(i.stem, i.labels_path) for i in items] == [
+            ("t_000001_000019", cs / "gtFine/val/town/t_000001_000019_gtFine_labelIds.png")]
+        assert items[0].folder == image.parent  # beside the image, where npsim run looks for it
+        assert (items[0].load_labels() == 7).all()
+    acdc = tmp_path / "acdc"
+    write_image(acdc / "rgb_anon/night/val/GOPR1/GOPR1_frame_000001_rgb_anon.png", img)
+    write_image(acdc / "gt/night/val/GOPR1/GOPR1_frame_000001_gt_labelIds.png", lab)
+    items = discover_items(acdc)
+    assert len(items) == 1 and items[0].labels_path.name == "GOPR1_frame_000001_gt_labelIds.png"
+
+
 # --------------------------------------------------------------------------- superpixels
 def blocks_image(h=64, w=96):
     img = np.zeros((h, w, 3), np.uint8)
