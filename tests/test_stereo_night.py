@@ -267,3 +267,33 @@ def test_a_delit_car_rear_is_not_lit_as_its_side_though_the_fitted_normals_blur_
     # Old code: the rear's columns near the corner were divided by part of the sun (0.6x darker).
     assert rear.min() / rear.max() > 0.85
     assert sidev / np.median(rear) == pytest.approx(1.0, abs=0.15)
+
+
+
+def test_a_sidewalk_beside_a_pole_is_fitted_over_the_poles_fattened_stereo():
+    """A small sidewalk patch (smaller than the plane window, so its fit hands over to the patch's
+    plane) with a pole standing on it whose disparity SGM spread 5 px onto the sidewalk beside it
+    (2048x1024 fixture, seed 1: ~20 px beside a pole and a parked car's wheels): the dropped pixels
+    take the sidewalk's plane (old: they kept the pole's stereo, 10-25 % in front of the sidewalk,
+    and cast shadow bands across it in the night; sidewalk structure 1.28x the exact night's)."""
+    from npsim_core.camera import Intrinsics
+
+    W, H = 512, 256
+    intr = Intrinsics.cityscapes(W, H)
+    labels = np.zeros((H, W), np.uint8)                       # unlabelled: not fitted
+    v = np.arange(H, dtype=np.float64)[:, None].repeat(W, 1)
+    ground = intr.fy * 1.05 / np.maximum(v - intr.cy, 1.0)     # a sidewalk 1.05 m below the camera
+    depth = np.full((H, W), 30.0)
+    side = (slice(150, 160), slice(200, 260))                  # 18-27 m
+    labels[side] = 8
+    depth[side] = ground[side]
+    labels[110:157, 230:233] = 17                              # a pole standing on it
+    depth[110:157, 230:233] = ground[157, 231]
+    fat = (slice(150, 157), slice(233, 238))
+    depth[fat] = ground[157, 231]                              # its disparity spread onto the sidewalk
+    valid = labels > 0
+    filled = depth.astype(np.float32)                          # the hole filling: the stereo
+    z, _, _ = fit_surfaces(depth, valid, filled, labels, intr)
+    assert np.abs(z[fat] / ground[fat] - 1).max() < 0.05
+    z_old, _, _ = fit_surfaces(depth, valid, filled, labels, intr, params=SurfaceParams(fit_over_dropped=False))
+    assert np.abs(z_old[fat] / ground[fat] - 1).max() > 0.15

@@ -50,9 +50,10 @@ so :func:`fit_surfaces` replaces the stereo there by a robust fit:
 Where a façade or ground segment has too little stereo support in the window, the local fit
 hands over (blended in the coefficients) to the segment's robust plane, so the surface goes on
 over the left border SGM cannot match and over occlusion holes; in other segments the caller's
-hole filling (the scaled pop-up prior) is kept there. The fits run on a grid about σ/6
-coarser than the image (at most 512 px wide; the coefficients are smooth) and are evaluated at
-full resolution.
+hole filling (the scaled pop-up prior) is kept there. On the ground the plane also goes on over
+the pixels whose stereo was dropped (``fit_over_dropped``): that stereo was a pole's or a car's.
+The fits run on a grid about σ/6 coarser than the image (at most 512 px wide; the coefficients are
+smooth) and are evaluated at full resolution.
 """
 
 from __future__ import annotations
@@ -70,6 +71,8 @@ __all__ = ["SurfaceParams", "fit_surfaces", "PLANE_CLASSES", "VEHICLE_CLASSES", 
 
 #: Façades, walls, fences, ground: planes or smooth height fields.
 PLANE_CLASSES = (6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 22, 4, 5)
+#: The ground among them (ground, road, sidewalk, parking, rail track): one surface per segment.
+GROUND_CLASSES = (6, 7, 8, 9, 10)
 #: Vehicles: smooth per instance.
 VEHICLE_CLASSES = (26, 27, 28, 29, 30, 31)
 #: Thin objects: one depth per component.
@@ -96,7 +99,9 @@ class SurfaceParams:
     min_support : below this window weight the hole filling is kept (classes other than planes).
     handover : on façades and the ground, below this window weight the local fit hands over to the
         segment's robust plane (blended), which extends them over stereo holes where the hole
-        filling's depth agrees within ``handover_agreement`` (relative).
+        filling's depth agrees within ``handover_agreement`` (relative), or, on the ground
+        (``fit_over_dropped``), where the pixel had stereo that was dropped (speckle, fattened edges):
+        the filling there is that stereo.
     fattening_px, fattening_margin : stereo within ``fattening_px`` along its row of a segment nearer
         by more than ``fattening_margin`` (relative, by a first fit) is dropped and the segment
         refitted (edge fattening toward the background; 0 = off).
@@ -133,6 +138,7 @@ class SurfaceParams:
     min_support: float = 0.02
     handover: float = 0.1
     handover_agreement: float = 0.15
+    fit_over_dropped: bool = True
     kerb_max_m: float = 0.3
     fattening_px: float = 24.0
     vehicle_upright: bool = True
@@ -720,11 +726,18 @@ def fit_surfaces(depth: np.ndarray, valid: np.ndarray, filled: np.ndarray, label
                     alpha = np.clip(support / p.handover, 0.0, 1.0)
                     full = alpha[..., None] * full + (1 - alpha[..., None]) * glob[None, None, :]
                     # ... but only where the hole filling agrees that it is the same surface (a far
-                    # façade beyond the stereo's range joined to a near one is not).
+                    # façade beyond the stereo's range joined to a near one is not). On the ground,
+                    # where the pixel had stereo, the filling is that stereo, dropped as speckle or a
+                    # fattened edge (a pole's or a car's disparity spread onto the sidewalk beside it):
+                    # the fit goes on there. Left as it was, those pixels stood 10-50 % in front of
+                    # the sidewalk and the night drew dark bands across it (docs/geometry.md,
+                    # "Sidewalks beside poles and cars"); on façades the same rule made them worse.
                     qb = full[..., 0] + full[..., 1] * U + full[..., 2] * V
                     fz = filled[ya:yb, xa:xb]
                     with np.errstate(invalid="ignore", divide="ignore"):
                         agree = ~np.isfinite(fz) | (np.abs(1.0 / qb - fz) <= p.handover_agreement * fz)
+                    if p.fit_over_dropped and lab in GROUND_CLASSES:
+                        agree |= valid[ya:yb, xa:xb]
                     support = np.where(ms & (alpha < 1) & agree, 1.0, np.where(alpha < 1, 0.0, support))
             qh = full[..., 0] + full[..., 1] * U + full[..., 2] * V
             ok = ms & (support >= p.min_support) & (qh > 1e-4)
