@@ -220,7 +220,7 @@ class ProposalParams:
     #: A window larger than ``window_max_median_ratio`` x its wall's median is cut where its departure
     #: from the wall over a column (row) dips below this fraction of the peaks either side (0: never).
     window_oversized_gap_contrast: float = 0.6
-    #: A window's final confidence (windows._window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
+    #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
     #: (first confidence, log-luminance and chroma contrast to the wall in a ring around it over the
     #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels)), for windows at
     #: least 0.5 confident (the set kept at 0.5 is unchanged). A logistic fit on the synthetic

@@ -867,7 +867,7 @@ def propose(ctx: Context) -> list[Group]:
     blobs of one wall whose centre heights (with
     depth; else image rows) lie within ``window_floor_tol_m`` (else half a window). Confidence
     0.35 + 0.25 x fill + up to 0.2 for contrast + 0.2 when its floor has >= 3 windows, then rescored
-    from the contrast to the wall around it and its height (:func:`_window_confidence`).
+    from the contrast to the wall around it and its height (:func:`window_confidence.window_confidence`).
     """
     p = ctx.params
     B = ctx.labels == BUILDING
@@ -1024,54 +1024,12 @@ def propose(ctx: Context) -> list[Group]:
             li.confidence = float(np.clip(li.confidence + (0.2 if regular else 0.0), 0, 1))
             if li.mask.sum() < p.window_tiny_px:  # a few pixels say little: below the editor's sliders
                 li.confidence = min(li.confidence, p.window_tiny_max_confidence)
-            li.confidence = _window_confidence(p, li.confidence, _confidence_features(ctx, feat, B, li, len(g)))
             members.append(li)
         members.sort(key=lambda li: (li.x0, li.y0))
         out.append(Group(WINDOWS_GROUP, members, float(np.mean([li.confidence for li in members]))))
+    from .window_confidence import rescore_windows
     from .window_groups import regroup_windows  # per floor of each building, not of each wall piece
-    return regroup_windows(ctx, out, feat)
-
-
-def _confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light, n_group: int) -> dict:
-    """What a window's final confidence is judged on (:func:`_window_confidence`): the contrast to
-    the building pixels in a ring around it (:func:`_ring_contrast`, 0 without a ring), its area and
-    box (px), height (m; NaN without depth), the size of its windows_group; kind, cut and position
-    are there to be logged beside it (docs/proposals.md "Seventh pass" was fitted on them)."""
-    d = _ring_contrast(feat, B, li.y0, li.x0, li.mask, max(2, ctx.params.window_ring_px), ctx.params)
-    z = _median_depth(ctx, li)
-    h, w = li.mask.shape
-    return {"ring_lum": d[0] if d else 0.0, "ring_chroma": d[1] if d else 0.0, "area_px": float(li.mask.sum()),
-            "h_px": float(h), "w_px": float(w),
-            "h_m": h * z / float(ctx.intrinsics.fy) if z is not None else float("nan"),
-            "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
-            "y0": li.y0, "x0": li.x0}
-
-
-def _window_confidence(p, conf: float, x: dict) -> float:
-    """A window's final confidence from its first one ``conf`` and its features ``x``
-    (:func:`_confidence_features`; docs/proposals.md "Seventh pass").
-
-    The first confidence (fill, contrast to the wall reference, a floor of three) hardly told a
-    true window from a false one (most false windows cover no true light at all: flecks of wall,
-    balcony slabs, edges between wall colours). What does is how much the window differs from the
-    wall right around it, how tall it is, and how many pixels it has (a small one is rarely traced
-    within the editor's touch-up IoU, 0.7): a logistic score ``window_conf_bias + w . (conf, ring
-    log-luminance contrast, ring chroma contrast, height m, ln pixels)`` (``window_conf_weights``;
-    contrasts over the window thresholds, clipped at 3; height clipped at 2.5 m, 1 m without depth)
-    mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5
-    confident are rescored, into [0.5, 1): the set kept at 0.5 does not change, only its order.
-    A window of fewer than ``window_tiny_px`` pixels stays at most ``window_tiny_max_confidence``.
-    """
-    wts = p.window_conf_weights
-    if conf < 0.5 or not any(wts):
-        return conf
-    h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
-    v = (conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5), np.log(max(x["area_px"], 1.0)))
-    z = p.window_conf_bias + float(np.dot(wts, v))
-    out = 0.5 + 0.5 / (1.0 + np.exp(-z))
-    if x["area_px"] < p.window_tiny_px:
-        out = min(out, p.window_tiny_max_confidence)
-    return float(out)
+    return rescore_windows(ctx, regroup_windows(ctx, out, feat), feat, B)
 
 
 def _runs_cut(score: np.ndarray, thr: float) -> np.ndarray:
