@@ -3,7 +3,7 @@
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
-                                                      [--compare]
+                                                      [--no-stroke-select] [--compare]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -21,7 +21,11 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   clear it), so they need no click. The lights the group already has (accepted proposals) are
   selected by Shift+clicks -- one per light, or one on a proposed group holding only members --
   or by Shift+drags of the Select tool's rubber band (it selects every light it touches), one per
-  run of them whose box touches no other light, whichever is fewer; then Ctrl+G
+  run of them whose box touches no other light, or by Ctrl+drags (*stroke select*, any tool: it adds
+  every light the mouse path passes over, ``npsim_gui.editor.tools.lights_on_path``), one per run of
+  them, in reading order, where the straight path from one light's point nearest its centroid to the
+  next one's passes over no other light (``--no-stroke-select``: the model before, without it),
+  whichever is fewest; then Ctrl+G
   (1; with one group selected the others join it), plus 1 group-class key when the group's class
   is neither the default the editor preselects for its lights nor that of the one group joined;
 * class keys: 1 whenever the light class drawn changes, drawing group by group (a car's panes and
@@ -35,7 +39,8 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   touch up a light whose mask IoU with its ground truth is below 0.7: 1 (one stroke);
   ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
-  the slider's default (0.90); "Propose lights" itself: 1.
+  the slider's default (``npsim_gui.editor.proposals.DEFAULT_ACCEPT_THRESHOLD``, 0.90); "Propose lights"
+  itself: 1.
 * **active group** (the default since issue #26's seventh pass): a ground-truth group of n lights of
   which k (1 <= k < n) are there, all in *one* proposed group that holds nothing else and has the
   right class, is completed with 1 (double-click one of its lights -- Select tool, or Ctrl+double-click
@@ -47,7 +52,8 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   where the next thing drawn must not join. Their class-key runs come first in the class-key
   sequence (the double-click also picks the clicked light's class, which often saves that key: not
   credited here, conservatively). ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
-  ``--compare`` replays each frame both ways on the same proposals and prints both summaries.
+  ``--compare`` replays each frame both ways on the same proposals and prints both summaries
+  (``--compare stroke-select``: with and without stroke select instead).
 
 ``--oracle`` adds a column that accepts exactly the proposals matching a ground-truth light at
 IoU >= 0.5 (with their proposed groups restricted to them): the ceiling of these proposals. With
@@ -125,6 +131,38 @@ def _band_cost(instance_map: np.ndarray, lights: set[int], members: set[int]) ->
     return runs + (len(lights) - len(boxes))
 
 
+def stroke_paths(instance_map: np.ndarray, lights: set[int], members: set[int]) -> list[list[tuple[float, float]]]:
+    """The Ctrl+drags (stroke select: every light the mouse path passes over,
+    :func:`npsim_gui.editor.tools.lights_on_path`) that add ``lights`` to the selection, as mouse paths in
+    image coordinates: the lights in reading order (by column), each stood for by the centre of its pixel
+    nearest its centroid, cut into runs where the straight path from one to the next passes over a light
+    outside ``members``; one path per run (a run of one is a Ctrl+click). A straight path is what an
+    annotator draws at least as well (a freehand one may also go around a light in the way)."""
+    from npsim_gui.editor.tools import lights_on_path
+
+    pts = {}
+    for i in lights:
+        ys, xs = np.nonzero(instance_map == i)
+        if ys.size:
+            k = int(np.argmin((ys - ys.mean()) ** 2 + (xs - xs.mean()) ** 2))
+            pts[i] = (float(xs[k]) + 0.5, float(ys[k]) + 0.5)
+    allowed = set(members)
+    paths: list[list[tuple[float, float]]] = []
+    for i in sorted(pts, key=lambda i: (pts[i][0], pts[i][1])):
+        if paths and lights_on_path(instance_map, [paths[-1][-1], pts[i]]) <= allowed:
+            paths[-1].append(pts[i])
+        else:
+            paths.append([pts[i]])
+    return paths
+
+
+def _stroke_cost(instance_map: np.ndarray, lights: set[int], members: set[int]) -> int:
+    """Actions to add ``lights`` to the selection with Ctrl+drags: one per :func:`stroke_paths` path
+    (lights without pixels: a click each, as in :func:`_band_cost`)."""
+    paths = stroke_paths(instance_map, lights, members)
+    return len(paths) + (len(lights) - sum(len(p) for p in paths))
+
+
 def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, int]:
     """Ground-truth groups the editor's active group completes: ground-truth group id -> the one group of
     ``session`` that holds exactly the group's lights it has (k of n, 1 <= k < n), with the right class,
@@ -146,12 +184,13 @@ def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, 
 
 
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
-                   per_member_grouping: bool = False, active_group: bool = True) -> None:
+                   per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
     action model (module doc); ``active_group``: complete a proposed group that misses lights by
-    double-clicking it and drawing them (False: select it, Ctrl+G, the model before)."""
+    double-clicking it and drawing them (False: select it, Ctrl+G, the model before); ``stroke_select``:
+    lights to group may be selected by Ctrl+drags over them (False: clicks and rubber bands only)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -243,6 +282,8 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             there = set(members - drawn)  # drawn members are selected already (select_created)
             clicks = (1 if part else 0) + len(there - part)
             select = min(clicks, _band_cost(session.ann.instance_map, there, set(members))) if there else 0
+            if stroke_select and select > 1:
+                select = min(select, _stroke_cost(session.ann.instance_map, there, set(members)))
             key = (best[1] != cls) if part and clicks <= select else (default_cls != cls)
             count("group", select + 1 + int(key), cls)
         do(group_lights(session.ann, members, cls))
@@ -250,6 +291,14 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
         if wanted.get(frozenset(grp.members)) != grp.class_id:
             do(ungroup(session.ann, gid))
             count("ungroup", 2, grp.class_id)
+
+
+def accept_actions(threshold: float) -> int:
+    """Actions of accepting proposals above ``threshold``: Propose lights, Accept ≥, and one more to move the
+    confidence slider when ``threshold`` is not its default (the editor's ``DEFAULT_ACCEPT_THRESHOLD``)."""
+    from npsim_gui.editor.proposals import DEFAULT_ACCEPT_THRESHOLD
+
+    return 2 + int(abs(threshold - DEFAULT_ACCEPT_THRESHOLD) > 1e-9)
 
 
 #: The threshold value that stands for the oracle: accept exactly the proposals that match the ground truth.
@@ -288,14 +337,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="512x256")
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--variants", default="default,hard")
-    ap.add_argument("--thresholds", default="0.5,0.7,0.9")
+    ap.add_argument("--thresholds", default=None,
+                    help="accept-above thresholds (default 0.5,0.7 and the slider's default)")
     ap.add_argument("--oracle", action="store_true",
                     help="also accept exactly the proposals that match a ground-truth light at IoU >= 0.5 "
                          "(an oracle confidence: the ceiling of these proposals)")
     ap.add_argument("--per-member-grouping", action="store_true", help="the older action model (module doc)")
-    ap.add_argument("--compare", action="store_true",
-                    help="also replay every frame without the active group (same proposals: a same-tree "
-                         "before/after) and print its summary")
+    ap.add_argument("--no-stroke-select", action="store_true",
+                    help="select the lights to group by clicks and rubber bands only, not by Ctrl+drags over "
+                         "them (the model before; module doc)")
+    ap.add_argument("--compare", nargs="?", const="active-group", choices=("active-group", "stroke-select"),
+                    help="also replay every frame without the active group (or, --compare stroke-select, "
+                         "without stroke select) on the same proposals (a same-tree before/after) and print its "
+                         "summary")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
                          "double-clicking it active (the model before; module doc)")
@@ -306,15 +360,20 @@ def main(argv: list[str] | None = None) -> int:
     from npsim_cli.options import parse_size
     from npsim_core.proposals import propose_for_scene
     from npsim_core.synthetic import street_scene
-    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.proposals import DEFAULT_ACCEPT_THRESHOLD, ProposalBook
     from npsim_gui.editor.session import EditorSession
 
     _app = QCoreApplication.instance() or QCoreApplication(sys.argv[:1])  # noqa: F841 (Qt objects need it)
     w, h = parse_size(args.size)
+    if args.thresholds is None:
+        args.thresholds = f"0.5,0.7,{DEFAULT_ACCEPT_THRESHOLD:g}"
     thresholds = [float(t) for t in args.thresholds.split(",") if t] + ([ORACLE] if args.oracle else [])
     kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")
-    rows, rows_before = [], []  # rows_before: --compare, the same frames and proposals without the active group
-    models = [True, False] if args.compare else [not args.no_active_group]
+    # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
+    rows, rows_before = [], []
+    now = (not args.no_active_group, not args.no_stroke_select)  # (active group, stroke select)
+    models = ([now, (False, now[1])] if args.compare == "active-group" else
+              [now, (now[0], False)] if args.compare == "stroke-select" else [now])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -323,7 +382,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for active in models:
+                for model_k, (active, stroke) in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -331,17 +390,19 @@ def main(argv: list[str] | None = None) -> int:
                     if t is not None:
                         book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
                         book.accept_above(s, 0.5 if t == ORACLE else t)
-                        counts["accept"] = 2 + (abs(t - 0.9) > 1e-9)  # propose, accept above (+ move the slider)
+                        counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
-                                   active_group=active)
+                                   active_group=active, stroke_select=stroke)
                     check_equal(gt, s.ann)
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
-                    (rows if active == models[0] else rows_before).append(row)
+                    (rows if model_k == 0 else rows_before).append(row)
     load = os.getloadavg()[0]
     model = ("per-member grouping (older model)" if args.per_member_grouping else
              "group by group, partial groups by select + Ctrl+G (--no-active-group)" if args.no_active_group else
              "group by group, partial groups completed through the active group (module doc)")
+    if not args.per_member_grouping:
+        model += ", no stroke select" if args.no_stroke_select else ", stroke select (Ctrl+drag)"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -357,8 +418,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {variant} | {tot[None]:.1f} | " + " | ".join(
             f"{tot[t]:.1f} ({100 * (1 - tot[t] / tot[None]):.0f} % fewer)" for t in thresholds) + " |")
     if rows_before:
-        print("\nThe same frames and proposals with --no-active-group (partial groups: select + Ctrl+G), "
-              "mean actions:\n")
+        what = ("--no-active-group (partial groups: select + Ctrl+G)" if args.compare == "active-group" else
+                "--no-stroke-select (lights to group selected by clicks and rubber bands only)")
+        print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
               + " |")
         print("|---|---|" + "---|" * len(thresholds))

@@ -878,3 +878,98 @@ def test_ctrl_double_click_activates_with_a_drawing_tool(qtbot, tmp_path):
     key(qtbot, win, Qt.Key.Key_Escape)
     assert s.active_group is None
     close_window(win)
+
+
+SLANT_XS = [20 + 36 * k for k in range(6)]  # windows 10 x 12 px; floor k steps 8 px down per window
+
+
+def slanted_folder(tmp_path):
+    """A facade seen at an angle: two floors of six windows each, sloping down to the right (the second
+    floor 14 px under the first), every window its own light, none grouped -- as accepted proposals split
+    over several proposed groups leave them."""
+    img, lab, _ = facade(grouped=False)
+    img[20:90] = (170, 150, 130)
+    ann = LightAnnotation.empty(H, W)
+    for k, x in enumerate(SLANT_XS):
+        for row, y0 in enumerate((20 + 8 * k, 34 + 8 * k)):
+            img[y0:y0 + 12, x:x + 10] = (40, 60, 90)
+            ann.instance_map[y0:y0 + 12, x:x + 10] = 1001 + 6 * row + k
+    write_image(tmp_path / "slant.png", img)
+    write_image(tmp_path / "slant_labelIds.png", lab)
+    A.save_annotation(ann, tmp_path, "slant", image=img)
+    return tmp_path
+
+
+def test_ctrl_drag_selects_the_lights_a_stroke_passes_over(qtbot, tmp_path):
+    """Stroke select (docs/annotation.md "Selecting and grouping"): a Ctrl+drag along a slanted floor adds
+    exactly its windows -- a rubber band over them would take the floor below too -- with any tool; a
+    Ctrl+click still toggles one light; Ctrl+G then groups the floor (one undo step)."""
+    win = open_window(qtbot, slanted_folder(tmp_path))
+    s, c = win.editor.session, win.editor.canvas
+    floor1, floor2 = set(range(1001, 1007)), set(range(1007, 1013))
+    centres = [(x + 5, 26 + 8 * k) for k, x in enumerate(SLANT_XS)]  # floor 1's window centres
+    # (a band from the first window to the last would touch the second floor)
+    x0, y0, x1, y1 = SLANT_XS[0], 20, SLANT_XS[-1] + 9, 20 + 8 * 5 + 11
+    assert set(np.unique(s.ann.instance_map[y0:y1 + 1, x0:x1 + 1])) & floor2
+    assert win.editor.controller.tool == Tool.SUPERPIXEL  # a drawing tool: Ctrl+drag draws nothing
+    before = s.ann.instance_map.copy()
+    vps = [vp(c, x, y) for x, y in (centres[0], centres[-1])]
+    qtbot.mousePress(c.viewport(), LEFT, CTRL, vps[0])
+    qtbot.mouseMove(c.viewport(), (vps[0] + vps[1]) / 2)
+    assert c.path_item.isVisible()  # the stroke's path is drawn while dragging
+    qtbot.mouseMove(c.viewport(), vps[1])
+    qtbot.mouseRelease(c.viewport(), LEFT, CTRL, vps[1])
+    assert s.selection == floor1
+    np.testing.assert_array_equal(s.ann.instance_map, before)
+    assert "6 lights under the stroke" in win.editor.status.text()
+    click(qtbot, c, SLANT_XS[2] + 4, 26 + 16, mods=CTRL)  # a Ctrl+click still toggles one light
+    assert s.selection == floor1 - {1003}
+    click(qtbot, c, SLANT_XS[2] + 4, 26 + 16, mods=CTRL)
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert list(s.ann.groups.values()) == [GroupInstance(13001, tuple(sorted(floor1)))]
+    # the Select tool: Ctrl+drag is a stroke too (Shift+drag stays the band), adding to the selection
+    key(qtbot, win, Qt.Key.Key_V)
+    click(qtbot, c, SLANT_XS[0] + 4, 40)
+    assert s.selection == {1007}
+    drag(qtbot, c, [(SLANT_XS[1] + 5, 40 + 8), (SLANT_XS[3] + 5, 40 + 24), (SLANT_XS[5] + 5, 40 + 40)], mods=CTRL)
+    assert s.selection == floor2
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)  # undo takes the first group away; the selection is not an edit
+    assert s.ann.groups == {}
+    close_window(win)
+
+
+def test_action_benchmark_strokes_are_the_editors(qtbot, tmp_path):
+    """``benchmarks.annotation_actions`` charges a slanted floor of accepted windows one Ctrl+drag (where a
+    rubber band needs one per window) and that drag, driven through the editor, selects exactly the floor;
+    both floors grouped cost 2 + 2 group actions with stroke select, 7 + 7 without."""
+    from benchmarks.annotation_actions import _band_cost, check_equal, finish_by_hand, stroke_paths
+    from npsim_gui.editor.session import EditorSession
+
+    folder = slanted_folder(tmp_path)
+    floor1, floor2 = set(range(1001, 1007)), set(range(1007, 1013))
+    win = open_window(qtbot, folder)
+    s, c = win.editor.session, win.editor.canvas
+    imap = s.ann.instance_map
+    paths = stroke_paths(imap, floor1, floor1)
+    assert len(paths) == 1 and _band_cost(imap, floor1, floor1) == 6
+    vps = [c.view_point(x, y) for x, y in paths[0]]
+    qtbot.mousePress(c.viewport(), LEFT, CTRL, vps[0])
+    for p in vps[1:]:
+        qtbot.mouseMove(c.viewport(), p)
+    qtbot.mouseRelease(c.viewport(), LEFT, CTRL, vps[-1])
+    assert s.selection == floor1
+    close_window(win)
+
+    gt = load_annotation(folder, "slant")
+    gt.groups.update({13001: GroupInstance(13001, tuple(sorted(floor1))),
+                      13002: GroupInstance(13002, tuple(sorted(floor2)))})
+    groups = {}
+    for stroke in (True, False):
+        sess = EditorSession()
+        sess.load(np.zeros(gt.shape + (3,), np.uint8), None, load_annotation(folder, "slant"))
+        counts = dict.fromkeys(("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup"), 0)
+        finish_by_hand(sess, gt, counts, stroke_select=stroke)
+        check_equal(gt, sess.ann)
+        sess.shutdown()
+        groups[stroke] = counts["group"]
+    assert groups == {True: 4, False: 14}

@@ -158,3 +158,15 @@ def test_accepting_a_signal_head_keeps_its_state_and_lamp_colours(editor, propos
     assert "traffic_light_states" not in s.ann.meta and "lamp_colours" not in s.ann.meta
     s.redo()
     assert s.ann.meta["traffic_light_states"] == {str(ngid): "green"}
+
+
+def test_the_sliders_default_is_the_one_accept_threshold(editor):
+    """One named default for "Accept ≥" (0.9): the editor's slider starts at it and the action benchmark
+    charges a slider move for any other threshold, both reading ``DEFAULT_ACCEPT_THRESHOLD``."""
+    from benchmarks.annotation_actions import accept_actions
+    from npsim_gui.editor.proposals import DEFAULT_ACCEPT_THRESHOLD
+
+    assert DEFAULT_ACCEPT_THRESHOLD == 0.9
+    assert editor.confidence_slider.value() / 100 == DEFAULT_ACCEPT_THRESHOLD
+    assert editor.accept_above_btn.text() == f"Accept ≥ {DEFAULT_ACCEPT_THRESHOLD:.2f}"
+    assert accept_actions(DEFAULT_ACCEPT_THRESHOLD) == 2 and accept_actions(0.5) == accept_actions(0.95) == 3

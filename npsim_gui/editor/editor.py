@@ -25,7 +25,7 @@ from npsim_core.superpixels import METHODS
 from .canvas import EditorCanvas
 from .overlays import boundary_rgba, class_color, labels_rgba, lights_region, lit_box
 from .palette import ClassPalette, InstanceList
-from .proposals import ProposalBook
+from .proposals import DEFAULT_ACCEPT_THRESHOLD, ProposalBook
 from .session import EditorSession, join_group
 from .shortcuts import GROUP_CLASS_KEYS, KEYMAP, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutSheet
 from .shortcuts import keys as keymap_keys
@@ -759,7 +759,7 @@ class AnnotationEditor(QWidget):
         row = QHBoxLayout()
         self.confidence_slider = QSlider(Qt.Orientation.Horizontal)
         self.confidence_slider.setRange(0, 100)
-        self.confidence_slider.setValue(90)
+        self.confidence_slider.setValue(int(round(DEFAULT_ACCEPT_THRESHOLD * 100)))
         self.confidence_slider.setToolTip("confidence threshold of 'Accept ≥'")
         self.accept_above_btn = QPushButton()
         self.accept_above_btn.setToolTip(f"Accept every pending proposal at or above this confidence "

@@ -26,6 +26,10 @@ from .overlays import MAX_ID, light_color_lut
 PROPOSAL_FILL_ALPHA = 70
 #: Dash period of the proposal outline, in image pixels along x + y.
 DASH = 3
+#: The confidence slider's default: "Accept ≥" (Ctrl+Shift+A) takes the proposals at or above it. The one
+#: place of this value: the editor's slider and ``benchmarks.annotation_actions`` (which charges one action
+#: more for any other threshold) both read it. A multiple of 0.01 (the slider's step).
+DEFAULT_ACCEPT_THRESHOLD = 0.9
 
 
 def proposal_rgba(pmap: np.ndarray, pending: Iterable[int]) -> np.ndarray:

@@ -109,6 +109,8 @@ KEYMAP: tuple[Shortcut, ...] = (
     _s("undo", "Ctrl+Z", "Undo", EDIT),
     _s("redo", ("Ctrl+Shift+Z", "Ctrl+Y"), "Redo", EDIT),
     _s("", "Right click", "Make the light under the mouse the current one", EDIT),
+    _s("", "Ctrl+drag", "Any tool: add every light the mouse path passes over to the selection (stroke select: "
+       "a floor of windows slanting across the image in one gesture); Ctrl+click adds/removes one", EDIT),
     _s("", "Double-click", "Select/Group tool (Ctrl+double-click: any tool): the group of the light under the "
        "mouse becomes active, the lights drawn next join it; on the background: ends it", EDIT),
     # ---- proposals

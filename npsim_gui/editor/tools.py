@@ -15,6 +15,9 @@ Modifiers (every tool)
 ----------------------
 * right click: make the light under the cursor the current one (select it);
 * Ctrl+click: add/remove the light under the cursor to/from the selection;
+* Ctrl+drag: add every light the mouse path passes over to the selection (a *stroke select*: one
+  gesture along a floor of windows that slants across the image, where an axis-aligned rubber band
+  would also take the floor above or below; :func:`lights_on_path`);
 * Shift: remove instead of add (superpixel tool), erase (brush), add/remove (select tool);
 * Alt: use the other superpixel scale (fine instead of coarse, or back when the
   panel's *Fine scale* toggle, key D, is on -- for window managers that take Alt+drag).
@@ -80,6 +83,25 @@ def _view_pos(event):
 BAND_THRESHOLD = 4
 
 
+def lights_on_path(instance_map: np.ndarray, points) -> set[int]:
+    """Ids of the lights (non-zero ids of ``instance_map``) under a mouse path: the pixels of the straight
+    segments joining ``points`` ((x, y) image coordinates, floored to pixels as the tools do), clipped to
+    the image. What a Ctrl+drag (stroke select) adds to the selection; ``benchmarks.annotation_actions``
+    asks the same function which lights a stroke through a group's lights would take."""
+    pts = [(int(np.floor(x)), int(np.floor(y))) for x, y in points]
+    if not pts:
+        return set()
+    xs, ys = [np.array([pts[0][0]])], [np.array([pts[0][1]])]
+    for (x0, y0), (x1, y1) in zip(pts[:-1], pts[1:]):
+        a, b = line_pixels(x0, y0, x1, y1)
+        xs.append(np.asarray(a))
+        ys.append(np.asarray(b))
+    x, y = np.concatenate(xs).astype(np.int64), np.concatenate(ys).astype(np.int64)
+    H, W = instance_map.shape
+    ok = (x >= 0) & (x < W) & (y >= 0) & (y < H)
+    return {int(i) for i in np.unique(instance_map[y[ok], x[ok]]) if i}
+
+
 class ToolController:
     """Dispatches canvas mouse events to the active tool."""
 
@@ -99,6 +121,8 @@ class ToolController:
         self._band_view: tuple[float, float] | None = None  # press position in the view
         self._band_moved = False
         self._band_press_pixel = (0, 0)
+        self._stroke_last: tuple[float, float] | None = None  # Ctrl+drag: the path's last point
+        self._stroke_ids: set[int] = set()  # Ctrl+drag: the lights passed over so far
 
     # ----------------------------------------------------------------- dispatch
     def press(self, x: float, y: float, event=None) -> None:
@@ -112,17 +136,16 @@ class ToolController:
             if not iid:
                 s.set_current(None)
             return
-        if self.tool in (Tool.SELECT, Tool.GROUP):
-            # Click or rubber band: decided on release (a click acts then too).
-            self._active = "select"
+        if self.tool in (Tool.SELECT, Tool.GROUP) or mods & Qt.KeyboardModifier.ControlModifier:
+            # Click, rubber band or (Ctrl, any tool) stroke select: decided on release (a click acts then too).
+            self._active = "stroke" if mods & Qt.KeyboardModifier.ControlModifier else "select"
             self._band = (x, y, x, y)
             self._band_mods = mods
             self._band_view = _view_pos(event)
             self._band_moved = False
             self._band_press_pixel = (xi, yi)
-            return
-        if mods & Qt.KeyboardModifier.ControlModifier:
-            self._select_click(xi, yi, toggle=True)
+            self._stroke_last = (x, y)
+            self._stroke_ids = lights_on_path(s.ann.instance_map, [(x, y)])
             return
         self._last = (x, y)
         if self.tool == Tool.SUPERPIXEL:
@@ -135,7 +158,10 @@ class ToolController:
             self._fill_click(xi, yi, mods)
 
     def move(self, x: float, y: float, event=None) -> None:
-        if self._active == "select":
+        if self._active == "stroke" and self._stroke_last is not None:
+            self._stroke_ids |= lights_on_path(self.session.ann.instance_map, [self._stroke_last, (x, y)])
+            self._stroke_last = (x, y)
+        if self._active in ("select", "stroke"):
             self._band = self._band[:2] + (x, y)
             vpos = _view_pos(event)
             if self._band_view is not None and vpos is not None:
@@ -162,6 +188,10 @@ class ToolController:
             band = self.band_rect()
             self._active = None
             self._select_release(band)
+            return
+        if self._active == "stroke":
+            self._active = None
+            self._stroke_release()
             return
         active, self._active = self._active, None
         if active == "superpixel":
@@ -204,7 +234,7 @@ class ToolController:
 
     def shows_path(self) -> bool:
         """True while a drag whose effect comes on release is under way (the canvas draws its path)."""
-        return self._active == "superpixel" and self._sp_deferred()
+        return self._active == "stroke" or (self._active == "superpixel" and self._sp_deferred())
 
     def band_rect(self) -> tuple[int, int, int, int] | None:
         """The rubber band as an inclusive pixel box (x0, y0, x1, y1), clipped to the image, while one is
@@ -252,6 +282,20 @@ class ToolController:
         lights = [i for i in ids if is_light_class(class_of(i))]
         s.set_selection(sel, current=lights[0] if len(lights) == 1 and not add else None)
         s.message.emit(f"{len(ids)} lights in the box; {len(sel)} selected")
+
+    def _stroke_release(self) -> None:
+        """A Ctrl+press ended: a click toggles the light under it; a drag adds every light it passed over."""
+        s = self.session
+        moved, self._band, self._band_moved, self._stroke_last = self._band_moved, None, False, None
+        ids, self._stroke_ids = self._stroke_ids, set()
+        if not moved:
+            x, y = self._band_press_pixel
+            self._select_click(x, y, toggle=True)
+            return
+        lights = {i for i in ids if is_light_class(class_of(i))}
+        sel = s.selection | lights
+        s.set_selection(sel)
+        s.message.emit(f"{len(lights)} lights under the stroke; {len(sel)} selected — Ctrl+G groups them")
 
     def _select_click(self, x: int, y: int, toggle: bool) -> None:
         s = self.session
