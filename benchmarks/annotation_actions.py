@@ -3,7 +3,8 @@
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
-                                                      [--no-stroke-select] [--compare]
+                                                      [--no-stroke-select] [--no-stroke-group]
+                                                      [--compare [active-group|stroke-select|stroke-group]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -25,9 +26,11 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   every light the mouse path passes over, ``npsim_gui.editor.tools.lights_on_path``), one per run of
   them, in reading order, where the straight path from one light's point nearest its centroid to the
   next one's passes over no other light (``--no-stroke-select``: the model before, without it),
-  whichever is fewest; then Ctrl+G
-  (1; with one group selected the others join it), plus 1 group-class key when the group's class
-  is neither the default the editor preselects for its lights nor that of the one group joined;
+  whichever is fewest; then Ctrl+G (1; with one group selected the others join it), plus 1
+  group-class key when the group's class is neither the default the editor preselects for its lights
+  nor that of the one group joined. No Ctrl+G when the selection ends with a Ctrl+click or a
+  Ctrl+drag: that last one is made with Ctrl+Shift (*stroke group*), which groups the selection on
+  release (``--no-stroke-group``: Ctrl+G always);
 * class keys: 1 whenever the light class drawn changes, drawing group by group (a car's panes and
   lamps: two), then the lights of no group by class;
 * ``--per-member-grouping``, the model before issue #26's third pass: draws by class (1 key per
@@ -53,7 +56,11 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   sequence (the double-click also picks the clicked light's class, which often saves that key: not
   credited here, conservatively). ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
   ``--compare`` replays each frame both ways on the same proposals and prints both summaries
-  (``--compare stroke-select``: with and without stroke select instead).
+  (``--compare stroke-select``: with and without stroke select and stroke group instead, the model
+  before issue #26's ninth pass; ``--compare stroke-group``: with and without stroke group). Every
+  group the annotator makes (not those the per-member model counts) is made by
+  ``EditorSession.group_selection``, the command Ctrl+G and a Ctrl+Shift+drag run, on the selection
+  those gestures leave, and must come out as the ground-truth group.
 
 ``--oracle`` adds a column that accepts exactly the proposals matching a ground-truth light at
 IoU >= 0.5 (with their proposed groups restricted to them): the ceiling of these proposals. With
@@ -184,13 +191,16 @@ def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, 
 
 
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
-                   per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True) -> None:
+                   per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True,
+                   stroke_group: bool = True) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
     action model (module doc); ``active_group``: complete a proposed group that misses lights by
     double-clicking it and drawing them (False: select it, Ctrl+G, the model before); ``stroke_select``:
-    lights to group may be selected by Ctrl+drags over them (False: clicks and rubber bands only)."""
+    lights to group may be selected by Ctrl+drags over them (False: clicks and rubber bands only);
+    ``stroke_group``: a selection that ends with a Ctrl+click or Ctrl+drag ends with Ctrl+Shift instead,
+    which groups it (no Ctrl+G)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -281,11 +291,30 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
         else:
             there = set(members - drawn)  # drawn members are selected already (select_created)
             clicks = (1 if part else 0) + len(there - part)
-            select = min(clicks, _band_cost(session.ann.instance_map, there, set(members))) if there else 0
-            if stroke_select and select > 1:
-                select = min(select, _stroke_cost(session.ann.instance_map, there, set(members)))
-            key = (best[1] != cls) if part and clicks <= select else (default_cls != cls)
-            count("group", select + 1 + int(key), cls)
+            ways = [("clicks", clicks)]
+            if there:
+                ways.append(("band", _band_cost(session.ann.instance_map, there, set(members))))
+                if stroke_select:
+                    ways.append(("stroke", _stroke_cost(session.ann.instance_map, there, set(members))))
+            # The fewest actions; among as few, one that can end in Ctrl+Shift (stroke group: no Ctrl+G).
+            folds = {"clicks": stroke_group and bool(there - part), "band": False, "stroke": stroke_group}
+            how, select = min(ways, key=lambda w: (w[1], not folds[w[0]])) if there else ("clicks", 0)
+            fold = folds[how] and bool(there)
+            key = (best[1] != cls) if part and how == "clicks" else (default_cls != cls)
+            count("group", select + (0 if fold else 1) + int(key), cls)
+            # The grouping itself is the editor's (EditorSession.group_selection): select what the gestures
+            # select (a part's group by its row in the list, Ctrl+click), pick the group class when a key is
+            # charged, group; it must give exactly this group.
+            pgid = session.ann.group_of(min(part)) if part and how == "clicks" else None
+            if pgid is not None and not set(session.ann.groups[pgid].members) <= members:
+                pgid = None
+            session.set_selection(set(members) - (set(session.ann.groups[pgid].members) if pgid else set())
+                                  | ({pgid} if pgid else set()))
+            session.set_current_class(cls if key else class_of(min(members)))
+            gid, _ = session.group_selection()
+            if gid is None or (frozenset(session.ann.groups[gid].members), class_of(gid)) != (members, cls):
+                raise AssertionError(f"the editor's grouping of {sorted(members)} as {cls} gave {gid}")
+            continue
         do(group_lights(session.ann, members, cls))
     for gid, grp in list(session.ann.groups.items()):  # proposal groups left over
         if wanted.get(frozenset(grp.members)) != grp.class_id:
@@ -346,10 +375,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-stroke-select", action="store_true",
                     help="select the lights to group by clicks and rubber bands only, not by Ctrl+drags over "
                          "them (the model before; module doc)")
-    ap.add_argument("--compare", nargs="?", const="active-group", choices=("active-group", "stroke-select"),
-                    help="also replay every frame without the active group (or, --compare stroke-select, "
-                         "without stroke select) on the same proposals (a same-tree before/after) and print its "
-                         "summary")
+    ap.add_argument("--no-stroke-group", action="store_true",
+                    help="group with Ctrl+G after selecting, never by ending the selection with Ctrl+Shift "
+                         "(module doc)")
+    ap.add_argument("--compare", nargs="?", const="active-group",
+                    choices=("active-group", "stroke-select", "stroke-group"),
+                    help="also replay every frame without the active group (or without stroke select and stroke "
+                         "group, or without stroke group) on the same proposals (a same-tree before/after) and "
+                         "print its summary")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
                          "double-clicking it active (the model before; module doc)")
@@ -371,9 +404,10 @@ def main(argv: list[str] | None = None) -> int:
     kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
-    now = (not args.no_active_group, not args.no_stroke_select)  # (active group, stroke select)
-    models = ([now, (False, now[1])] if args.compare == "active-group" else
-              [now, (now[0], False)] if args.compare == "stroke-select" else [now])
+    now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group))
+    models = ([now, (False,) + now[1:]] if args.compare == "active-group" else  # (active group, stroke select,
+              [now, now[:1] + (False, False)] if args.compare == "stroke-select" else  # stroke group)
+              [now, now[:2] + (False,)] if args.compare == "stroke-group" else [now])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -382,7 +416,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for model_k, (active, stroke) in enumerate(models):
+                for model_k, (active, stroke, stroke_group) in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -392,7 +426,7 @@ def main(argv: list[str] | None = None) -> int:
                         book.accept_above(s, 0.5 if t == ORACLE else t)
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
-                                   active_group=active, stroke_select=stroke)
+                                   active_group=active, stroke_select=stroke, stroke_group=stroke_group)
                     check_equal(gt, s.ann)
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
@@ -402,7 +436,9 @@ def main(argv: list[str] | None = None) -> int:
              "group by group, partial groups by select + Ctrl+G (--no-active-group)" if args.no_active_group else
              "group by group, partial groups completed through the active group (module doc)")
     if not args.per_member_grouping:
-        model += ", no stroke select" if args.no_stroke_select else ", stroke select (Ctrl+drag)"
+        model += (", no stroke select" if args.no_stroke_select else
+                  ", stroke select (Ctrl+drag), no stroke group" if args.no_stroke_group else
+                  ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -418,8 +454,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {variant} | {tot[None]:.1f} | " + " | ".join(
             f"{tot[t]:.1f} ({100 * (1 - tot[t] / tot[None]):.0f} % fewer)" for t in thresholds) + " |")
     if rows_before:
-        what = ("--no-active-group (partial groups: select + Ctrl+G)" if args.compare == "active-group" else
-                "--no-stroke-select (lights to group selected by clicks and rubber bands only)")
+        what = {"active-group": "--no-active-group (partial groups: select + Ctrl+G)",
+                "stroke-select": "--no-stroke-select (lights to group selected by clicks and rubber bands only, "
+                                 "then Ctrl+G)",
+                "stroke-group": "--no-stroke-group (Ctrl+G after the selection)"}[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
               + " |")

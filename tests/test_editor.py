@@ -941,7 +941,8 @@ def test_ctrl_drag_selects_the_lights_a_stroke_passes_over(qtbot, tmp_path):
 def test_action_benchmark_strokes_are_the_editors(qtbot, tmp_path):
     """``benchmarks.annotation_actions`` charges a slanted floor of accepted windows one Ctrl+drag (where a
     rubber band needs one per window) and that drag, driven through the editor, selects exactly the floor;
-    both floors grouped cost 2 + 2 group actions with stroke select, 7 + 7 without."""
+    both floors grouped cost 1 + 1 group actions with stroke group (Ctrl+Shift+drag), 2 + 2 with stroke
+    select and Ctrl+G, 7 + 7 with neither."""
     from benchmarks.annotation_actions import _band_cost, check_equal, finish_by_hand, stroke_paths
     from npsim_gui.editor.session import EditorSession
 
@@ -964,12 +965,37 @@ def test_action_benchmark_strokes_are_the_editors(qtbot, tmp_path):
     gt.groups.update({13001: GroupInstance(13001, tuple(sorted(floor1))),
                       13002: GroupInstance(13002, tuple(sorted(floor2)))})
     groups = {}
-    for stroke in (True, False):
+    for stroke, stroke_group in ((True, True), (True, False), (False, False)):
         sess = EditorSession()
         sess.load(np.zeros(gt.shape + (3,), np.uint8), None, load_annotation(folder, "slant"))
         counts = dict.fromkeys(("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup"), 0)
-        finish_by_hand(sess, gt, counts, stroke_select=stroke)
+        finish_by_hand(sess, gt, counts, stroke_select=stroke, stroke_group=stroke_group)
         check_equal(gt, sess.ann)
         sess.shutdown()
-        groups[stroke] = counts["group"]
-    assert groups == {True: 4, False: 14}
+        groups[stroke, stroke_group] = counts["group"]
+    assert groups == {(True, True): 2, (True, False): 4, (False, False): 14}
+
+
+def test_ctrl_shift_drag_groups_the_lights_a_stroke_passes_over(qtbot, tmp_path):
+    """Stroke group: a Ctrl+Shift+drag along a slanted floor selects its windows and groups them at once
+    (as Ctrl+G: the default group class of windows), one undo step; windows in a proposed group of two
+    leave it (the emptied group goes), and a floor with a drawn window already selected takes it in too."""
+    from npsim_core.annotation_ops import group_lights
+
+    win = open_window(qtbot, slanted_folder(tmp_path))
+    s, c = win.editor.session, win.editor.canvas
+    floor1, floor2 = set(range(1001, 1007)), set(range(1007, 1013))
+    s.apply(group_lights(s.ann, (1003, 1004), 13)[0])  # a proposed group holding two of floor 1's windows
+    assert s.ann.groups == {13001: GroupInstance(13001, (1003, 1004))}
+    drag(qtbot, c, [(x + 5, 26 + 8 * k) for k, x in enumerate(SLANT_XS)], mods=CTRL | SHIFT)
+    assert [(g.members, A.class_of(gid)) for gid, g in s.ann.groups.items()] == [(tuple(sorted(floor1)), 13)]
+    gid = next(iter(s.ann.groups))
+    assert s.selection == {gid} and "grouped 6 lights as windows_group" in win.editor.status.text()
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)  # one undo step: back to the group of two
+    assert s.ann.groups == {13001: GroupInstance(13001, (1003, 1004))}
+    # the first window of floor 2 selected (as a light just drawn is), a stroke over the others groups all six
+    key(qtbot, win, Qt.Key.Key_V)
+    click(qtbot, c, SLANT_XS[0] + 4, 40)
+    drag(qtbot, c, [(SLANT_XS[1] + 5, 40 + 8), (SLANT_XS[5] + 5, 40 + 40)], mods=CTRL | SHIFT)
+    assert sorted(g.members for g in s.ann.groups.values()) == [(1003, 1004), tuple(sorted(floor2))]
+    close_window(win)

@@ -17,7 +17,7 @@ from PySide6.QtWidgets import (QAbstractItemView, QAbstractButton, QButtonGroup,
                                QVBoxLayout, QWidget)
 
 from npsim_core.annotation import class_of, is_group_class, is_light_class
-from npsim_core.annotation_ops import Change, change_class, delete_instance, group_lights, new_instance, ungroup
+from npsim_core.annotation_ops import Change, change_class, delete_instance, new_instance, ungroup
 from npsim_core.errors import NpsimInputError
 from npsim_core.labels import light_class
 from npsim_core.superpixels import METHODS
@@ -26,7 +26,7 @@ from .canvas import EditorCanvas
 from .overlays import boundary_rgba, class_color, labels_rgba, lights_region, lit_box
 from .palette import ClassPalette, InstanceList
 from .proposals import DEFAULT_ACCEPT_THRESHOLD, ProposalBook
-from .session import EditorSession, join_group
+from .session import EditorSession
 from .shortcuts import GROUP_CLASS_KEYS, KEYMAP, LIGHT_CLASS_KEYS, PROPOSAL_KEYS, ShortcutSheet
 from .shortcuts import keys as keymap_keys
 from ..workers import JobChannel
@@ -446,37 +446,12 @@ class AnnotationEditor(QWidget):
         return sorted(self.session.selected_lights())
 
     def group_selected(self) -> None:
-        """Group the selection: the selected lights and the lights of the selected groups become one group.
-
-        With exactly one group selected (and no other group class picked by hand) the other selected
-        lights join that group; otherwise a new group of the group class picked by hand, or else of the
-        lights' default group class, is made (lights leave their old groups). One undo step.
-        """
+        """Ctrl+G: group the selection (:meth:`EditorSession.group_selection`, one undo step): with exactly one
+        group selected (and no other group class picked by hand) the other selected lights join that group;
+        otherwise a new group of the group class picked by hand, or else of the lights' default group class."""
         def go():
-            s = self.session
-            groups = sorted(s.selected_groups())
-            lights = s.highlighted()
-            if not lights:
-                self.show_message("select lights to group: Shift/Ctrl+click, a box with the Select tool (V), "
-                                  "or the list")
-                return
-            if len(groups) == 1 and not (s.group_explicit and s.group_class not in (None, class_of(groups[0]))):
-                gid = groups[0]
-                cmd = join_group(s.ann, gid, lights)
-                if cmd is None:
-                    self.show_message(f"the selection already is {light_class(class_of(gid)).name} {gid}")
-                    return
-            else:
-                gclass = s.group_class_for(lights)
-                if gclass is None:
-                    names = sorted({light_class(class_of(i)).name for i in lights})
-                    self.show_message(f"{', '.join(names)} has no default group class: choose a group class "
-                                      "(Alt+1…Alt+9 or the Groups buttons), then Ctrl+G")
-                    return
-                cmd, gid = group_lights(s.ann, lights, gclass)
-            s.apply(cmd)
-            s.set_selection({gid})
-            self.show_message(f"grouped {len(lights)} lights as {light_class(class_of(gid)).name} {gid}")
+            _gid, text = self.session.group_selection()
+            self.show_message(text)
         self._safe(go)
 
     def toggle_active_group(self) -> None:

@@ -24,7 +24,7 @@ from PySide6.QtCore import QCoreApplication, QObject, QRunnable, QThreadPool, Si
 from npsim_core.annotation import (DEFAULT_GROUP_FOR_LIGHT, GroupInstance, LightAnnotation, annotation_paths,
                                    check_image, class_of, discard_recovery, image_checksum, is_group_class,
                                    is_light_class, save_annotation, write_recovery)
-from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack
+from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack, group_lights
 from npsim_core.errors import NpsimInputError
 from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default_region_size, superpixel_means
 
@@ -375,6 +375,36 @@ class EditorSession(QObject):
             return None
         best = max(votes.values())
         return min(g for g, n in votes.items() if n == best)
+
+    def group_selection(self) -> tuple[int | None, str]:
+        """Group the selection (Ctrl+G, and the end of a Ctrl+Shift+drag): the selected lights and the lights of
+        the selected groups become one group, one undo step. With exactly one group selected (and no other
+        group class picked by hand) the other selected lights join that group; otherwise a new group of the
+        group class picked by hand, or else of the lights' default group class, is made (lights leave their
+        old groups). Returns (the group's id, the status text); (None, why) when nothing was grouped.
+        Raises :class:`NpsimInputError` from the edit command (e.g. a class's 999 ids used up)."""
+        from npsim_core.labels import light_class
+
+        groups = sorted(self.selected_groups())
+        lights = self.highlighted()
+        if not lights:
+            return None, ("select lights to group: Shift/Ctrl+click, a box with the Select tool (V), a Ctrl+drag "
+                          "over them, or the list")
+        if len(groups) == 1 and not (self.group_explicit and self.group_class not in (None, class_of(groups[0]))):
+            gid = groups[0]
+            cmd = join_group(self.ann, gid, lights)
+            if cmd is None:
+                return None, f"the selection already is {light_class(class_of(gid)).name} {gid}"
+        else:
+            gclass = self.group_class_for(lights)
+            if gclass is None:
+                names = sorted({light_class(class_of(i)).name for i in lights})
+                return None, (f"{', '.join(names)} has no default group class: choose a group class "
+                              "(Alt+1…Alt+9 or the Groups buttons), then Ctrl+G")
+            cmd, gid = group_lights(self.ann, lights, gclass)
+        self.apply(cmd)
+        self.set_selection({gid})
+        return gid, f"grouped {len(lights)} lights as {light_class(class_of(gid)).name} {gid}"
 
     def set_active_group(self, group_id: int | None) -> None:
         """New lights join ``group_id`` while it is active (None ends it)."""

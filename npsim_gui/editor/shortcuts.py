@@ -111,6 +111,9 @@ KEYMAP: tuple[Shortcut, ...] = (
     _s("", "Right click", "Make the light under the mouse the current one", EDIT),
     _s("", "Ctrl+drag", "Any tool: add every light the mouse path passes over to the selection (stroke select: "
        "a floor of windows slanting across the image in one gesture); Ctrl+click adds/removes one", EDIT),
+    _s("", "Ctrl+Shift+drag", "Any tool: the same, then group the selection as Ctrl+G (stroke group: a floor of "
+       "accepted windows split over several proposed groups becomes one group in one gesture); "
+       "Ctrl+Shift+click: add one light and group", EDIT),
     _s("", "Double-click", "Select/Group tool (Ctrl+double-click: any tool): the group of the light under the "
        "mouse becomes active, the lights drawn next join it; on the background: ends it", EDIT),
     # ---- proposals

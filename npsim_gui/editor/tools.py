@@ -18,6 +18,8 @@ Modifiers (every tool)
 * Ctrl+drag: add every light the mouse path passes over to the selection (a *stroke select*: one
   gesture along a floor of windows that slants across the image, where an axis-aligned rubber band
   would also take the floor above or below; :func:`lights_on_path`);
+* Ctrl+Shift+drag (or click): the same, then group the selection as Ctrl+G does (*stroke group*: a
+  floor of accepted windows, split over several proposed groups, becomes one group in one gesture);
 * Shift: remove instead of add (superpixel tool), erase (brush), add/remove (select tool);
 * Alt: use the other superpixel scale (fine instead of coarse, or back when the
   panel's *Fine scale* toggle, key D, is on -- for window managers that take Alt+drag).
@@ -33,6 +35,7 @@ from PySide6.QtCore import Qt
 
 from npsim_core.annotation import class_of, is_light_class, light_class
 from npsim_core.annotation_ops import erase, new_instance, paint, snap_to_superpixels, split_paint
+from npsim_core.errors import NpsimInputError
 from npsim_core.superpixels import disk_index, line_pixels, similar_superpixels, superpixel_index
 
 
@@ -284,18 +287,28 @@ class ToolController:
         s.message.emit(f"{len(ids)} lights in the box; {len(sel)} selected")
 
     def _stroke_release(self) -> None:
-        """A Ctrl+press ended: a click toggles the light under it; a drag adds every light it passed over."""
+        """A Ctrl+press ended: a click toggles the light under it; a drag adds every light it passed over.
+        With Shift as well (a click too adds) the selection is then grouped, as Ctrl+G does."""
         s = self.session
+        group = bool(self._band_mods & Qt.KeyboardModifier.ShiftModifier)
         moved, self._band, self._band_moved, self._stroke_last = self._band_moved, None, False, None
         ids, self._stroke_ids = self._stroke_ids, set()
-        if not moved:
+        if not moved and not group:
             x, y = self._band_press_pixel
             self._select_click(x, y, toggle=True)
             return
         lights = {i for i in ids if is_light_class(class_of(i))}
         sel = s.selection | lights
         s.set_selection(sel)
-        s.message.emit(f"{len(lights)} lights under the stroke; {len(sel)} selected — Ctrl+G groups them")
+        if not group:
+            s.message.emit(f"{len(lights)} lights under the stroke; {len(sel)} selected — Ctrl+G groups them "
+                           "(Ctrl+Shift+drag groups at once)")
+            return
+        try:
+            _gid, text = s.group_selection()
+        except NpsimInputError as exc:
+            text = str(exc)
+        s.message.emit(text)
 
     def _select_click(self, x: int, y: int, toggle: bool) -> None:
         s = self.session
