@@ -146,3 +146,24 @@ def test_a_far_red_lamp_is_its_own_pixels_not_the_colour_bled_around_it():
     for t in truth:
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7
     assert lamps and all(class_of(i) in (4, 6) for i in lamps)
+
+
+def test_a_clear_cars_lamps_and_windscreen_are_confident_and_lamps_not_standing_out_are_not():
+    """Confidence ranks what an annotator would accept at the editor's slider (0.9): a car whose red lamps
+    stand out of blue paint gets them and its dark rear window (its end pane: large, far off the paint)
+    at >= 0.9; the same car with lamps a few levels off its red paint (placed by the face's geometry
+    alone) gets them below 0.9 -- but still >= 0.5, so the set kept at 0.5 is unchanged. The old code
+    gave every pane 0.6, below the slider whatever it looked like."""
+    confs = {}
+    for name, paint, lamp in (("clear", (40, 60, 140), (200, 20, 20)), ("faint", (150, 40, 40), (160, 36, 36))):
+        img, lab, depth, inst, intr = _frame()
+        _car(img, lab, depth, inst, 55, 145, 1, paint=paint, lamp=lamp)
+        props = propose_lights(img, lab, depth, intr, inst, params=FLAT)
+        ids = props.annotation.instance_ids()
+        confs[name] = ([props.confidence[i] for i in ids if class_of(i) in (3, 4, 5, 6)],
+                       [props.confidence[i] for i in ids if class_of(i) == 2])
+    lamps, panes = confs["clear"]
+    assert len(lamps) == 2 and min(lamps) >= 0.9
+    assert panes and max(panes) >= 0.9
+    faint, _ = confs["faint"]
+    assert faint and all(0.5 <= c < 0.9 for c in faint)

@@ -32,6 +32,36 @@ BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 
 SMALL_LAMP_PX, SMALL_TOP_MOVE = 3.0, 2
 
 
+def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
+    """How far a light's mean colour departs from the vehicle right around it: the largest channel
+    difference (8-bit levels) between its pixels' mean and the median of the silhouette's pixels within
+    two pixels of it (4-connected), 0 when it has no such pixels. ``img`` (h, w, 3), ``m`` the vehicle's
+    silhouette and ``light`` its mask, both local (h, w) bool."""
+    from scipy import ndimage
+
+    ys, xs = np.nonzero(light)
+    if ys.size == 0:
+        return 0.0
+    a, b = max(0, int(ys.min()) - 2), max(0, int(xs.min()) - 2)
+    sl = (slice(a, int(ys.max()) + 3), slice(b, int(xs.max()) + 3))
+    li = light[sl]
+    ring = ndimage.binary_dilation(li, iterations=2) & ~li & m[sl]
+    if not ring.any():
+        return 0.0
+    sub = img[sl]
+    return float(np.abs(sub[li].mean(0) - np.median(sub[ring], axis=0)).max())
+
+
+def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
+    """A light's confidence from its rule confidence and features (docs/proposals.md, "Ninth pass: vehicle
+    confidence"): at least 0.5 -> 0.5 + 0.5 sigmoid(bias + weights . feats), below 0.5 unchanged -- so the
+    set kept at 0.5 stays the same and only the order within it changes."""
+    if conf < 0.5:
+        return conf
+    t = bias + float(np.dot(weights, feats))
+    return float(0.5 + 0.5 / (1.0 + np.exp(-t)))
+
+
 def _vehicles(ctx: Context):
     """(labelId, y0, x0, local mask) per vehicle: instance ids where given, else connected components
     split where depth jumps."""
@@ -677,6 +707,9 @@ def propose(ctx: Context) -> list[Group]:
     narrower than 1 m (a side view).
     Panes: the cabin band (above the body face, its top and bottom 0.07 m trimmed), split into the end
     pane (windscreen or rear window) and the side pane at the end face's edge; confidence 0.6.
+    Each light at least 0.5 confident is then rescored from how it stands out of the vehicle around it
+    (:func:`_ring_contrast`), its size and kind (:func:`_rescore`, ``vehicle_lamp_conf_*`` /
+    ``vehicle_pane_conf_*``): the set kept at 0.5 is unchanged, the order within it is not.
     """
     p = ctx.params
     fy = float(ctx.intrinsics.fy)
@@ -699,8 +732,10 @@ def propose(ctx: Context) -> list[Group]:
         if z is not None and fw * z / fy < 1.0:
             conf -= 0.3
         lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z) if placed else ([], 0)
+        n_pair = len(lamps)
         if z is not None:
             lamps = [b for b in lamps if not _on_side_face(ctx, y0, x0, b)]
+            n_pair = len(lamps)
             if len(lamps) < 2:  # a cut end face: the visible part of the lamp beside the cut
                 sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
                 if sliver is not None and not any((sliver & b).any() for b in lamps):
@@ -718,7 +753,11 @@ def propose(ctx: Context) -> list[Group]:
             rear = (r > 1.5 * max(g, bl) and r > 50) or (dn > 10.0 and dr - max(dg, db) > p.vehicle_rear_red_share * dn)
             moving = _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
             lamp_cls = (MOVING_REAR if rear else MOVING_FRONT) if moving else (PARKED_REAR if rear else PARKED_FRONT)
-            members = [Light(lamp_cls, y0, x0, b, conf) for b in lamps]
+            pair = float(distinct == len(lamps) == 2)
+            members = [Light(lamp_cls, y0, x0, b, _rescore(
+                conf, p.vehicle_lamp_conf_bias, p.vehicle_lamp_conf_weights,
+                (min(_ring_contrast(img, m, b) / SLIVER_DIFF, 3.0), pair, float(i >= n_pair),
+                 float(np.log(max(1, int(b.sum()))))))) for i, b in enumerate(lamps)]
         # Window panes: the cabin band above the body face.
         cab = m.copy()
         cab[r0:, :] = False
@@ -734,9 +773,12 @@ def propose(ctx: Context) -> list[Group]:
         panes, pane_conf = cab, 0.6
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
-        for part in (panes & end, panes & ~end):
+        for is_end, part in ((1.0, panes & end), (0.0, panes & ~end)):
             if part.sum() >= 2:
-                members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf))
+                members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, _rescore(
+                    pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
+                    (min(_ring_contrast(img, m, part) / SLIVER_DIFF, 3.0), is_end,
+                     float(np.log(int(part.sum()))), float(len(lamps))))))
         if members:
             out.append(Group(VEHICLE_GROUP[cls], members, conf if lamps else pane_conf))
     return out
