@@ -3,8 +3,9 @@
     .venv/bin/python -m benchmarks.annotation_actions [--size 512x256] [--seeds 0,1,2]
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
-                                                      [--no-stroke-select] [--no-stroke-group]
-                                                      [--compare [active-group|stroke-select|stroke-group]]
+                                                      [--no-stroke-select] [--no-stroke-group] [--no-review]
+                                                      [--compare [active-group|stroke-select|stroke-group|
+                                                                  review|ninth-pass]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -41,6 +42,8 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
 * remove a wrong light: 2 (click, Delete); fix a light's class: 3 (click, class key, C);
   touch up a light whose mask IoU with its ground truth is below 0.7: 1 (one stroke);
   ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
+* **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, a
+  pending proposal group worth it is accepted with Shift+A over it, 1 each (:func:`review_pending`);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
   the slider's default (``npsim_gui.editor.proposals.DEFAULT_ACCEPT_THRESHOLD``, 0.90); "Propose lights"
   itself: 1.
@@ -56,8 +59,9 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   sequence (the double-click also picks the clicked light's class, which often saves that key: not
   credited here, conservatively). ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
   ``--compare`` replays each frame both ways on the same proposals and prints both summaries
-  (``--compare stroke-select``: with and without stroke select and stroke group instead, the model
-  before issue #26's ninth pass; ``--compare stroke-group``: with and without stroke group). Every
+  (``--compare stroke-select``: with and without stroke select and stroke group instead;
+  ``--compare stroke-group``: with and without stroke group; ``--compare review``: with and without
+  the review; ``--compare ninth-pass``: without all three, the model before issue #26's ninth pass). Every
   group the annotator makes (not those the per-member model counts) is made by
   ``EditorSession.group_selection``, the command Ctrl+G and a Ctrl+Shift+drag run, on the selection
   those gestures leave, and must come out as the ground-truth group.
@@ -330,6 +334,36 @@ def accept_actions(threshold: float) -> int:
     return 2 + int(abs(threshold - DEFAULT_ACCEPT_THRESHOLD) > 1e-9)
 
 
+def review_pending(session, book, gt, counts: dict[str, int], by_category: dict | None = None) -> None:
+    """The annotator's review of the proposals still pending after "accept above the slider": a pending
+    proposal group (or ungrouped proposal) is accepted with Shift+A over one of its lights (the editor's
+    key: the proposal under the mouse *with its whole group*, one undo step; a group accepted in part
+    before takes the rest in) when that saves actions by the module doc's count -- its pending lights that
+    match a ground-truth light not yet annotated (mask IoU >= 0.5) each save a draw, less 1 for the key,
+    2 for each of its other pending lights (each then removed) and 1 for each match below IoU 0.7 (a
+    touch-up). The judgement is the one an annotator makes by eye from the dashed proposal on the photo;
+    here it is read from the ground truth. Counted as "review" (1 per Shift+A); what the acceptance costs
+    afterwards (removals, touch-ups, grouping) is counted by :func:`finish_by_hand` on what it left."""
+    from npsim_core.annotation import class_of
+
+    by_category = {} if by_category is None else by_category
+    covered = set(match_lights(gt, session.ann))
+    good = {pid: iou for g, (pid, iou) in match_lights(gt, book.proposals.annotation).items() if g not in covered}
+    units: dict[object, list[int]] = {}
+    for p in book.pending(session.existing_ids()):
+        units.setdefault(book.group_of.get(p, ("light", p)), []).append(p)
+    for _unit, ps in sorted(units.items(), key=lambda kv: kv[1][0]):
+        hits = [p for p in ps if p in good]
+        gain = len(hits) - 1 - 2 * (len(ps) - len(hits)) - sum(good[p] < TOUCH_UP_IOU for p in hits)
+        if gain <= 0:
+            continue
+        lights, groups = book.expand(ps[0])  # what Shift+A over it accepts
+        if book.accept(session, lights, groups):
+            counts["review"] += 1
+            key = ("review", CATEGORY_OF_CLASS.get(class_of(ps[0]), "other"))
+            by_category[key] = by_category.get(key, 0) + 1
+
+
 #: The threshold value that stands for the oracle: accept exactly the proposals that match the ground truth.
 ORACLE = -1.0
 
@@ -378,8 +412,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-stroke-group", action="store_true",
                     help="group with Ctrl+G after selecting, never by ending the selection with Ctrl+Shift "
                          "(module doc)")
+    ap.add_argument("--no-review", action="store_true",
+                    help="leave the proposals below the slider pending (no Shift+A review; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
-                    choices=("active-group", "stroke-select", "stroke-group"),
+                    choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
@@ -401,13 +437,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.thresholds is None:
         args.thresholds = f"0.5,0.7,{DEFAULT_ACCEPT_THRESHOLD:g}"
     thresholds = [float(t) for t in args.thresholds.split(",") if t] + ([ORACLE] if args.oracle else [])
-    kinds = ("draw", "class keys", "group", "accept", "remove", "class fix", "touch up", "ungroup")
+    kinds = ("draw", "class keys", "group", "accept", "review", "remove", "class fix", "touch up", "ungroup")
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
-    now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group))
-    models = ([now, (False,) + now[1:]] if args.compare == "active-group" else  # (active group, stroke select,
-              [now, now[:1] + (False, False)] if args.compare == "stroke-select" else  # stroke group)
-              [now, now[:2] + (False,)] if args.compare == "stroke-group" else [now])
+    # (active group, stroke select, stroke group, review)
+    now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group),
+           not args.no_review)
+    models = ([now, (False,) + now[1:]] if args.compare == "active-group" else
+              [now, now[:1] + (False, False) + now[3:]] if args.compare == "stroke-select" else
+              [now, now[:2] + (False,) + now[3:]] if args.compare == "stroke-group" else
+              [now, now[:3] + (False,)] if args.compare == "review" else
+              [now, now[:1] + (False, False, False)] if args.compare == "ninth-pass" else [now])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -416,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for model_k, (active, stroke, stroke_group) in enumerate(models):
+                for model_k, (active, stroke, stroke_group, review) in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -425,6 +465,8 @@ def main(argv: list[str] | None = None) -> int:
                         book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
                         book.accept_above(s, 0.5 if t == ORACLE else t)
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
+                        if review and t != ORACLE:  # (the oracle accepted every good proposal already)
+                            review_pending(s, book, gt, counts, by_cat)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
                                    active_group=active, stroke_select=stroke, stroke_group=stroke_group)
                     check_equal(gt, s.ann)
@@ -439,6 +481,7 @@ def main(argv: list[str] | None = None) -> int:
         model += (", no stroke select" if args.no_stroke_select else
                   ", stroke select (Ctrl+drag), no stroke group" if args.no_stroke_group else
                   ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
+        model += ", no review" if args.no_review else ", pending groups reviewed (Shift+A)"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -457,7 +500,9 @@ def main(argv: list[str] | None = None) -> int:
         what = {"active-group": "--no-active-group (partial groups: select + Ctrl+G)",
                 "stroke-select": "--no-stroke-select (lights to group selected by clicks and rubber bands only, "
                                  "then Ctrl+G)",
-                "stroke-group": "--no-stroke-group (Ctrl+G after the selection)"}[args.compare]
+                "stroke-group": "--no-stroke-group (Ctrl+G after the selection)",
+                "review": "--no-review (no Shift+A on pending proposals)",
+                "ninth-pass": "--no-stroke-select --no-review (the model before issue #26's ninth pass)"}[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
               + " |")

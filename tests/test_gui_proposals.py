@@ -170,3 +170,45 @@ def test_the_sliders_default_is_the_one_accept_threshold(editor):
     assert editor.confidence_slider.value() / 100 == DEFAULT_ACCEPT_THRESHOLD
     assert editor.accept_above_btn.text() == f"Accept ≥ {DEFAULT_ACCEPT_THRESHOLD:.2f}"
     assert accept_actions(DEFAULT_ACCEPT_THRESHOLD) == 2 and accept_actions(0.5) == accept_actions(0.95) == 3
+
+
+def test_action_benchmark_reviews_pending_groups_worth_a_shift_a(qtbot):
+    """``benchmarks.annotation_actions.review_pending``: after "accept above", a pending proposal group whose
+    three lights are three true windows is accepted as Shift+A over it accepts it (whole group, one undo
+    step, 1 action); one holding a true window and a false one is left (accepting it would cost a removal
+    more than it saves)."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    gt_map = np.zeros((40, 80), np.int32)
+    for k in range(3):
+        gt_map[10:16, 10 + 12 * k:16 + 12 * k] = 1001 + k
+        gt_map[26:32, 10 + 12 * k:16 + 12 * k] = 1004 + k
+    gt = LightAnnotation(gt_map, {13001: GroupInstance(13001, (1001, 1002, 1003)),
+                                  13002: GroupInstance(13002, (1004, 1005, 1006))})
+    p_map = np.where(gt_map <= 1003, gt_map, 0)                      # the top floor, exactly
+    p_map[26:32, 10:16] = 1004                                       # one window of the second floor ...
+    p_map[2:6, 60:70] = 1007                                         # ... grouped with a false one
+    props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003)),
+                                                   13002: GroupInstance(13002, (1004, 1007))}),
+                           {i: 0.5 for i in (1001, 1002, 1003, 1004, 1007, 13001, 13002)})
+    s = EditorSession()
+    s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+    book = ProposalBook(props)
+    assert book.accept_above(s, 0.9) == []
+    counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up", "ungroup"), 0)
+    review_pending(s, book, gt, counts)
+    assert counts["review"] == 1
+    s.undo()                                                         # one undo step, as Shift+A's
+    assert s.ann.instance_ids() == [] and not s.ann.groups
+    s.redo()
+    assert [sorted(np.unique(gt_map[s.ann.instance_map == m])) for m in s.ann.instance_ids()] == [[1001], [1002], [1003]]
+    assert [len(g.members) for g in s.ann.groups.values()] == [3]
+    assert sorted(book.pending(s.existing_ids())) == [1004, 1007]
+    finish_by_hand(s, gt, counts)                                    # the rest by hand: 3 draws, 1 Ctrl+G
+    check_equal(gt, s.ann)
+    assert (counts["draw"], counts["group"], counts["remove"]) == (3, 1, 0)
+    s.shutdown()
