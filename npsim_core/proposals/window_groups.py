@@ -176,6 +176,21 @@ SPLIT_MIN_PX = 3
 VISIBLE_SHARE = 0.6
 #: Steps at most this many median steps are joined across something in front.
 HIDDEN_STEPS = 4.0
+#: Two groups whose median floor levels differ by up to this many floor tolerances are compared at the
+#: panes nearest the gap (``END_PANES`` of each side): along a long wall the level read from depth drifts.
+LEVEL_GATE = 2.0
+END_PANES = 3
+
+
+def _bay_of_wall(step: np.ndarray, colour: np.ndarray, x0: np.ndarray, x1: np.ndarray, xa: float, xb: float,
+                 c: np.ndarray, lum: float, chroma: float) -> float:
+    """The bay of a wall (m along it; px without depth): the median step between neighbouring panes
+    (``step``, per group; NaN for a group of one pane) of the groups whose columns (``x0``-``x1``)
+    overlap ``xa``-``xb`` and whose wall colour is ``c`` (within ``lum`` / ``chroma``) -- the building's
+    other floors, whose bays repeat. NaN when no such group has two panes."""
+    ok = np.isfinite(step) & (np.minimum(x1, xb) > np.maximum(x0, xa))
+    ok &= (np.abs(colour[:, 0] - c[0]) <= lum) & (np.hypot(colour[:, 1] - c[1], colour[:, 2] - c[2]) <= chroma)
+    return float(np.median(step[ok])) if ok.any() else float("nan")
 
 
 def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None = None) -> list[Group]:
@@ -198,12 +213,16 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         windows changes, or where the step along the row exceeds ``SPLIT_STEPS`` x its median step
         over wall nothing hides (:func:`_split_at_blanks`). Then two groups are joined,
         nearest first, when their floor levels are within ``window_floor_tol_m`` (m above the
-        ground; without depth half a pane's height in rows), the wall around them is of one colour
+        ground, compared at the ``END_PANES`` panes of each nearest the gap, as the level read from
+        depth drifts along a long wall; without depth half a pane's height in rows), the wall around
+        them is of one colour
         (``window_block_lum`` / ``window_block_chroma``), their windows lie on one plane (inverse
         depth affine in the image, within 5 % of the depth), the building pixels between the nearest
         two along the floor are that wall (:func:`_gap_is_wall`) and that step is at most
         ``BLANK_STEPS`` (visible wall) or ``HIDDEN_STEPS`` (something in front) x the median step
-        (of the groups, else 2.5 pane widths). Group confidence: the mean of its members'.
+        (of the groups; for two single panes the bay of the building's other floors over those
+        columns, :func:`_bay_of_wall`; else 2.5 pane widths). Group confidence: the mean of its
+        members'.
     """
     if not groups:
         return groups
@@ -230,9 +249,10 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     width_m = np.where(np.isfinite(t["z"]), (t["x1"] - t["x0"]) * t["z"] / float(ctx.intrinsics.fx),
                        t["x1"] - t["x0"])
     parent = np.arange(n)
-    # per cluster root: its windows, floor level, wall colour and column range (updated on a join)
+    part_step = np.array([_spacing(pos, q, t["cu"]) for q in parts])
+    part_col = np.array([_median_colour(t["wall"][q]) for q in parts]).reshape(n, 3)
+    # per cluster root: its windows, wall colour and column range (updated on a join)
     idx_of = {k: parts[k] for k in range(n)}
-    lev_of = {k: float(np.median(t["level"][parts[k]])) for k in range(n)}
     col_of = {k: _median_colour(t["wall"][parts[k]]) for k in range(n)}
     span_of = {k: (t["x0"][parts[k]].min(), t["x1"][parts[k]].max()) for k in range(n)}
     step_of = {k: _spacing(pos, parts[k], t["cu"]) for k in range(n)}
@@ -249,7 +269,7 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     x0 = np.array([span_of[k][0] for k in range(n)])
     x1 = np.array([span_of[k][1] for k in range(n)])
     gap = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
-    cand = np.triu((np.abs(la - lb) <= tol_ab) & (gap >= 0), 1)
+    cand = np.triu((np.abs(la - lb) <= LEVEL_GATE * tol_ab) & (gap >= 0), 1)
     for a, b in sorted(zip(*np.nonzero(cand)), key=lambda ab: gap[ab]):
         ra, rb = root(int(a)), root(int(b))
         if ra == rb:
@@ -258,8 +278,12 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         (xa0, xa1), (xb0, xb1) = span_of[ra], span_of[rb]
         if min(xa1, xb1) - max(xa0, xb0) > 0:
             continue  # overlapping along the floor: two walls one behind the other, or two floors
-        if abs(lev_of[ra] - lev_of[rb]) > (floor_tol if floor_tol is not None else
-                                          0.5 * float(np.median(t["y1"][ia] - t["y0"][ia]))):
+        left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
+        # the floor at the gap: its level read from depth drifts along a long wall (docs/proposals.md)
+        lev_l = float(np.median(t["level"][left[np.argsort(t["x1"][left])[-END_PANES:]]]))
+        lev_r = float(np.median(t["level"][right[np.argsort(t["x0"][right])[:END_PANES]]]))
+        if abs(lev_l - lev_r) > (floor_tol if floor_tol is not None else
+                                 0.5 * float(np.median(t["y1"][ia] - t["y0"][ia]))):
             continue
         ca, cb = col_of[ra], col_of[rb]
         if not _same_colour(ca, cb, lum, chroma):
@@ -267,20 +291,24 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         both = np.concatenate([ia, ib])
         if has_depth and not _on_one_plane(t, both, tol):
             continue
-        left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
         i = int(left[np.argmax(t["x1"][left])])
         j = int(right[np.argmin(t["x0"][right])])
         wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
         if not wall:
             continue
         steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
-        step = max(steps) if steps else 2.5 * float(np.median(width_m[both]))
+        if steps:
+            step = max(steps)
+        else:  # two single panes: the bay of the building's other floors over these columns
+            step = _bay_of_wall(part_step, part_col, x0, x1, min(xa0, xb0), max(xa1, xb1), (ca + cb) / 2.0,
+                                lum, chroma)
+            if not np.isfinite(step):
+                step = 2.5 * float(np.median(width_m[both]))
         d = float(np.hypot(*(pos[i] - pos[j])))
         if d > (BLANK_STEPS if shown >= VISIBLE_SHARE else HIDDEN_STEPS) * step:
             continue
         parent[rb] = ra
         idx_of[ra] = both
-        lev_of[ra] = float(np.median(t["level"][both]))
         col_of[ra] = _median_colour(t["wall"][both])
         span_of[ra] = (min(xa0, xb0), max(xa1, xb1))
         step_of[ra] = max(steps) if steps else float("nan")  # the step across the join is a gap, not a bay
