@@ -179,7 +179,7 @@ HIDDEN_STEPS = 4.0
 #: Two groups whose median floor levels differ by up to this many floor tolerances are compared at the
 #: panes nearest the gap (``END_PANES`` of each side): along a long wall the level read from depth drifts.
 LEVEL_GATE = 2.0
-END_PANES = 3
+END_PANES = 2
 
 
 def _bay_of_wall(step: np.ndarray, colour: np.ndarray, x0: np.ndarray, x1: np.ndarray, xa: float, xb: float,
