@@ -167,3 +167,17 @@ def test_a_clear_cars_lamps_and_windscreen_are_confident_and_lamps_not_standing_
     assert panes and max(panes) >= 0.9
     faint, _ = confs["faint"]
     assert faint and all(0.5 <= c < 0.9 for c in faint)
+
+
+def test_a_far_cars_rear_window_sits_on_its_own_body_top_not_the_typical_one():
+    """A car 52 m away (1.8 m = 17 px, under ``vehicle_small_face_px``) whose body top is at 0.8 m and its
+    rear window 0.07 m above it: the end pane is proposed down to the silhouette's own body top, no
+    touch-up needed (IoU >= 0.7). The old code cut the cabin band at the typical 0.9 m body top, a row too
+    high (IoU 0.61)."""
+    img, lab, depth, inst, intr = _frame()
+    _far_car(img, lab, depth, inst, 52.0, 0.8, (200, 200, 200), (200, 200, 200))
+    pane = _centres((0.87, 1.23), (-0.72, 0.72), 52.0, lab.shape)
+    img[pane] = (25, 25, 30)
+    ann = propose_lights(img, lab, depth, intr, inst, params=FLAT).annotation
+    panes = [i for i in ann.instance_ids() if class_of(i) == 2]
+    assert max((_iou(ann.mask(i), pane) for i in panes), default=0.0) >= 0.7
