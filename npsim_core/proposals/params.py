@@ -110,12 +110,12 @@ class ProposalParams:
     vehicle_small_face_px: int = 24
     #: A vehicle light at least 0.5 confident gets 0.5 + 0.5 sigmoid(bias + weights . features)
     #: (``vehicles._rescore``; docs/proposals.md, "Ninth pass: vehicle confidence"). Lamps: ring contrast
-    #: (levels / 40, at most 3), both lamps of the pair stand out, a sliver beside the cut, ln pixels.
-    #: Panes: ring contrast, the end pane (not the side one), ln pixels, lamps on the vehicle. A logistic
-    #: fit for "IoU >= 0.7, right class" on seeds 0-2 at 512x256 and 2048x1024, bias then raised by 1.5
-    #: (lamps 2.0: the editor benchmark on seeds 0-2).
-    vehicle_lamp_conf_bias: float = -1.0
-    vehicle_lamp_conf_weights: tuple[float, float, float, float] = (2.1, 1.2, -0.75, 0.17)
+    #: (levels / 40, at most 3), both lamps of the pair stand out, a sliver beside the cut, ln pixels (at
+    #: most ln 9). Panes: ring contrast, the end pane (not the side one), ln pixels, lamps on the vehicle.
+    #: A logistic fit for "IoU >= 0.7, right class" on seeds 0-2 at 512x256 and 2048x1024, bias then
+    #: raised by 1.5 (lamps 2.0: the editor benchmark on seeds 0-2).
+    vehicle_lamp_conf_bias: float = -6.2
+    vehicle_lamp_conf_weights: tuple[float, float, float, float] = (2.08, 1.05, -0.69, 2.8)
     vehicle_pane_conf_bias: float = -2.5
     vehicle_pane_conf_weights: tuple[float, float, float, float] = (1.33, 1.09, 0.16, 0.83)
 

@@ -30,6 +30,9 @@ BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 
 #: from the face's edges, under a body top from the silhouette's full-width rows when that is at most
 #: ``SMALL_TOP_MOVE`` rows from the face's (docs/proposals.md, "Seventh pass: far vehicle lamps").
 SMALL_LAMP_PX, SMALL_TOP_MOVE = 3.0, 2
+#: A lamp's confidence grows with its pixels up to this many (a lamp of 1-8 px is a pixel or two off as
+#: often as not; beyond, size adds nothing: docs/proposals.md, "Ninth pass: vehicle confidence").
+LAMP_SURE_PX = 9
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -764,7 +767,7 @@ def propose(ctx: Context) -> list[Group]:
             members = [Light(lamp_cls, y0, x0, b, _rescore(
                 conf, p.vehicle_lamp_conf_bias, p.vehicle_lamp_conf_weights,
                 (min(_ring_contrast(img, m, b) / SLIVER_DIFF, 3.0), pair, float(i >= n_pair),
-                 float(np.log(max(1, int(b.sum()))))))) for i, b in enumerate(lamps)]
+                 float(np.log(min(max(1, int(b.sum())), LAMP_SURE_PX)))))) for i, b in enumerate(lamps)]
         # Window panes: the cabin band above the body face.
         # On a narrow face r0 is the typical body height's row; the panes, as its lamps, sit on the
         # silhouette's own body top when near (512x256 seeds 0-2: panes matched at IoU >= 0.7 64 -> 67).
