@@ -26,6 +26,7 @@ from npsim_core.annotation import (DEFAULT_GROUP_FOR_LIGHT, GroupInstance, Light
                                    is_light_class, save_annotation, write_recovery)
 from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack, group_lights
 from npsim_core.errors import NpsimInputError
+from npsim_core.labels import light_class
 from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default_region_size, superpixel_means
 
 #: Default group class per light class (docs/annotation.md "Default groups"). resources/light_classes.json
@@ -251,8 +252,6 @@ class EditorSession(QObject):
         return self._sp_fine_means
 
     def current_class_name(self) -> str:
-        from npsim_core.labels import light_class
-
         return light_class(self.current_class).name
 
     # ----------------------------------------------------------------- edits
@@ -383,8 +382,6 @@ class EditorSession(QObject):
         group class picked by hand, or else of the lights' default group class, is made (lights leave their
         old groups). Returns (the group's id, the status text); (None, why) when nothing was grouped.
         Raises :class:`NpsimInputError` from the edit command (e.g. a class's 999 ids used up)."""
-        from npsim_core.labels import light_class
-
         groups = sorted(self.selected_groups())
         lights = self.highlighted()
         if not lights:

@@ -298,6 +298,9 @@ class ToolController:
             self._select_click(x, y, toggle=True)
             return
         lights = {i for i in ids if is_light_class(class_of(i))}
+        if group and not lights:  # a slip on the background groups nothing (Ctrl+G is there for that)
+            s.message.emit("no light under the stroke: nothing grouped")
+            return
         sel = s.selection | lights
         s.set_selection(sel)
         if not group:
