@@ -1005,3 +1005,10 @@ def test_ctrl_shift_drag_groups_the_lights_a_stroke_passes_over(qtbot, tmp_path)
     click(qtbot, c, SLANT_XS[2] + 20, 10, mods=CTRL | SHIFT)
     assert len(s.ann.groups) == n and "nothing grouped" in win.editor.status.text()
     close_window(win)
+
+
+def test_tool_buttons_tell_the_selection_strokes(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    for b in win.editor.tool_buttons.values():
+        assert "Ctrl+drag" in b.toolTip() and "Ctrl+Shift+drag" in b.toolTip()
+    close_window(win)

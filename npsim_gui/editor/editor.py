@@ -39,6 +39,16 @@ NIGHT_LIGHT_RULES = (("auto", "annotated lights, else proposals"), ("annotation"
                      ("proposed", "all proposals"), ("none", "no lights"))
 TOOL_TITLES = {Tool.SUPERPIXEL: "Superpixel", Tool.BRUSH: "Brush", Tool.ERASER: "Eraser", Tool.FILL: "Fill",
                Tool.SELECT: "Select", Tool.GROUP: "Group"}
+TOOL_TIPS = {Tool.SUPERPIXEL: "click/drag adds superpixels to the current light; Shift removes; Alt: the other scale",
+             Tool.BRUSH: "paints a disc along the path; Shift+drag erases",
+             Tool.ERASER: "clears the pixels of any light along the path",
+             Tool.FILL: "click a light: it takes the superpixels it covers at least half of",
+             Tool.SELECT: "click selects; Shift/Ctrl+click adds or removes; a drag selects every light in the box "
+                          "(Shift+drag adds)",
+             Tool.GROUP: "clicks add or remove lights; a box adds"}
+#: Every tool's tooltip ends with the selection strokes, which work with any tool (docs/annotation.md).
+STROKE_TIP = ("\nAny tool: Ctrl+drag adds every light the path passes over to the selection (a slanted floor of "
+              "windows in one stroke); Ctrl+Shift+drag adds them and groups the selection (as Ctrl+G)")
 
 
 class AnnotationEditor(QWidget):
@@ -114,6 +124,7 @@ class AnnotationEditor(QWidget):
         for k, t in enumerate(Tool):
             b = QToolButton()
             b.setText(f"{TOOL_TITLES[t]} ({TOOL_KEYS[t]})")
+            b.setToolTip(TOOL_TIPS[t] + STROKE_TIP)
             b.setCheckable(True)
             b.setSizePolicy(b.sizePolicy().Policy.Expanding, b.sizePolicy().Policy.Fixed)
             b.clicked.connect(lambda _=False, t=t: self.set_tool(t))
