@@ -56,8 +56,10 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   next one switches the active group), then **one** Esc per frame ends the active group when
   anything else is drawn after them (groups from scratch, ungrouped lights): the end is counted only
   where the next thing drawn must not join. Their class-key runs come first in the class-key
-  sequence (the double-click also picks the clicked light's class, which often saves that key: not
-  credited here, conservatively). ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
+  sequence; the double-click also picks the clicked light's class, so a group's run starts with a
+  class one of its lights there has (no key) where it can, and otherwise takes a key (since issue
+  #26's ninth pass; before, the run was charged as if the class drawn last stayed picked).
+  ``--no-active-group``: the model before (click the group, Ctrl+G: 2 + (n - k));
   ``--compare`` replays each frame both ways on the same proposals and prints both summaries
   (``--compare stroke-select``: with and without stroke select and stroke group instead;
   ``--compare stroke-group``: with and without stroke group; ``--compare review``: with and without
@@ -272,14 +274,27 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             count("class keys", 1, c)
     else:
         def runs_of(groups):
-            return sorted((sorted(class_of(i) for i in m & drawn) for m in groups), key=lambda cs: (len(set(cs)), cs))
-        first = [m for m in wanted if m & active_drawn]
-        runs = runs_of(first) + runs_of([m for m in wanted if not m & active_drawn])
+            return sorted(((sorted(class_of(i) for i in m & drawn), m) for m in groups),
+                          key=lambda r: (len(set(r[0])), r[0]))
+        cur = None  # the class the next stroke draws (None: unknown, the first draw takes a key)
+        # A group completed through the active group starts with the double-click, which sets the class
+        # to the clicked light's (ToolController.double_click): the annotator clicks a light of the class
+        # drawn first when the group has one, and a key is due only where the class then changes.
+        for cs, m in runs_of([m for m in wanted if m & active_drawn]):
+            there_cls = {class_of(i) for i in m - drawn}
+            start = min((c for c in cs if c in there_cls), default=None)
+            cur = start if start is not None else min(there_cls)
+            for c in sorted(cs, key=lambda c: (c != start, c)):
+                if c != cur:
+                    count("class keys", 1, c)
+                    cur = c
         in_group = set().union(*wanted) if wanted else set()
-        seq = [c for cs in runs for c in cs] + sorted(class_of(i) for i in drawn - in_group)
-        for k, c in enumerate(seq):
-            if k == 0 or c != seq[k - 1]:
+        seq = [c for cs, _m in runs_of([m for m in wanted if not m & active_drawn]) for c in cs] + \
+            sorted(class_of(i) for i in drawn - in_group)
+        for c in seq:
+            if c != cur:
                 count("class keys", 1, c)
+                cur = c
     have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
     for members, cls in wanted.items():
         best = max(have.values(), key=lambda h: len(h[0] & members), default=(frozenset(), 0))

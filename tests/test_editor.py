@@ -1012,3 +1012,35 @@ def test_tool_buttons_tell_the_selection_strokes(qtbot, tmp_path):
     for b in win.editor.tool_buttons.values():
         assert "Ctrl+drag" in b.toolTip() and "Ctrl+Shift+drag" in b.toolTip()
     close_window(win)
+
+
+def test_action_benchmark_class_keys_follow_the_double_click(qtbot):
+    """A double-click that activates a group also picks the clicked light's class. Three cars, each with
+    its pane accepted; two miss their one lamp (the pane's class is picked by the double-click: a lamp
+    key each), the third misses one of two lamps and has the other (double-click that lamp: no key).
+    2 class keys; the model before charged 1 (the lamp class as if it stayed picked across cars)."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand
+    from npsim_core.annotation_ops import group_lights, new_instance, paint
+    from npsim_gui.editor.session import EditorSession
+
+    m = np.zeros((40, 120), np.int32)
+    cars = [(2001, 4001), (2002, 4002), (2003, 4003, 4004)]
+    for k, car in enumerate(cars):
+        for j, i in enumerate(car):
+            m[10 + 8 * j:14 + 8 * j, 10 + 35 * k:20 + 35 * k] = i
+    gt = LightAnnotation(m, {14001 + k: GroupInstance(14001 + k, car) for k, car in enumerate(cars)})
+    s = EditorSession()
+    s.load(np.zeros((40, 120, 3), np.uint8), None, None)
+    for car in ((2001,), (2002,), (2003, 4003)):                     # accepted: panes, the third car's lamp
+        ids = []
+        for i in car:
+            cmd, nid = new_instance(s.ann, A.class_of(i))
+            s.apply(cmd)
+            s.apply(paint(s.ann, m == i, nid, overwrite=True))
+            ids.append(nid)
+        s.apply(group_lights(s.ann, ids, 14)[0])
+    counts = dict.fromkeys(("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup"), 0)
+    finish_by_hand(s, gt, counts)
+    check_equal(gt, s.ann)
+    assert (counts["draw"], counts["group"], counts["class keys"]) == (3, 3, 2)
+    s.shutdown()
