@@ -215,13 +215,12 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         nearest first, when their floor levels are within ``window_floor_tol_m`` (m above the
         ground, compared at the ``END_PANES`` panes of each nearest the gap, as the level read from
         depth drifts along a long wall; without depth half a pane's height in rows), the wall around
-        them is of one colour
-        (``window_block_lum`` / ``window_block_chroma``), their windows lie on one plane (inverse
+        them is of one colour (``window_block_lum`` / ``window_block_chroma``), their windows lie on one plane (inverse
         depth affine in the image, within 5 % of the depth), the building pixels between the nearest
         two along the floor are that wall (:func:`_gap_is_wall`) and that step is at most
         ``BLANK_STEPS`` (visible wall) or ``HIDDEN_STEPS`` (something in front) x the median step
-        (of the groups; for two single panes the bay of the building's other floors over those
-        columns, :func:`_bay_of_wall`; else 2.5 pane widths). Group confidence: the mean of its
+        (of the groups; for two without a step of their own, single panes, the bay of the building's
+        other floors over those columns, :func:`_bay_of_wall`; else 2.5 pane widths). Group confidence: the mean of its
         members'.
     """
     if not groups:
@@ -249,13 +248,14 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     width_m = np.where(np.isfinite(t["z"]), (t["x1"] - t["x0"]) * t["z"] / float(ctx.intrinsics.fx),
                        t["x1"] - t["x0"])
     parent = np.arange(n)
-    part_step = np.array([_spacing(pos, q, t["cu"]) for q in parts])
-    part_col = np.array([_median_colour(t["wall"][q]) for q in parts]).reshape(n, 3)
     # per cluster root: its windows, wall colour and column range (updated on a join)
     idx_of = {k: parts[k] for k in range(n)}
     col_of = {k: _median_colour(t["wall"][parts[k]]) for k in range(n)}
     span_of = {k: (t["x0"][parts[k]].min(), t["x1"][parts[k]].max()) for k in range(n)}
     step_of = {k: _spacing(pos, parts[k], t["cu"]) for k in range(n)}
+    # the parts' own steps and wall colours, for the bay of a wall (_bay_of_wall)
+    part_step = np.array([step_of[k] for k in range(n)])
+    part_col = np.array([col_of[k] for k in range(n)]).reshape(n, 3)
 
     def root(a: int) -> int:
         while parent[a] != a:
@@ -299,7 +299,7 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
         if steps:
             step = max(steps)
-        else:  # two single panes: the bay of the building's other floors over these columns
+        else:  # single panes: the bay of the building's other floors over these columns
             step = _bay_of_wall(part_step, part_col, x0, x1, min(xa0, xb0), max(xa1, xb1), (ca + cb) / 2.0,
                                 lum, chroma)
             if not np.isfinite(step):
