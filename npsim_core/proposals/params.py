@@ -176,6 +176,18 @@ class ProposalParams:
     #: A blob is cut where a run of its columns (rows) holds under this share of its height (width)
     #: with fuller ones on both sides: panes joined by a frame or a sill line (0: never).
     window_gap_occupancy: float = 0.25
+    #: A blob of at least ``window_row_min_panes`` pieces at most ``window_row_pane_max_px`` wide, where
+    #: its departure from the wall over a column dips below this fraction of the peaks either side, is a
+    #: receding row of panes merged by their blur: cut there (windows._row_split; 0: never).
+    window_row_gap_contrast: float = 0.8
+    window_row_min_panes: int = 2
+    window_row_pane_max_px: int = 3
+    window_row_pane_max_h_px: int = 16
+    #: ... judged on a blob kept as one window that spans at least ``window_row_min_m_per_px`` of wall
+    #: (m, from its depth) per pixel column and is longer along its wall than ``window_height_m[1]``,
+    #: or spans ``window_row_wall_m_per_px`` per column.
+    window_row_min_m_per_px: float = 0.5
+    window_row_wall_m_per_px: float = 1.0
     #: Blob pixels nearer than the wall in their image column (read 2 px above and below the blob) by
     #: this (m; 0: no test) and this share of the depth jut out of it: awnings, balcony slabs, their
     #: undersides -- not glass (windows._ledge_split). A blob mostly nearer and lower than
@@ -189,6 +201,11 @@ class ProposalParams:
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).
     window_shop_max_sill_m: float = 1.0
     window_shop_min_h_m: float = 1.6
+    #: A pane this far behind the plane of the wall below it (share of its depth, min and max; the
+    #: plane fitted over this band of metres below the pane) is a dormer's (kind ``dormer``, not a
+    #: facade window; (0, 0): off).
+    window_dormer_set_back: tuple[float, float] = (0.05, 0.4)
+    window_dormer_below_m: tuple[float, float] = (1.0, 4.0)
     #: Office floor bands: glazing at least this many times wider than tall (m).
     window_band_min_aspect: float = 3.5
     #: An empty facade-grid cell is a window when this share of its pixels differs from the wall by

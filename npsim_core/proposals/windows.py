@@ -162,16 +162,20 @@ def _features(ctx: Context) -> np.ndarray:
     return np.dstack([np.log(np.maximum(ctx.lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
 
-def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float) -> list[tuple[int, int, np.ndarray]]:
-    """Cut a blob along its longer axis where the wall shows through: the mean departure from the
-    wall (``dev``, in window thresholds) over each column (row for a tall blob) dips below
-    ``contrast`` times the lower of the peaks on either side. Returns (y, x, mask) pieces, local."""
+def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float,
+               axis: int | None = None, min_len: int = 5) -> list[tuple[int, int, np.ndarray]]:
+    """Cut a blob along its longer axis (``axis`` 0: across its columns, 1: across its rows, when
+    given) where the wall shows through: the mean departure from the wall (``dev``, in window
+    thresholds) over each column (row for a tall blob) dips below ``contrast`` times the lower of the
+    peaks on either side; blobs shorter than ``min_len`` along that axis are not cut. Returns (y, x,
+    mask) pieces, local."""
     h, w = m.shape
-    axis = 0 if w >= h else 1                      # 0: profile over columns
+    if axis is None:
+        axis = 0 if w >= h else 1                  # 0: profile over columns
     cnt = m.sum(axis)
     prof = np.where(cnt > 0, (dev * m).sum(axis) / np.maximum(cnt, 1), 0.0)
     n = prof.size
-    if n < 5:
+    if n < max(min_len, 3):
         return [(0, 0, m)]
     left = np.maximum.accumulate(prof)
     right = np.maximum.accumulate(prof[::-1])[::-1]
@@ -191,6 +195,64 @@ def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float) -> list[tuple[in
         piece = sub[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
         out.append((int(ys.min()) + (0 if axis == 0 else int(a)), int(xs.min()) + (int(a) if axis == 0 else 0), piece))
     return out
+
+
+def _extent_m(ctx: Context, y: int, x: int, m: np.ndarray) -> tuple[float, float] | None:
+    """(Length in metres along its wall, median depth) of a blob (``m`` at (y, x)) from the depth across
+    it: down a receding wall a blob's image width is foreshortened, its depth is not (a row of panes
+    1 px wide each spans metres of depth). The depth per column is the median over the blob's pixels
+    there; its slope the median of the pairwise slopes (Theil-Sen) over the columns without the
+    outermost two (their depth bleeds into what stands beside the blob); the length is the distance
+    between the 3-D points of the blob's first and last columns on that line. None without depth."""
+    if ctx.depth is None:
+        return None
+    h, w = m.shape
+    d = np.where(m, ctx.depth[y:y + h, x:x + w], np.nan)
+    has = np.isfinite(d).any(0)
+    cols = np.flatnonzero(has)
+    if cols.size < 2:
+        return None
+    zc = np.nanmedian(d[:, cols], axis=0)
+    z_med = float(np.nanmedian(d))
+    ci, zi = (cols[1:-1], zc[1:-1]) if cols.size >= 5 else (cols, zc)
+    i, j = np.triu_indices(ci.size, 1)
+    slope = float(np.median((zi[j] - zi[i]) / (ci[j] - ci[i])))
+    K = ctx.intrinsics
+    c0, c1 = float(cols[0]), float(cols[-1])
+    mid = float(np.median(ci))
+    z0 = z_med + slope * (c0 - mid)
+    z1 = z_med + slope * (c1 - mid)
+    p0 = ((x + c0 - K.cx) * z0 / K.fx, z0)
+    p1 = ((x + c1 - K.cx) * z1 / K.fx, z1)
+    return float(np.hypot(p1[0] - p0[0], p1[1] - p0[1])), z_med
+
+
+def _row_split(m: np.ndarray, dev: np.ndarray, p, min_h: float) -> list[tuple[int, int, np.ndarray]]:
+    """The panes of a receding row merged into one blob (``m``, local; ``dev``: departure from the
+    wall in window thresholds): down a receding wall panes are 1-3 px wide a pixel apart, and a lit
+    pane's blur makes the pixel of wall between them a candidate too, so the row is one blob -- on a
+    wall of its own too few windows for the 1.5x rule to cut it (:func:`_split_oversized`), it covers
+    its wall piece (docs/proposals.md "Ninth pass"). Cut across its columns where the departure dips
+    below ``window_row_gap_contrast`` x the peaks beside (:func:`_gap_split`) when that gives at least
+    ``window_row_min_panes`` pieces, each at most ``window_row_pane_max_px`` wide, ``min_h`` (a pane's
+    least height) to ``window_row_pane_max_h_px`` rows tall and at most 2 px apart; else [] (a pane
+    split by one mullion gives two pieces; a nearer pane shows its own frame, mullions and curtain
+    as dips)."""
+    c = float(p.window_row_gap_contrast)
+    if c <= 0 or m.shape[1] < 3:
+        return []
+    pieces = _gap_split(m, dev, c, axis=0, min_len=3)
+    if len(pieces) < p.window_row_min_panes:
+        return []
+    if any(pm.shape[1] > p.window_row_pane_max_px or not min_h <= pm.shape[0] <= p.window_row_pane_max_h_px
+           for _, _, pm in pieces):
+        return []  # not far panes: a pane taller than that shows its own frame and mullions as dips
+    # the wall between two such panes is a pixel or two: a wider dip is the inside of one pane (a
+    # curtain, a dark middle between a light frame's sides)
+    xs = sorted((px, px + pm.shape[1]) for _, px, pm in pieces)
+    if any(b[0] - a[1] > 2 for a, b in zip(xs, xs[1:])):
+        return []
+    return pieces
 
 
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
@@ -374,10 +436,82 @@ def _cut_off(labels: np.ndarray, y: int, x: int, sub: np.ndarray) -> bool:
     return bool((front(top) | front(bot)).mean() >= 0.5)
 
 
+def _set_back(ctx: Context, li: Light) -> float | None:
+    """How far a pane lies behind the plane of the wall below it, as a share of its depth:
+    z_pane / z_plane - 1 at the pane's median pixel, the plane 1/z = a u + b v + c (a plane's inverse
+    depth is linear in the image; a vertical wall's b follows from a, c and the camera's pitch) fitted
+    to the building pixels
+    ``window_dormer_below_m`` below the pane's bottom, in its columns widened by its width each side,
+    a pixel away from any other label (depth bleeds across an object's outline), then refitted
+    without the pixels more than 3 median deviations off. Down a wall seen at an angle a set-back
+    of s metres is s / (the wall's distance from the camera's path) of the depth: 0.6 m is 5-10 % on
+    a street's side walls. None without depth, or when under half that band is such building pixels
+    (a tree, a car, the frame's edge below the pane) or it spans fewer than 2 columns."""
+    if ctx.depth is None:
+        return None
+    p = ctx.params
+    H, W = ctx.shape
+    h, w = li.mask.shape
+    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return None
+    z = float(np.median(d))
+    fy = float(ctx.intrinsics.fy)
+    r0 = li.y0 + h + int(round(p.window_dormer_below_m[0] * fy / z))
+    r1 = min(H, li.y0 + h + int(round(p.window_dormer_below_m[1] * fy / z)))
+    c0, c1 = max(0, li.x0 - w), min(W, li.x0 + 2 * w)
+    if r1 - r0 < 2 or c1 - c0 < 2:
+        return None
+    ya, yb, xa, xb = max(0, r0 - 1), min(H, r1 + 1), max(0, c0 - 1), min(W, c1 + 1)
+    bld = cv2.erode((ctx.labels[ya:yb, xa:xb] == BUILDING).astype(np.uint8), np.ones((3, 3), np.uint8),
+                    borderType=cv2.BORDER_REPLICATE) > 0
+    band = ctx.depth[r0:r1, c0:c1]
+    ok = bld[r0 - ya:r1 - ya, c0 - xa:c1 - xa] & np.isfinite(band) & (band > 0)
+    if ok.sum() < max(6, 0.5 * ok.size):
+        return None
+    vv, uu = np.nonzero(ok)
+    if np.ptp(uu) < 1:
+        return None
+    # A wall is vertical: its normal is level, which fixes b from a and c for the camera's pitch
+    # (1/z = a (u + k cx v) + c (1 + k v)); the fit is then sideways only and its extrapolation up
+    # to the pane does not hang on the band's few rows.
+    K = ctx.intrinsics
+    tp = float(np.tan(p.camera_pitch_rad))
+    k = -tp / (float(K.fy) + float(K.cy) * tp)
+
+    def design(u, v):
+        u, v = np.asarray(u, np.float64), np.asarray(v, np.float64)
+        return np.stack([u + k * float(K.cx) * v, 1.0 + k * v], -1)
+
+    A = design(uu + c0, vv + r0)
+    inv = 1.0 / band[ok].astype(np.float64)
+    coef, *_ = np.linalg.lstsq(A, inv, rcond=None)
+    res = np.abs(A @ coef - inv)
+    keep = res <= 3.0 * max(float(np.median(res)), 1e-12)
+    if keep.sum() >= 6:
+        coef, *_ = np.linalg.lstsq(A[keep], inv[keep], rcond=None)
+    ys, xs = np.nonzero(li.mask)
+    inv_plane = float(design(li.x0 + np.median(xs), li.y0 + np.median(ys)) @ coef)
+    return float(z * inv_plane - 1.0) if inv_plane > 0 else None
+
+
+def _is_dormer(ctx: Context, li: Light) -> bool:
+    """Whether a window lies behind the plane of the wall below it by ``window_dormer_set_back`` of its
+    depth (:func:`_set_back`): a dormer's pane over the eaves, which an annotator does not count as a
+    window of the facade (on its small face it is over 40 % lit). Judged on the final windows: the
+    facade rules (grid, 1.5x, the lit cap) take it as any window of its wall."""
+    lo, hi = ctx.params.window_dormer_set_back
+    if hi <= 0 or (li.kind or "window") != "window":
+        return False
+    s = _set_back(ctx, li)
+    return s is not None and lo <= s <= hi
+
+
 def _kind(ctx: Context, li: Light) -> str:
     """``shop`` (glazing from near the ground, at least ``window_shop_min_h_m`` tall: a shop front),
     ``office_band`` (at least ``window_band_min_aspect`` times wider than tall in metres: a glass
-    floor band) or ``window``."""
+    floor band) or ``window`` (a final window may become a ``dormer``, :func:`_is_dormer`)."""
     p = ctx.params
     h, w = li.mask.shape
     if ctx.depth is None:
@@ -973,6 +1107,21 @@ def propose(ctx: Context) -> list[Group]:
             stack.extend((y0 + py, x0 + px, pm, depth_) for py, px, pm in pieces)
             continue
         why = accept(y0, x0, m)
+        if why is None and p.window_row_gap_contrast > 0 and m.shape[1] >= 3:
+            ext = _extent_m(ctx, y0, x0, m)
+            if ext is not None and ext[0] >= p.window_row_min_m_per_px * (m.shape[1] - 1) \
+                    and (ext[0] > p.window_height_m[1] or ext[0] >= p.window_row_wall_m_per_px * (m.shape[1] - 1)):
+                # kept as one window, but a pixel of it spans so much wall that a pane is a few pixels
+                # and a mullion a fraction of one (a dip is wall), and it is longer along its wall than
+                # any window or a pixel is most of a pane: a receding row of panes a pixel apart merged
+                # by their blur (_row_split)
+                dev = np.maximum(np.abs(ratio[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]) / t,
+                                 chroma[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] / p.window_chroma_delta)
+                pieces = _row_split(m, dev, p, p.window_height_m[0] * fy / ext[1])
+                if pieces:
+                    found.pop()
+                    stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in pieces)
+                    continue
         if why in ("fill", "size"):
             rejects.append((y0, x0, m))
         if why == "size" and depth_ == 0 and p.window_blob_wall_share > 0:
@@ -1006,6 +1155,9 @@ def propose(ctx: Context) -> list[Group]:
     found = regularise(ctx, found, ratio, chroma, B, bld, rejects)
     # The grid and the lattice propose cells of their own: the same tests on every final window.
     found = [f for f in found if not _juts_out(ctx, f[3])]
+    for f in found:
+        if _is_dormer(ctx, f[3]):
+            f[3].kind = "dormer"
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
