@@ -1044,3 +1044,32 @@ def test_action_benchmark_class_keys_follow_the_double_click(qtbot):
     check_equal(gt, s.ann)
     assert (counts["draw"], counts["group"], counts["class keys"]) == (3, 3, 2)
     s.shutdown()
+
+
+def test_ctrl_g_merges_whole_groups_keeping_their_class(qtbot, tmp_path):
+    """Ctrl+G on two whole groups of one class (a tram's windows proposed as two train_groups) merges them
+    into one train_group -- the windows' default (bus_group) would change it -- in one undo step; a group
+    class picked by hand (Alt+k) still wins."""
+    from npsim_core.annotation_ops import change_class, group_lights
+
+    win = open_window(qtbot, make_folder(tmp_path, grouped=False))
+    s = win.editor.session
+    ids = []
+    for i in range(1001, 1007):                                   # the top row as window_transport (7)
+        cmd, nid = change_class(s.ann, i, 7)
+        s.apply(cmd)
+        ids.append(nid)
+    g1 = group_lights(s.ann, ids[:3], 18)
+    s.apply(g1[0])
+    g2 = group_lights(s.ann, ids[3:], 18)
+    s.apply(g2[0])
+    s.set_selection({g1[1], g2[1]})
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert [(A.class_of(g), m.members) for g, m in s.ann.groups.items()] == [(18, tuple(sorted(ids)))]
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    assert sorted(s.ann.groups) == sorted({g1[1], g2[1]})
+    s.set_selection({g1[1], g2[1]})
+    key(qtbot, win, Qt.Key.Key_4, Qt.KeyboardModifier.AltModifier)  # bus_group picked by hand
+    key(qtbot, win, Qt.Key.Key_G, CTRL)
+    assert [A.class_of(g) for g in s.ann.groups] == [16]
+    close_window(win)

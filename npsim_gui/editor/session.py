@@ -379,8 +379,8 @@ class EditorSession(QObject):
         """Group the selection (Ctrl+G, and the end of a Ctrl+Shift+drag): the selected lights and the lights of
         the selected groups become one group, one undo step. With exactly one group selected (and no other
         group class picked by hand) the other selected lights join that group; otherwise a new group of the
-        group class picked by hand, or else of the lights' default group class, is made (lights leave their
-        old groups). Returns (the group's id, the status text); (None, why) when nothing was grouped.
+        group class picked by hand, else of the selected groups' class when they all have one, else of the
+        lights' default group class, is made (lights leave their old groups: merging groups). Returns (the group's id, the status text); (None, why) when nothing was grouped.
         Raises :class:`NpsimInputError` from the edit command (e.g. a class's 999 ids used up)."""
         groups = sorted(self.selected_groups())
         lights = self.highlighted()
@@ -393,7 +393,11 @@ class EditorSession(QObject):
             if cmd is None:
                 return None, f"the selection already is {light_class(class_of(gid)).name} {gid}"
         else:
-            gclass = self.group_class_for(lights)
+            # Several whole groups of one class merge into one of that class (two train_groups stay a
+            # train_group, not the bus_group their windows' class preselects), unless one is picked by hand.
+            kept = {class_of(g) for g in groups}
+            gclass = kept.pop() if len(groups) > 1 and len(kept) == 1 and not self.group_explicit \
+                else self.group_class_for(lights)
             if gclass is None:
                 names = sorted({light_class(class_of(i)).name for i in lights})
                 return None, (f"{', '.join(names)} has no default group class: choose a group class "

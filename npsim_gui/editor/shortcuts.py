@@ -100,8 +100,8 @@ KEYMAP: tuple[Shortcut, ...] = (
     # ---- lights and groups
     _s("new", "N", "New light of the current class (the next stroke paints into it)", EDIT),
     _s("class", "C", "Change the selected lights (groups) to the current light (group) class", EDIT),
-    _s("group", "Ctrl+G", "Group the selection; with one group selected, the other selected lights join it",
-       EDIT),
+    _s("group", "Ctrl+G", "Group the selection; with one group selected, the other selected lights join it; "
+       "several groups merge (keeping their class when they share one)", EDIT),
     _s("ungroup", "Ctrl+Shift+G", "Ungroup the selected groups / the groups of the selected lights", EDIT),
     _s("activate", "A", "Make the selected group active: new lights join it; A again or Esc ends", EDIT),
     _s("delete", ("Delete", "Backspace"), "Delete the selected lights or groups", EDIT),
