@@ -212,3 +212,31 @@ def test_action_benchmark_reviews_pending_groups_worth_a_shift_a(qtbot):
     check_equal(gt, s.ann)
     assert (counts["draw"], counts["group"], counts["remove"]) == (3, 1, 0)
     s.shutdown()
+
+
+def test_shift_a_over_the_pending_rest_of_a_group_accepted_in_part_completes_it(editor, qtbot):
+    """What the action benchmark's review replays: after "Accept ≥ 0.9" took two of a proposed floor's
+    three windows, Shift+A over the third (pending, 0.6) adds it to the group the first two became, in
+    one undo step. (A guard of the benchmark's assumption: the editor did this before the review.)"""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+
+    p_map = np.zeros((H, W), np.int32)
+    for k in range(3):
+        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
+    editor.set_proposals(LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003))}),
+                                        {1001: 0.95, 1002: 0.95, 1003: 0.6, 13001: 0.95}))
+    s, c = editor.session, editor.canvas
+    assert len(editor.accept_proposals_above()) == 2              # the slider's default, 0.9
+    (gid, g), = s.ann.groups.items()
+    assert len(g.members) == 2
+    QTest.mouseMove(c.viewport(), QPoint(c.view_point(20 + 24 + 3.5, 23.5)))
+    qtbot.waitUntil(lambda: editor._hover_xy == (47, 23), timeout=2000)
+    c.setFocus()
+    qtbot.keyClick(c, Qt.Key.Key_A, Qt.KeyboardModifier.ShiftModifier)
+    assert len(s.ann.instance_ids()) == 3 and [len(g.members) for g in s.ann.groups.values()] == [3]
+    s.undo()
+    assert len(s.ann.instance_ids()) == 2 and [len(g.members) for g in s.ann.groups.values()] == [2]
