@@ -205,7 +205,8 @@ def test_action_benchmark_reviews_pending_groups_worth_a_shift_a(qtbot):
     s.undo()                                                         # one undo step, as Shift+A's
     assert s.ann.instance_ids() == [] and not s.ann.groups
     s.redo()
-    assert [sorted(np.unique(gt_map[s.ann.instance_map == m])) for m in s.ann.instance_ids()] == [[1001], [1002], [1003]]
+    taken = [sorted(np.unique(gt_map[s.ann.instance_map == m])) for m in s.ann.instance_ids()]
+    assert taken == [[1001], [1002], [1003]]
     assert [len(g.members) for g in s.ann.groups.values()] == [3]
     assert sorted(book.pending(s.existing_ids())) == [1004, 1007]
     finish_by_hand(s, gt, counts)                                    # the rest by hand: 3 draws, 1 Ctrl+G

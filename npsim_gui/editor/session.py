@@ -380,8 +380,9 @@ class EditorSession(QObject):
         the selected groups become one group, one undo step. With exactly one group selected (and no other
         group class picked by hand) the other selected lights join that group; otherwise a new group of the
         group class picked by hand, else of the selected groups' class when they all have one, else of the
-        lights' default group class, is made (lights leave their old groups: merging groups). Returns (the group's id, the status text); (None, why) when nothing was grouped.
-        Raises :class:`NpsimInputError` from the edit command (e.g. a class's 999 ids used up)."""
+        lights' default group class, is made (lights leave their old groups: merging groups). Returns (the
+        group's id, the status text); (None, why) when nothing was grouped. Raises :class:`NpsimInputError`
+        from the edit command (e.g. a class's 999 ids used up)."""
         groups = sorted(self.selected_groups())
         lights = self.highlighted()
         if not lights:
