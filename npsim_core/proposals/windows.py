@@ -255,6 +255,31 @@ def _row_split(m: np.ndarray, dev: np.ndarray, p, min_h: float) -> list[tuple[in
     return pieces
 
 
+def _unblur(li: Light, dev: np.ndarray, p) -> None:
+    """Take off a narrow window's (at most ``window_row_pane_max_px`` wide) edge column that its pane's
+    colour only bled into, in place: a pane 1 px wide shows in 2 (the render's and a camera's blur),
+    the convex hull keeps both, and half the proposal is wall (mask IoU 0.5: an editor touch-up;
+    docs/proposals.md "Ninth pass"). An edge column whose mean departure from the wall (``dev`` over
+    the window's box, in window thresholds) is under ``window_unblur_ratio`` of the strongest
+    column's goes, one a side."""
+    r = float(p.window_unblur_ratio)
+    h, w = li.mask.shape
+    if r <= 0 or w < 2 or w > p.window_row_pane_max_px:
+        return
+    cnt = li.mask.sum(0)
+    prof = np.where(cnt > 0, (dev * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+    keep = np.ones(w, bool)
+    for j in (0, w - 1):
+        if prof[j] < r * float(prof.max()):
+            keep[j] = False
+    m = li.mask & keep[None, :]
+    if keep.all() or not m.any():
+        return
+    ys, xs = np.nonzero(m)
+    li.y0, li.x0 = li.y0 + int(ys.min()), li.x0 + int(xs.min())
+    li.mask = m[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+
+
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
     """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
     blob's height (width) -- with fuller columns (rows, over twice that) on both sides: the wall
@@ -1158,6 +1183,9 @@ def propose(ctx: Context) -> list[Group]:
     for f in found:
         if _is_dormer(ctx, f[3]):
             f[3].kind = "dormer"
+        li = f[3]
+        box = (slice(li.y0, li.y0 + li.mask.shape[0]), slice(li.x0, li.x0 + li.mask.shape[1]))
+        _unblur(li, np.maximum(np.abs(ratio[box]) / t, chroma[box] / p.window_chroma_delta), p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
