@@ -40,7 +40,7 @@ def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
     difference (8-bit levels) between its pixels' mean and the median of the silhouette's pixels within
     two pixels of it (4-connected), 0 when it has no such pixels. ``img`` (h, w, 3), ``m`` the vehicle's
     silhouette and ``light`` its mask, both local (h, w) bool."""
-    from scipy import ndimage
+    import cv2
 
     ys, xs = np.nonzero(light)
     if ys.size == 0:
@@ -48,7 +48,9 @@ def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
     a, b = max(0, int(ys.min()) - 2), max(0, int(xs.min()) - 2)
     sl = (slice(a, int(ys.max()) + 3), slice(b, int(xs.max()) + 3))
     li = light[sl]
-    ring = ndimage.binary_dilation(li, iterations=2) & ~li & m[sl]
+    grown = cv2.dilate(li.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)), iterations=2,
+                       borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    ring = grown.astype(bool) & ~li & m[sl]
     if not ring.any():
         return 0.0
     sub = img[sl]
