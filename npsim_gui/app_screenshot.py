@@ -4,9 +4,10 @@
 writes ``app.png``: the main window at the screen's size on frame 0 of a
 Cityscapes-layout dataset (``npsim_core.synthetic.cityscapes``, 2048x1024: image, labelIds,
 stereo disparity, camera JSON) opened as a dataset root, once its full-resolution mesh and night
-preview are shown, with its light proposals (Ctrl+P) and those >= 0.9 accepted; and
+preview are shown, with its light proposals (Ctrl+P) and those at or above the slider's default
+(``npsim_gui.editor.proposals.DEFAULT_ACCEPT_THRESHOLD``) accepted; and
 ``editor_proposals.png``: the stand-alone editor on the synthetic street
-(1024x512) with light proposals, the sure ones (confidence >= 0.9) accepted, zoomed on a street
+(1024x512) with light proposals, the sure ones (at or above that default) accepted, zoomed on a street
 corner. ``--dataset ROOT`` uses an existing dataset instead of writing the fixture.
 """
 
@@ -19,6 +20,8 @@ import time
 from pathlib import Path
 
 from PySide6.QtWidgets import QApplication
+
+from .editor.proposals import DEFAULT_ACCEPT_THRESHOLD
 
 
 def _wait(app: QApplication, cond, timeout: float = 1800.0) -> None:
@@ -51,7 +54,7 @@ def app_real_frame(app: QApplication, out: Path, dataset: Path | None, size: tup
     ed = win.editor
     ed.actions_by_name["propose"].trigger()  # Ctrl+P: the proposals as a dashed layer, their tab shown
     _wait(app, lambda: ed.proposal_book is not None and not ed.proposal_jobs.is_busy)
-    ed.confidence_slider.setValue(90)
+    ed.confidence_slider.setValue(int(round(DEFAULT_ACCEPT_THRESHOLD * 100)))
     ed.accept_proposals_above()
     t0 = time.perf_counter()
     _wait(app, lambda: time.perf_counter() - t0 > 1.0 and not win.jobs_busy)  # the night with those lights
@@ -82,7 +85,7 @@ def editor_proposals(app: QApplication, out: Path) -> None:
     _settle(app, win)
     ed = win.editor
     ed.set_proposals(propose_for_scene(scene))
-    ed.accept_proposals_above(0.9)
+    ed.accept_proposals_above(DEFAULT_ACCEPT_THRESHOLD)
     ed.canvas.set_zoom(2.2)
     ed.canvas.centerOn(330, 190)
     ed.side_tabs.setCurrentWidget(ed.proposals_box)  # the Proposals tab and its list
