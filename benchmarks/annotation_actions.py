@@ -4,8 +4,9 @@
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
+                                                      [--no-tool-switches]
                                                       [--compare [active-group|stroke-select|stroke-group|
-                                                                  review|ninth-pass]]
+                                                                  review|ninth-pass|tool-switches]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -21,7 +22,8 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   after another with *one light per region* on (key R): each such stroke leaves every light drawn
   since the last other selection selected (``EditorSession.select_created``; a class key does not
   clear it), so they need no click. The lights the group already has (accepted proposals) are
-  selected by Shift+clicks -- one per light, or one on a proposed group holding only members --
+  selected by Ctrl+clicks (any tool) -- one per light, or one on a proposed group holding only members
+  (its row in the group list) --
   or by Shift+drags of the Select tool's rubber band (it selects every light it touches), one per
   run of them whose box touches no other light, or by Ctrl+drags (*stroke select*, any tool: it adds
   every light the mouse path passes over, ``npsim_gui.editor.tools.lights_on_path``), one per run of
@@ -39,9 +41,19 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   group that holds k of its n lights completed with 2 + (n - k) (+ 3 when its class is wrong). It
   charged every drawn light of a group twice (draw and Shift+click) although the editor leaves
   drawn lights selected for Ctrl+G, and never used the rubber band;
-* remove a wrong light: 2 (click, Delete); fix a light's class: 3 (click, class key, C);
-  touch up a light whose mask IoU with its ground truth is below 0.7: 1 (one stroke);
-  ungroup a group that is not in the ground truth: 2 (click, Ctrl+Shift+G);
+* remove a wrong light: 2 (right-click, Delete); fix a light's class: 3 (right-click, class key, C);
+  touch up a light whose mask IoU with its ground truth is below 0.7: 2 (right-click: it becomes the
+  current light; one stroke grows it, a Shift+stroke shrinks it), after a class fix 1;
+  ungroup a group that is not in the ground truth: 2 (right-click, Ctrl+Shift+G);
+* **tool keys** (issue #26's ninth pass, "tool"; ``--no-tool-switches``: the model before, which charged
+  none): every gesture counted must exist in the tool the annotator is in. The draws are superpixel
+  drags with *one light per region* on; right-clicks, Ctrl+clicks, Ctrl+drags, Ctrl+double-clicks, a row
+  of the group list and every key work with that tool, but a stroke there makes new lights, so the
+  touch-ups are done together with *one light per region* off: R before and after them, 2 a frame with
+  any touch-up. A rubber band is the Select tool's (with the drawing tool a Shift+drag erases
+  superpixels): V to it and S back, 2 per trip -- one trip per group whose drawn lights come first, one
+  shared by all the groups that need no draw -- and the band is taken only where it saves more than
+  that;
 * **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, a
   pending proposal group worth it is accepted with Shift+A over it, 1 each (:func:`review_pending`);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
@@ -198,7 +210,7 @@ def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, 
 
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
                    per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True,
-                   stroke_group: bool = True) -> None:
+                   stroke_group: bool = True, tool_switches: bool = True) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
@@ -206,7 +218,8 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     double-clicking it and drawing them (False: select it, Ctrl+G, the model before); ``stroke_select``:
     lights to group may be selected by Ctrl+drags over them (False: clicks and rubber bands only);
     ``stroke_group``: a selection that ends with a Ctrl+click or Ctrl+drag ends with Ctrl+Shift instead,
-    which groups it (no Ctrl+G)."""
+    which groups it (no Ctrl+G); ``tool_switches``: a rubber band (the Select tool's) costs the keys that
+    switch to the Select tool and back to drawing (False: the model before, a band with any tool)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -214,7 +227,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
         by_category = {}
 
     def count(kind: str, n: int, cls: int) -> None:
-        counts[kind] += n
+        counts[kind] = counts.get(kind, 0) + n
         key = (kind, CATEGORY_OF_CLASS.get(cls, "other"))
         by_category[key] = by_category.get(key, 0) + n
 
@@ -228,6 +241,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     for pid in [i for i in session.ann.instance_ids() if i not in matched_p]:
         do(delete_instance(session.ann, pid))
         count("remove", 2, class_of(pid))
+    touch_ups = 0
     for g, (p, iou) in list(match.items()):
         if class_of(p) != class_of(g):
             cmd, nid = change_class(session.ann, p, class_of(g))
@@ -235,7 +249,15 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             match[g] = (nid, iou)
             count("class fix", 3, class_of(g))
         if iou < TOUCH_UP_IOU:
-            count("touch up", 1, class_of(g))
+            # Right-click makes the light current, one stroke grows (or Shift: shrinks) it; with the tool's
+            # *one light per region* on (the draws need it) a stroke makes new lights, so all touch-ups are
+            # done together between R (off) and R (on), 2 tool keys a frame (tool_switches=False: the model
+            # before, one stroke each and no key).
+            count("touch up", 2 if tool_switches and class_of(p) == class_of(g) else 1, class_of(g))  # (a class
+            # fix right-clicked it already)
+            touch_ups += 1
+    if tool_switches and touch_ups:
+        count("tool", 2, 1)
     drawn: set[int] = set()
 
     def draw(g: int) -> int:
@@ -296,6 +318,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
                 count("class keys", 1, c)
                 cur = c
     have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
+    plans = []  # (members, cls, part, best, ways, folds, has drawn members)
     for members, cls in wanted.items():
         best = max(have.values(), key=lambda h: len(h[0] & members), default=(frozenset(), 0))
         if best == (members, cls):
@@ -307,34 +330,66 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
                 count("group", 2 + len(members - part) + (3 if best[1] != cls else 0), cls)
             else:
                 count("group", len(members) + 1 + (default_cls != cls), cls)
-        else:
-            there = set(members - drawn)  # drawn members are selected already (select_created)
-            clicks = (1 if part else 0) + len(there - part)
-            ways = [("clicks", clicks)]
-            if there:
-                ways.append(("band", _band_cost(session.ann.instance_map, there, set(members))))
-                if stroke_select:
-                    ways.append(("stroke", _stroke_cost(session.ann.instance_map, there, set(members))))
-            # The fewest actions; among as few, one that can end in Ctrl+Shift (stroke group: no Ctrl+G).
-            folds = {"clicks": stroke_group and bool(there - part), "band": False, "stroke": stroke_group}
-            how, select = min(ways, key=lambda w: (w[1], not folds[w[0]])) if there else ("clicks", 0)
-            fold = folds[how] and bool(there)
-            key = (best[1] != cls) if part and how == "clicks" else (default_cls != cls)
-            count("group", select + (0 if fold else 1) + int(key), cls)
-            # The grouping itself is the editor's (EditorSession.group_selection): select what the gestures
-            # select (a part's group by its row in the list, Ctrl+click), pick the group class when a key is
-            # charged, group; it must give exactly this group.
-            pgid = session.ann.group_of(min(part)) if part and how == "clicks" else None
-            if pgid is not None and not set(session.ann.groups[pgid].members) <= members:
-                pgid = None
-            session.set_selection(set(members) - (set(session.ann.groups[pgid].members) if pgid else set())
-                                  | ({pgid} if pgid else set()))
-            session.set_current_class(cls if key else class_of(min(members)))
-            gid, _ = session.group_selection()
-            if gid is None or (frozenset(session.ann.groups[gid].members), class_of(gid)) != (members, cls):
-                raise AssertionError(f"the editor's grouping of {sorted(members)} as {cls} gave {gid}")
+            do(group_lights(session.ann, members, cls))
             continue
-        do(group_lights(session.ann, members, cls))
+        there = set(members - drawn)  # drawn members are selected already (select_created)
+        clicks = (1 if part else 0) + len(there - part)
+        ways = [("clicks", clicks)]
+        if there:
+            ways.append(("band", _band_cost(session.ann.instance_map, there, set(members))))
+            if stroke_select:
+                ways.append(("stroke", _stroke_cost(session.ann.instance_map, there, set(members))))
+        folds = {"clicks": stroke_group and bool(there - part), "band": False, "stroke": stroke_group}
+        plans.append((members, cls, part, best, ways, folds, bool(members & drawn)))
+
+    def fewest(ways, folds, band: bool):
+        # The fewest actions; among as few, one that can end in Ctrl+Shift (stroke group: no Ctrl+G).
+        return min((w for w in ways if band or w[0] != "band"), key=lambda w: (w[1], not folds[w[0]]))
+
+    def total(way, folds) -> int:
+        return way[1] + (0 if folds[way[0]] else 1)
+
+    # The rubber band is the Select tool's (V); everything else here works with the drawing tool (Ctrl+click,
+    # Ctrl+drag, a row of the group list, Ctrl+G), which draws. A band therefore costs a trip to the Select
+    # tool and back (2 keys): one trip per group whose drawn lights must come first (the draws leave them
+    # selected; the band then adds), one shared by all the groups that need no draw (done last, together).
+    use_band: set[int] = set()
+    if tool_switches:
+        trips = 0
+        for k, (_m, _c, _p, _b, ways, folds, has_draws) in enumerate(plans):
+            if has_draws and any(w[0] == "band" for w in ways):
+                if total(fewest(ways, folds, True), folds) + 2 < total(fewest(ways, folds, False), folds):
+                    use_band.add(k)
+                    trips += 1
+        saving = {k: total(fewest(ways, folds, False), folds) - total(fewest(ways, folds, True), folds)
+                  for k, (_m, _c, _p, _b, ways, folds, has_draws) in enumerate(plans) if not has_draws}
+        gain = sum(v for v in saving.values() if v > 0)
+        if gain > 0 and (trips or gain > 2):
+            use_band |= {k for k, v in saving.items() if v > 0}
+            trips += 0 if trips else 1
+        if trips:
+            count("tool", 2 * trips, plans[min(use_band)][1])
+    else:
+        use_band = set(range(len(plans)))  # the model before: the band with any tool, no switch
+    for k, (members, cls, part, best, ways, folds, _d) in enumerate(plans):
+        there = set(members - drawn)
+        default_cls = DEFAULT_GROUP_FOR_LIGHT.get(class_of(min(members)))
+        how, select = fewest(ways, folds, k in use_band) if there else ("clicks", 0)
+        fold = folds[how] and bool(there)
+        key = (best[1] != cls) if part and how == "clicks" else (default_cls != cls)
+        count("group", select + (0 if fold else 1) + int(key), cls)
+        # The grouping itself is the editor's (EditorSession.group_selection): select what the gestures
+        # select (a part's group by its row in the list, Ctrl+click), pick the group class when a key is
+        # charged, group; it must give exactly this group.
+        pgid = session.ann.group_of(min(part)) if part and how == "clicks" else None
+        if pgid is not None and not set(session.ann.groups[pgid].members) <= members:
+            pgid = None
+        session.set_selection(set(members) - (set(session.ann.groups[pgid].members) if pgid else set())
+                              | ({pgid} if pgid else set()))
+        session.set_current_class(cls if key else class_of(min(members)))
+        gid, _ = session.group_selection()
+        if gid is None or (frozenset(session.ann.groups[gid].members), class_of(gid)) != (members, cls):
+            raise AssertionError(f"the editor's grouping of {sorted(members)} as {cls} gave {gid}")
     for gid, grp in list(session.ann.groups.items()):  # proposal groups left over
         if wanted.get(frozenset(grp.members)) != grp.class_id:
             do(ungroup(session.ann, gid))
@@ -430,10 +485,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-review", action="store_true",
                     help="leave the proposals below the slider pending (no Shift+A review; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
-                    choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass"),
+                    choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
+                             "tool-switches"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
+    ap.add_argument("--no-tool-switches", action="store_true",
+                    help="a rubber band with any tool, no key to switch to the Select tool and back (the model "
+                         "before; module doc)")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
                          "double-clicking it active (the model before; module doc)")
@@ -452,17 +511,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.thresholds is None:
         args.thresholds = f"0.5,0.7,{DEFAULT_ACCEPT_THRESHOLD:g}"
     thresholds = [float(t) for t in args.thresholds.split(",") if t] + ([ORACLE] if args.oracle else [])
-    kinds = ("draw", "class keys", "group", "accept", "review", "remove", "class fix", "touch up", "ungroup")
+    kinds = ("draw", "class keys", "group", "tool", "accept", "review", "remove", "class fix", "touch up",
+             "ungroup")
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
-    # (active group, stroke select, stroke group, review)
+    # (active group, stroke select, stroke group, review, tool switches)
     now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group),
-           not args.no_review)
+           not args.no_review, not args.no_tool_switches)
     models = ([now, (False,) + now[1:]] if args.compare == "active-group" else
               [now, now[:1] + (False, False) + now[3:]] if args.compare == "stroke-select" else
               [now, now[:2] + (False,) + now[3:]] if args.compare == "stroke-group" else
-              [now, now[:3] + (False,)] if args.compare == "review" else
-              [now, now[:1] + (False, False, False)] if args.compare == "ninth-pass" else [now])
+              [now, now[:3] + (False,) + now[4:]] if args.compare == "review" else
+              [now, now[:1] + (False, False, False) + now[4:]] if args.compare == "ninth-pass" else
+              [now, now[:4] + (False,)] if args.compare == "tool-switches" else [now])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -471,7 +532,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for model_k, (active, stroke, stroke_group, review) in enumerate(models):
+                for model_k, (active, stroke, stroke_group, review, switches) in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -483,7 +544,8 @@ def main(argv: list[str] | None = None) -> int:
                         if review and t != ORACLE:  # (the oracle accepted every good proposal already)
                             review_pending(s, book, gt, counts, by_cat)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
-                                   active_group=active, stroke_select=stroke, stroke_group=stroke_group)
+                                   active_group=active, stroke_select=stroke, stroke_group=stroke_group,
+                                   tool_switches=switches)
                     check_equal(gt, s.ann)
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
@@ -497,6 +559,7 @@ def main(argv: list[str] | None = None) -> int:
                   ", stroke select (Ctrl+drag), no stroke group" if args.no_stroke_group else
                   ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
         model += ", no review" if args.no_review else ", pending groups reviewed (Shift+A)"
+        model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -517,7 +580,8 @@ def main(argv: list[str] | None = None) -> int:
                                  "then Ctrl+G)",
                 "stroke-group": "--no-stroke-group (Ctrl+G after the selection)",
                 "review": "--no-review (no Shift+A on pending proposals)",
-                "ninth-pass": "--no-stroke-select --no-review (the model before issue #26's ninth pass)"}[args.compare]
+                "ninth-pass": "--no-stroke-select --no-review (the model before issue #26's ninth pass)",
+                "tool-switches": "--no-tool-switches (a rubber band with any tool, no tool keys)"}[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
               + " |")
@@ -532,7 +596,7 @@ def main(argv: list[str] | None = None) -> int:
                 for t in thresholds) + " |")
     # What the actions are spent on: mean per frame, per kind of action and category of light or group.
     cats = ("windows", "vehicles", "street lamps", "signals", "other")
-    spent = ("draw", "group", "remove", "touch up", "class fix", "ungroup")
+    spent = ("draw", "group", "tool", "remove", "touch up", "class fix", "ungroup")
     print("\nWhat the actions are spent on (mean per frame, each cell windows / vehicles / street lamps / "
           "signals / other; draw = missed lights, group = grouping and completing groups, remove = false "
           "lights, ungroup = proposed groups not kept):\n")

@@ -1073,3 +1073,100 @@ def test_ctrl_g_merges_whole_groups_keeping_their_class(qtbot, tmp_path):
     key(qtbot, win, Qt.Key.Key_G, CTRL)
     assert [A.class_of(g) for g in s.ann.groups] == [16]
     close_window(win)
+
+
+def _rows_of_windows(rows: int) -> LightAnnotation:
+    """``rows`` rows of three 4x6 windows (class 1), each row a windows_group (13)."""
+    m = np.zeros((12 * rows, 40), np.int32)
+    groups = {}
+    for r in range(rows):
+        ids = tuple(1001 + 3 * r + k for k in range(3))
+        for k, i in enumerate(ids):
+            m[3 + 12 * r:9 + 12 * r, 4 + 12 * k:8 + 12 * k] = i
+        groups[13001 + r] = GroupInstance(13001 + r, ids)
+    return LightAnnotation(m, groups)
+
+
+def test_action_benchmark_charges_the_keys_to_the_select_tool_and_back_for_a_band(qtbot, tmp_path):
+    """The rubber band is the Select tool's: with the drawing tool a Shift+drag over a row of windows is a
+    superpixel stroke, not a selection (the widget, below), so ``benchmarks.annotation_actions`` charges
+    the keys to the Select tool and back (V, S: 2) for it. Rows of three accepted windows, grouped without
+    stroke select: one row is cheaper by Ctrl+clicks ending in Ctrl+Shift (3) than band + Ctrl+G + 2 keys
+    (4); three rows share one trip (3 x 2 + 2 = 8 < 9). The model before charged 2 a row, no key."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand
+    from npsim_core.annotation_ops import new_instance, paint
+    from npsim_gui.editor.session import EditorSession
+
+    win = open_window(qtbot, make_folder(tmp_path, grouped=False))
+    s, c = win.editor.session, win.editor.canvas
+    row = set(range(1001, 1007))
+    assert win.editor.controller.tool == Tool.SUPERPIXEL
+    drag(qtbot, c, [(WINDOW_XS[0] - 4, 25), (WINDOW_XS[-1] + 14, 46)], mods=SHIFT)
+    assert s.selection != row
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    key(qtbot, win, Qt.Key.Key_V)
+    drag(qtbot, c, [(WINDOW_XS[0] - 4, 25), (WINDOW_XS[-1] + 14, 46)], mods=SHIFT)
+    assert s.selection == row
+    close_window(win)
+
+    got = {}
+    for rows in (1, 3):
+        gt = _rows_of_windows(rows)
+        for switches in (True, False):
+            sess = EditorSession()
+            sess.load(np.zeros(gt.shape + (3,), np.uint8), None, None)
+            for i in gt.instance_ids():                                  # accepted, ungrouped
+                cmd, nid = new_instance(sess.ann, 1)
+                sess.apply(cmd)
+                sess.apply(paint(sess.ann, gt.instance_map == i, nid, overwrite=True))
+            counts = dict.fromkeys(("draw", "class keys", "group", "tool"), 0)
+            finish_by_hand(sess, gt, counts, stroke_select=False, tool_switches=switches)
+            check_equal(gt, sess.ann)
+            sess.shutdown()
+            got[rows, switches] = (counts["group"], counts["tool"])
+    assert got == {(1, True): (3, 0), (1, False): (2, 0), (3, True): (6, 2), (3, False): (6, 0)}
+
+
+def test_action_benchmark_charges_a_touch_up_its_right_click_and_the_split_keys(qtbot, tmp_path):
+    """With *one light per region* on (the draws need it) a stroke starting on a light makes new lights and
+    leaves that light as it was (the widget, below); growing it takes a right-click (it becomes current)
+    and a stroke with the option off. ``benchmarks.annotation_actions`` charges a touch-up 2 and R off / on
+    2 a frame; the model before charged one stroke."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand
+    from npsim_core.annotation_ops import new_instance, paint
+    from npsim_gui.editor.session import EditorSession
+
+    win = open_window(qtbot, make_folder(tmp_path, grouped=False))
+    s, c = win.editor.session, win.editor.canvas
+    x0 = WINDOW_XS[0]
+    key(qtbot, win, Qt.Key.Key_R)
+    assert win.editor.options.split_regions
+    before = (s.ann.instance_map == 1001).sum()
+    ids_before = set(s.ann.instance_ids())
+    drag(qtbot, c, [(x0 + 5, 35), (x0 + 5, 50)])                   # from inside window 1001 down the wall
+    assert (s.ann.instance_map == 1001).sum() == before and set(s.ann.instance_ids()) > ids_before
+    key(qtbot, win, Qt.Key.Key_Z, CTRL)
+    click(qtbot, c, x0 + 5, 35, button=RIGHT)
+    key(qtbot, win, Qt.Key.Key_R)
+    drag(qtbot, c, [(x0 + 5, 35), (x0 + 5, 50)])
+    assert (s.ann.instance_map == 1001).sum() > before and set(s.ann.instance_ids()) == ids_before
+    close_window(win)
+
+    gt = _rows_of_windows(1)
+    got = {}
+    for switches in (True, False):
+        sess = EditorSession()
+        sess.load(np.zeros(gt.shape + (3,), np.uint8), None, None)
+        for i in gt.instance_ids():                                  # accepted; the first one too small
+            cmd, nid = new_instance(sess.ann, 1)
+            sess.apply(cmd)
+            m = gt.instance_map == i
+            if i == 1001:
+                m[7:, :] = False                                     # 4 of its 6 rows: IoU 0.67, a touch-up
+            sess.apply(paint(sess.ann, m, nid, overwrite=True))
+        counts = dict.fromkeys(("draw", "class keys", "group", "tool", "touch up"), 0)
+        finish_by_hand(sess, gt, counts, tool_switches=switches)
+        check_equal(gt, sess.ann)
+        sess.shutdown()
+        got[switches] = (counts["touch up"], counts["tool"])
+    assert got == {True: (2, 2), False: (1, 0)}
