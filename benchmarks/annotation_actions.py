@@ -4,9 +4,10 @@
                                                       [--variants default,hard] [--thresholds 0.5,0.7,0.9]
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
-                                                      [--no-tool-switches]
+                                                      [--no-tool-switches] [--class-order]
                                                       [--compare [active-group|stroke-select|stroke-group|
-                                                                  review|ninth-pass|tool-switches]]
+                                                                  review|ninth-pass|tool-switches|
+                                                                  class-order|tool-keys]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -35,25 +36,26 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   Ctrl+drag: that last one is made with Ctrl+Shift (*stroke group*), which groups the selection on
   release (``--no-stroke-group``: Ctrl+G always);
 * class keys: 1 whenever the light class drawn changes, drawing group by group (a car's panes and
-  lamps: two), then the lights of no group by class;
+  lamps: two), then the lights of no group by class; a group's lights are drawn starting with the class
+  in hand where the group has it (a row of cars: one key each; ``--class-order``: the model before, each
+  group in class order, two);
 * ``--per-member-grouping``, the model before issue #26's third pass: draws by class (1 key per
   class), every member of a new group clicked again (n lights: n + 1, + 1 group-class key), a
   group that holds k of its n lights completed with 2 + (n - k) (+ 3 when its class is wrong). It
   charged every drawn light of a group twice (draw and Shift+click) although the editor leaves
   drawn lights selected for Ctrl+G, and never used the rubber band;
 * remove a wrong light: 2 (right-click, Delete); fix a light's class: 3 (right-click, class key, C);
-  touch up a light whose mask IoU with its ground truth is below 0.7: 2 (right-click: it becomes the
-  current light; one stroke grows it, a Shift+stroke shrinks it), after a class fix 1;
+  touch up a light whose mask IoU with its ground truth is below 0.7: 1 (a right-drag from it grows it,
+  Shift+right-drag shrinks it, whatever *one light per region* says: since issue #26's ninth pass; before,
+  the count charged one left stroke, which with *one light per region* on makes new lights);
   ungroup a group that is not in the ground truth: 2 (right-click, Ctrl+Shift+G);
 * **tool keys** (issue #26's ninth pass, "tool"; ``--no-tool-switches``: the model before, which charged
   none): every gesture counted must exist in the tool the annotator is in. The draws are superpixel
-  drags with *one light per region* on; right-clicks, Ctrl+clicks, Ctrl+drags, Ctrl+double-clicks, a row
-  of the group list and every key work with that tool, but a stroke there makes new lights, so the
-  touch-ups are done together with *one light per region* off: R before and after them, 2 a frame with
-  any touch-up. A rubber band is the Select tool's (with the drawing tool a Shift+drag erases
-  superpixels): V to it and S back, 2 per trip -- one trip per group whose drawn lights come first, one
-  shared by all the groups that need no draw -- and the band is taken only where it saves more than
-  that;
+  drags with *one light per region* on; right-clicks, right-drags, Ctrl+clicks, Ctrl+drags,
+  Ctrl+double-clicks, a row of the group list and every key work with that tool. A rubber band is the
+  Select tool's (with the drawing tool a Shift+drag erases superpixels): V to it and S back, 2 per trip
+  -- one trip per group whose drawn lights come first, one shared by all the groups that need no draw --
+  and the band is taken only where it saves more than that;
 * **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, a
   pending proposal group worth it is accepted with Shift+A over it, 1 each (:func:`review_pending`);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
@@ -210,7 +212,8 @@ def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, 
 
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
                    per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True,
-                   stroke_group: bool = True, tool_switches: bool = True) -> None:
+                   stroke_group: bool = True, tool_switches: bool = True,
+                   key_log: list | None = None, class_order: bool = False) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
@@ -219,7 +222,10 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     lights to group may be selected by Ctrl+drags over them (False: clicks and rubber bands only);
     ``stroke_group``: a selection that ends with a Ctrl+click or Ctrl+drag ends with Ctrl+Shift instead,
     which groups it (no Ctrl+G); ``tool_switches``: a rubber band (the Select tool's) costs the keys that
-    switch to the Select tool and back to drawing (False: the model before, a band with any tool)."""
+    switch to the Select tool and back to drawing (False: the model before, a band with any tool);
+    ``key_log``: when given, every class key counted is appended as (class before, class after, where:
+    "active group", "group start", "in group" or "no group"); ``class_order``: a group's lights drawn in
+    class order (the model before), not starting with the class in hand."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -241,7 +247,6 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     for pid in [i for i in session.ann.instance_ids() if i not in matched_p]:
         do(delete_instance(session.ann, pid))
         count("remove", 2, class_of(pid))
-    touch_ups = 0
     for g, (p, iou) in list(match.items()):
         if class_of(p) != class_of(g):
             cmd, nid = change_class(session.ann, p, class_of(g))
@@ -249,15 +254,9 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             match[g] = (nid, iou)
             count("class fix", 3, class_of(g))
         if iou < TOUCH_UP_IOU:
-            # Right-click makes the light current, one stroke grows (or Shift: shrinks) it; with the tool's
-            # *one light per region* on (the draws need it) a stroke makes new lights, so all touch-ups are
-            # done together between R (off) and R (on), 2 tool keys a frame (tool_switches=False: the model
-            # before, one stroke each and no key).
-            count("touch up", 2 if tool_switches and class_of(p) == class_of(g) else 1, class_of(g))  # (a class
-            # fix right-clicked it already)
-            touch_ups += 1
-    if tool_switches and touch_ups:
-        count("tool", 2, 1)
+            # One right-drag from the light (ToolController: it grows the light it starts on, Shift shrinks
+            # it, with *one light per region* on or off -- a left stroke there makes new lights).
+            count("touch up", 1, class_of(g))
     drawn: set[int] = set()
 
     def draw(g: int) -> int:
@@ -309,13 +308,28 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
             for c in sorted(cs, key=lambda c: (c != start, c)):
                 if c != cur:
                     count("class keys", 1, c)
+                    if key_log is not None:
+                        key_log.append((cur, c, "active group"))
                     cur = c
         in_group = set().union(*wanted) if wanted else set()
-        seq = [c for cs, _m in runs_of([m for m in wanted if not m & active_drawn]) for c in cs] + \
-            sorted(class_of(i) for i in drawn - in_group)
-        for c in seq:
+        # A group's lights may be drawn in any order (the strokes' lights add up in the selection, a class
+        # key leaves it): its run starts with the class in hand where it has one (a car drawn lamps first
+        # after a car drawn panes first), so cars in a row cost one key each, not two (since issue #26's
+        # ninth pass; before, every run was drawn in class order).
+        seq = []
+        for cs, _m in runs_of([m for m in wanted if not m & active_drawn]):
+            last = seq[-1][0] if seq else cur
+            if class_order:
+                cs = sorted(cs)
+            else:
+                cs = sorted(cs, key=lambda c: (c != last, c))
+            seq += [(c, "group start" if k == 0 else "in group") for k, c in enumerate(cs)]
+        seq += [(c, "no group") for c in sorted(class_of(i) for i in drawn - in_group)]
+        for c, where in seq:
             if c != cur:
                 count("class keys", 1, c)
+                if key_log is not None:
+                    key_log.append((cur, c, where))
                 cur = c
     have = {gid: (frozenset(g.members), g.class_id) for gid, g in session.ann.groups.items()}
     plans = []  # (members, cls, part, best, ways, folds, has drawn members)
@@ -486,12 +500,15 @@ def main(argv: list[str] | None = None) -> int:
                     help="leave the proposals below the slider pending (no Shift+A review; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
                     choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
-                             "tool-switches"),
+                             "tool-switches", "class-order", "tool-keys"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
     ap.add_argument("--no-tool-switches", action="store_true",
                     help="a rubber band with any tool, no key to switch to the Select tool and back (the model "
+                         "before; module doc)")
+    ap.add_argument("--class-order", action="store_true",
+                    help="draw a group's lights in class order, not starting with the class in hand (the model "
                          "before; module doc)")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
@@ -517,13 +534,15 @@ def main(argv: list[str] | None = None) -> int:
     rows, rows_before = [], []
     # (active group, stroke select, stroke group, review, tool switches)
     now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group),
-           not args.no_review, not args.no_tool_switches)
+           not args.no_review, not args.no_tool_switches, not args.class_order)
     models = ([now, (False,) + now[1:]] if args.compare == "active-group" else
               [now, now[:1] + (False, False) + now[3:]] if args.compare == "stroke-select" else
               [now, now[:2] + (False,) + now[3:]] if args.compare == "stroke-group" else
               [now, now[:3] + (False,) + now[4:]] if args.compare == "review" else
               [now, now[:1] + (False, False, False) + now[4:]] if args.compare == "ninth-pass" else
-              [now, now[:4] + (False,)] if args.compare == "tool-switches" else [now])
+              [now, now[:4] + (False,) + now[5:]] if args.compare == "tool-switches" else
+              [now, now[:5] + (False,)] if args.compare == "class-order" else
+              [now, now[:4] + (False, False)] if args.compare == "tool-keys" else [now])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -532,7 +551,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for model_k, (active, stroke, stroke_group, review, switches) in enumerate(models):
+                for model_k, (active, stroke, stroke_group, review, switches, in_hand) in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -545,7 +564,7 @@ def main(argv: list[str] | None = None) -> int:
                             review_pending(s, book, gt, counts, by_cat)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
                                    active_group=active, stroke_select=stroke, stroke_group=stroke_group,
-                                   tool_switches=switches)
+                                   tool_switches=switches, class_order=not in_hand)
                     check_equal(gt, s.ann)
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
@@ -560,6 +579,7 @@ def main(argv: list[str] | None = None) -> int:
                   ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
         model += ", no review" if args.no_review else ", pending groups reviewed (Shift+A)"
         model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
+        model += ", groups drawn in class order" if args.class_order else ", groups start with the class in hand"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -581,7 +601,10 @@ def main(argv: list[str] | None = None) -> int:
                 "stroke-group": "--no-stroke-group (Ctrl+G after the selection)",
                 "review": "--no-review (no Shift+A on pending proposals)",
                 "ninth-pass": "--no-stroke-select --no-review (the model before issue #26's ninth pass)",
-                "tool-switches": "--no-tool-switches (a rubber band with any tool, no tool keys)"}[args.compare]
+                "tool-switches": "--no-tool-switches (a rubber band with any tool, no tool keys)",
+                "class-order": "--class-order (a group's lights drawn in class order)",
+                "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)"
+                }[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)
               + " |")

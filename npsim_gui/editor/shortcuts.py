@@ -109,6 +109,8 @@ KEYMAP: tuple[Shortcut, ...] = (
     _s("undo", "Ctrl+Z", "Undo", EDIT),
     _s("redo", ("Ctrl+Shift+Z", "Ctrl+Y"), "Redo", EDIT),
     _s("", "Right click", "Make the light under the mouse the current one", EDIT),
+    _s("", "Right-drag", "Superpixel/brush tool, from a light: add what the stroke passes over to that light "
+       "(Shift+right-drag: remove it; a touch-up, with 'one new light per region' on or off)", EDIT),
     _s("", "Ctrl+drag", "Any tool: add every light the mouse path passes over to the selection (stroke select: "
        "a floor of windows slanting across the image in one gesture); Ctrl+click adds/removes one", EDIT),
     _s("", "Ctrl+Shift+drag", "Any tool: the same, then group the selection as Ctrl+G (stroke group: a floor of "

@@ -14,6 +14,8 @@ Selection
 Modifiers (every tool)
 ----------------------
 * right click: make the light under the cursor the current one (select it);
+* right-drag (superpixel and brush tools) starting on a light: add what the stroke passes over to that
+  light, Shift+right-drag: remove it from that light (a *touch-up*, whatever *one light per region* says);
 * Ctrl+click: add/remove the light under the cursor to/from the selection;
 * Ctrl+drag: add every light the mouse path passes over to the selection (a *stroke select*: one
   gesture along a floor of windows that slants across the image, where an axis-aligned rubber band
@@ -126,6 +128,8 @@ class ToolController:
         self._band_press_pixel = (0, 0)
         self._stroke_last: tuple[float, float] | None = None  # Ctrl+drag: the path's last point
         self._stroke_ids: set[int] = set()  # Ctrl+drag: the lights passed over so far
+        self._grow: tuple | None = None  # right press on a light: (light id, x, y, modifiers)
+        self._growing = False  # a right-drag paints into (or, Shift, erases from) that light only
 
     # ----------------------------------------------------------------- dispatch
     def press(self, x: float, y: float, event=None) -> None:
@@ -138,6 +142,9 @@ class ToolController:
             s.set_selection({iid} if iid else set(), current=iid or None)
             if not iid:
                 s.set_current(None)
+            elif self.tool in (Tool.SUPERPIXEL, Tool.BRUSH) and is_light_class(class_of(iid)):
+                # A right-drag touches this light up (_grow_start), whatever *one light per region* says.
+                self._active, self._grow = "grow", (iid, x, y, mods)
             return
         if self.tool in (Tool.SELECT, Tool.GROUP) or mods & Qt.KeyboardModifier.ControlModifier:
             # Click, rubber band or (Ctrl, any tool) stroke select: decided on release (a click acts then too).
@@ -161,6 +168,10 @@ class ToolController:
             self._fill_click(xi, yi, mods)
 
     def move(self, x: float, y: float, event=None) -> None:
+        if self._active == "grow":
+            if (int(np.floor(x)), int(np.floor(y))) == tuple(int(np.floor(v)) for v in self._grow[1:3]):
+                return  # not a drag yet: a right-click only makes the light current
+            self._grow_start()
         if self._active == "stroke" and self._stroke_last is not None:
             self._stroke_ids |= lights_on_path(self.session.ann.instance_map, [self._stroke_last, (x, y)])
             self._stroke_last = (x, y)
@@ -196,11 +207,15 @@ class ToolController:
             self._active = None
             self._stroke_release()
             return
+        if self._active == "grow":  # a right-click: the light is current, nothing painted
+            self._active = None
+            return
         active, self._active = self._active, None
         if active == "superpixel":
             self._sp_release()
         self.session.end_stroke()
         self._last = None
+        self._growing = False
 
     def double_click(self, x: float, y: float, event=None) -> bool:
         """A double-click (the canvas calls it for the second press): with the Select or Group tool, or
@@ -353,7 +368,32 @@ class ToolController:
 
     def _sp_deferred(self) -> bool:
         """Splitting into regions and colour filtering need the whole drag: apply on release."""
-        return not self._remove and (self.options.split_regions or self.options.similar_only)
+        return not self._remove and not self._growing and (self.options.split_regions or self.options.similar_only)
+
+    def _grow_start(self) -> None:
+        """A right-drag began on a light (the press made it current): the stroke adds the superpixels (the
+        brush's disc) it passes over to that light, Shift removes them from it -- one undo step. A touch-up of
+        an accepted proposal in one gesture, with *one light per region* on or off (a left stroke there makes
+        new lights)."""
+        s = self.session
+        iid, x, y, mods = self._grow
+        xi, yi = int(np.floor(x)), int(np.floor(y))
+        self._remove = bool(mods & Qt.KeyboardModifier.ShiftModifier)
+        self._target, self._growing, self._last = iid, True, (x, y)
+        if self.tool == Tool.SUPERPIXEL:
+            labels = s.sp_fine if self._fine(mods) else s.sp_coarse
+            if labels is None:
+                s.message.emit("superpixels (this scale) are still being computed; use the brush meanwhile")
+                self._active, self._growing = None, False
+                return
+            self._labels, self._touched, self._seed = labels, set(), int(labels[yi, xi])
+            self._active = "superpixel"
+            s.begin_stroke(f"{'shrink' if self._remove else 'grow'} light {iid}")
+            self._sp_points(np.array([xi]), np.array([yi]))
+        else:
+            self._active = "brush"
+            s.begin_stroke(f"{'shrink' if self._remove else 'grow'} light {iid}")
+            self._brush_points(np.array([xi]), np.array([yi]))
 
     def _sp_points(self, xs: np.ndarray, ys: np.ndarray) -> None:
         labels = self._labels
@@ -408,7 +448,7 @@ class ToolController:
         if idx.size == 0:
             return
         if self._remove:
-            s.apply(erase(s.ann, idx))
+            s.apply(erase(s.ann, idx, self._target) if self._growing else erase(s.ann, idx))
         else:
             s.apply(paint(s.ann, idx, self._target, overwrite=self.options.overwrite))
 
