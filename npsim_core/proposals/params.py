@@ -27,6 +27,9 @@ class ProposalParams:
     tl_min_area_px: int = 12
     #: Lamp side as a fraction of the cell's shorter side (a 0.24 m lens in a 0.33 m cell is ~0.72).
     tl_lamp_fraction: float = 0.72
+    #: The lamp squares are moved onto the lenses by up to this fraction of their side (at least 1 px):
+    #: an off-axis housing's label holds its side and underside (traffic_lights.lens_cells).
+    tl_lens_reach: float = 0.25
     #: Housing aspect (long / short side) above which the housing holds three cells in a line.
     tl_min_aspect: float = 1.6
     #: A lamp cell whose brightest linear channel (mean) is this many times every other cell's is lit
@@ -53,6 +56,17 @@ class ProposalParams:
     #: away the arm is under a pixel and the labels lose it).
     lamp_max_arm_m: float = 2.6
     lamp_speck_min_px: int = 2
+    #: An arm's head: its lens (the light an annotator draws) starts this far (m) below the pole's top
+    #: (under the arm), spans ``lamp_lens_len_m`` along the arm and ends ``lamp_lens_inset_m`` short of
+    #: the head's far end (the housing's rim and end face); pixels count by their centres
+    #: (street_lamps._lens).
+    lamp_lens_top_m: float = 0.16
+    lamp_lens_len_m: float = 0.8
+    lamp_lens_inset_m: float = 0.06
+    #: A lantern's glass: below a cap this tall (m), this tall, inside a frame this wide at either side.
+    lamp_lantern_cap_m: float = 0.1
+    lamp_lantern_glass_m: float = 0.45
+    lamp_lantern_frame_m: float = 0.06
 
     # --- vehicles
     #: Smallest vehicle instance (pixels) that gets lamps and panes.
@@ -267,3 +281,5 @@ class ProposalParams:
     ad_min_area_m2: float = 1.0
     #: ... and its height (m; a shop's fascia sign is 0.3-0.8 m tall).
     ad_min_height_m: float = 0.3
+    #: ... and the share of its convex hull it fills (a panel is a quadrilateral in the image).
+    ad_min_hull_fill: float = 0.7

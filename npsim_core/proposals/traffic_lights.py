@@ -3,6 +3,7 @@ pedestrian signal (docs/proposals.md)."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .core import Context, Group, Light, components
@@ -19,8 +20,9 @@ PEDESTRIAN_ORDER = ("red", "green")
 PEDESTRIAN = "pedestrian"
 
 
-def _cells(mask: np.ndarray, vertical: bool, frac: float, n: int = 3) -> list[np.ndarray]:
-    """``n`` square lamp masks centred in the n equal cells of the housing's long axis (local coordinates)."""
+def _squares(mask: np.ndarray, vertical: bool, frac: float, n: int = 3) -> list[np.ndarray]:
+    """``n`` square lamp masks centred in the n equal cells of the housing's long axis (local
+    coordinates; not cut to ``mask``)."""
     ys, xs = np.nonzero(mask)
     y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
     long0, long1, short0, short1 = (y0, y1, x0, x1) if vertical else (x0, x1, y0, y1)
@@ -35,8 +37,56 @@ def _cells(mask: np.ndarray, vertical: bool, frac: float, n: int = 3) -> list[np
         sq = (np.abs(along - c) <= side / 2 + 1e-6) & (np.abs(across - sc) <= side / 2 + 1e-6)
         if not sq.any():  # sub-pixel lamp: the nearest pixel
             sq = (np.abs(along - c) < 1.0) & (np.abs(across - sc) < 1.0)
-        out.append(sq & mask)
+        out.append(sq)
     return out
+
+
+def _cells(mask: np.ndarray, vertical: bool, frac: float, n: int = 3) -> list[np.ndarray]:
+    """``n`` square lamp masks centred in the n equal cells of the housing's long axis (local coordinates)."""
+    return [sq & mask for sq in _squares(mask, vertical, frac, n)]
+
+
+def _shift(m: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """``m`` moved by (dy, dx) pixels, what leaves the array dropped."""
+    out = np.zeros_like(m)
+    h, w = m.shape
+    out[max(0, dy):h + min(0, dy), max(0, dx):w + min(0, dx)] = \
+        m[max(0, -dy):h - max(0, dy), max(0, -dx):w - max(0, dx)]
+    return out
+
+
+def lens_cells(img: np.ndarray, mask: np.ndarray, squares: list[np.ndarray], reach: int) -> list[np.ndarray]:
+    """The lamp squares moved together by the offset (at most ``reach`` px each way) that puts them on
+    the lenses, cut to ``mask``.
+
+    A housing's label holds its side and underside too when seen off-axis (the camera is below and
+    beside it), which moves the box centre off the front face the lenses are on by a pixel or more.
+    The lenses differ in colour from the housing's paint (lit or dark glass in red, amber, green, or
+    behind visors, against black or yellow paint): the offset taken is the one whose squares differ
+    most, on average, from the housing's median colour (``img``: the housing's box, float RGB; pixels
+    of the housing's outline count as paint), a
+    move costing 3 % of the score per pixel so that only a clear gain moves them; squares that would
+    leave the housing are not moved.
+    """
+    # The housing's outline pixels blend with the background behind it, which differs from the paint
+    # more than a dark lens does: only the pixels inside the outline are scored.
+    inner = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                      borderValue=0).astype(bool)
+    if not inner.any():
+        return [sq & mask for sq in squares]
+    paint = np.median(img[inner], axis=0)
+    dist = np.where(inner, np.linalg.norm(img - paint, axis=-1), 0.0)
+    best, best_score = (0, 0), -1.0
+    for dy in range(-reach, reach + 1):
+        for dx in range(-reach, reach + 1):
+            moved = [_shift(sq, dy, dx) for sq in squares]
+            if any(not (m & mask).any() for m in moved):
+                continue
+            score = sum(float(dist[m].sum()) / max(int(m.sum()), 1) for m in moved)
+            score *= 1.0 - 0.03 * (abs(dy) + abs(dx))
+            if score > best_score + 1e-9:
+                best, best_score = (dy, dx), score
+    return [_shift(sq, *best) & mask for sq in squares]
 
 
 def lit_cell(glow: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | None:
@@ -94,9 +144,12 @@ def propose(ctx: Context) -> list[Group]:
         height_m = _head_height_m(ctx, y0, x0, mask) if vertical else None
         pedestrian = height_m is not None and height_m <= p.tl_pedestrian_max_h_m
         order = PEDESTRIAN_ORDER if pedestrian else LAMP_ORDER
-        cells = _cells(mask, vertical, p.tl_lamp_fraction, len(order))
-        if any(not c.any() for c in cells):
+        squares = _squares(mask, vertical, p.tl_lamp_fraction, len(order))
+        if any(not (sq & mask).any() for sq in squares):
             continue
+        side = int(max(sq.sum(0).max() for sq in squares))
+        cells = lens_cells(ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32) / 255.0, mask, squares,
+                           max(1, int(round(p.tl_lens_reach * side))))
         conf = 0.9 if aspect >= p.tl_min_aspect else 0.4
         if min(h, w) < 4:
             conf -= 0.15
