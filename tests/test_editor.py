@@ -1214,3 +1214,10 @@ def test_action_benchmark_draws_a_group_starting_with_the_class_in_hand(qtbot):
         got[class_order] = (counts["draw"], counts["group"], counts["class keys"])
         assert len(log) == counts["class keys"]
     assert got == {False: (6, 3, 4), True: (6, 3, 6)}
+
+
+def test_drawing_tools_tell_the_right_drag_touch_up(qtbot, tmp_path):
+    win = open_window(qtbot, make_folder(tmp_path))
+    for t in (Tool.SUPERPIXEL, Tool.BRUSH):
+        assert "right-drag from a light" in win.editor.tool_buttons[t].toolTip()
+    close_window(win)

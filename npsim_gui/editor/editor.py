@@ -39,8 +39,10 @@ NIGHT_LIGHT_RULES = (("auto", "annotated lights, else proposals"), ("annotation"
                      ("proposed", "all proposals"), ("none", "no lights"))
 TOOL_TITLES = {Tool.SUPERPIXEL: "Superpixel", Tool.BRUSH: "Brush", Tool.ERASER: "Eraser", Tool.FILL: "Fill",
                Tool.SELECT: "Select", Tool.GROUP: "Group"}
-TOOL_TIPS = {Tool.SUPERPIXEL: "click/drag adds superpixels to the current light; Shift removes; Alt: the other scale",
-             Tool.BRUSH: "paints a disc along the path; Shift+drag erases",
+TOOL_TIPS = {Tool.SUPERPIXEL: "click/drag adds superpixels to the current light; Shift removes; Alt: the other scale; "
+                               "a right-drag from a light adds to that light (Shift: removes), a touch-up",
+             Tool.BRUSH: "paints a disc along the path; Shift+drag erases; a right-drag from a light paints into "
+                         "that light (Shift: erases from it)",
              Tool.ERASER: "clears the pixels of any light along the path",
              Tool.FILL: "click a light: it takes the superpixels it covers at least half of",
              Tool.SELECT: "click selects; Shift/Ctrl+click adds or removes; a drag selects every light in the box "
