@@ -85,8 +85,8 @@ def propose(ctx: Context) -> list[Light]:
     fy = float(ctx.intrinsics.fy)
     lin = (ctx.image.astype(np.float32) / 255.0) ** 2.2
     wall = B & ~cand
-    for y0, x0, m, a in components(cand, 6, connectivity=4):
-        y0, x0, m = _with_edge(lin, wall, y0, x0, m)
+    for cy, cx, core, a in components(cand, 6, connectivity=4):
+        y0, x0, m = _with_edge(lin, wall, cy, cx, core)
         h, w = m.shape
         a = int(m.sum())
         # A flat panel is a quadrilateral in the image (a trapezoid on a receding facade): it fills
@@ -105,7 +105,8 @@ def propose(ctx: Context) -> list[Light]:
                 if h * z / fy < p.ad_min_height_m or (
                         not cut and (h * z / fy) * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2):
                     continue
-        hue = hsv[y0:y0 + h, x0:x0 + w, 0][m].astype(np.float32) * (2 * np.pi / 256.0)
+        # The hue of the saturated core: the rim's pixels mix in the wall's.
+        hue = hsv[cy:cy + core.shape[0], cx:cx + core.shape[1], 0][core].astype(np.float32) * (2 * np.pi / 256.0)
         spread = 1.0 - float(np.hypot(np.cos(hue).mean(), np.sin(hue).mean()))  # circular variance
         conf = 0.65 + 0.25 * float(np.clip(1.0 - spread / 0.1, 0.0, 1.0))
         out.append(Light(ADVERTISEMENT, y0, x0, m, conf))
