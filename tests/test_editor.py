@@ -1159,6 +1159,19 @@ def test_right_drag_touches_a_light_up_whatever_one_light_per_region_says(qtbot,
     key(qtbot, win, Qt.Key.Key_Z, CTRL)
     key(qtbot, win, Qt.Key.Key_Z, CTRL)                              # one undo step each
     assert ((s.ann.instance_map == 1001) == before).all()
+    # the brush: a right-drag from window 1002 paints into it; Shift+right-drag across 1002 and 1003 erases
+    # from 1002 only
+    key(qtbot, win, Qt.Key.Key_B)
+    x1, x2 = WINDOW_XS[1], WINDOW_XS[2]
+    b2, b3 = (s.ann.instance_map == 1002).sum(), (s.ann.instance_map == 1003).sum()
+    qtbot.mousePress(c.viewport(), RIGHT, NOMOD, vp(c, x1 + 5, 35))
+    qtbot.mouseMove(c.viewport(), vp(c, x1 + 5, 50))
+    qtbot.mouseRelease(c.viewport(), RIGHT, NOMOD, vp(c, x1 + 5, 50))
+    assert (s.ann.instance_map == 1002).sum() > b2 and (s.ann.instance_map == 1002)[50, x1 + 5]
+    qtbot.mousePress(c.viewport(), RIGHT, SHIFT, vp(c, x1 + 5, 35))
+    qtbot.mouseMove(c.viewport(), vp(c, x2 + 5, 35))
+    qtbot.mouseRelease(c.viewport(), RIGHT, SHIFT, vp(c, x2 + 5, 35))
+    assert not (s.ann.instance_map == 1002)[35, x1 + 5] and (s.ann.instance_map == 1003).sum() == b3
     close_window(win)
 
 
