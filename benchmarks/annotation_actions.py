@@ -18,7 +18,8 @@ IoU >= 0.5, no other light is left, every ground-truth group is a group of exact
 
 An **action** is one key press or one mouse gesture (click, drag, rubber band) of the editor:
 
-* draw a light: 1 (one superpixel drag or brush stroke);
+* draw a light: 1 (one superpixel drag with *one light per region* on -- R, once a session: it stays
+  on; a brush stroke would paint into the light drawn before it, the current one);
 * group: the annotator works group by group. The lights of a group that must be drawn are drawn one
   after another with *one light per region* on (key R): each such stroke leaves every light drawn
   since the last other selection selected (``EditorSession.select_created``; a class key does not
