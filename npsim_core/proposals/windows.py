@@ -1133,15 +1133,16 @@ def propose(ctx: Context) -> list[Group]:
             continue
         why = accept(y0, x0, m)
         if why is None and p.window_row_gap_contrast > 0 and m.shape[1] >= 3:
-            ext = _extent_m(ctx, y0, x0, m)
+            # kept as one window, but a pixel of it spans so much wall that a pane is a few pixels and
+            # a mullion a fraction of one (a dip is wall), and it is longer along its wall than any
+            # window or a pixel is most of a pane: a receding row of panes a pixel apart merged by
+            # their blur (_row_split; its length from the depth only for a blob it would cut)
+            dev = np.maximum(np.abs(ratio[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]) / t,
+                             chroma[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] / p.window_chroma_delta)
+            pieces = _row_split(m, dev, p, 0.0)
+            ext = _extent_m(ctx, y0, x0, m) if pieces else None
             if ext is not None and ext[0] >= p.window_row_min_m_per_px * (m.shape[1] - 1) \
                     and (ext[0] > p.window_height_m[1] or ext[0] >= p.window_row_wall_m_per_px * (m.shape[1] - 1)):
-                # kept as one window, but a pixel of it spans so much wall that a pane is a few pixels
-                # and a mullion a fraction of one (a dip is wall), and it is longer along its wall than
-                # any window or a pixel is most of a pane: a receding row of panes a pixel apart merged
-                # by their blur (_row_split)
-                dev = np.maximum(np.abs(ratio[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]) / t,
-                                 chroma[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] / p.window_chroma_delta)
                 pieces = _row_split(m, dev, p, p.window_height_m[0] * fy / ext[1])
                 if pieces:
                     found.pop()
