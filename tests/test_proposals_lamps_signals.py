@@ -10,7 +10,7 @@ from npsim_core.annotation import class_of
 from npsim_core.camera import Intrinsics
 from npsim_core.proposals import ProposalParams, propose_lights
 
-SKY, ROAD, BUILDING, POLE, TRAFFIC_LIGHT = 23, 7, 11, 17, 19
+SKY, ROAD, BUILDING, POLE, TRAFFIC_LIGHT, VEGETATION = 23, 7, 11, 17, 19, 21
 FLAT = ProposalParams(camera_pitch_rad=0.0)
 
 
@@ -170,3 +170,19 @@ def test_a_uniform_saturated_panel_passes_the_editors_default_slider():
     img[40:46, 50:80] = (200, 30, 25)
     ann, ads = _only(propose_lights(img, lab, depth, intr, params=ADS), (10,), threshold=0.9)
     assert len(ads) == 1
+
+
+def test_a_sign_whose_top_a_tree_hides_is_held_to_half_the_height():
+    """A red sign 2 m wide whose top a tree hides: 2 px (0.2 m) of it show under the foliage. It is
+    proposed, below the editor's default slider (a part of a panel); the same 2 px strip on open wall is
+    too thin to be a sign (the old proposer dropped both, and the windows proposer took the hidden one)."""
+    img, lab, depth, intr = _facade()
+    lab[30:40, 40:70] = VEGETATION
+    img[30:40, 40:70] = (40, 70, 30)
+    img[40:42, 45:65] = (200, 30, 25)                          # under the tree
+    img[80:82, 100:120] = (200, 30, 25)                        # on open wall
+    props = propose_lights(img, lab, depth, intr, params=ADS)
+    ann, ads = _only(props, (10,))
+    assert len(ads) == 1
+    ys, xs = np.nonzero(ann.mask(ads[0]))
+    assert ys.min() == 40 and xs.min() == 45 and 0.5 <= props.confidence[ads[0]] < 0.9

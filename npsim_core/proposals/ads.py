@@ -8,6 +8,7 @@ import numpy as np
 from .core import Context, Light, components
 
 BUILDING = 11
+SKY = 23
 ADVERTISEMENT = 10
 
 
@@ -61,6 +62,25 @@ def _with_edge(lin: np.ndarray, wall: np.ndarray, y0: int, x0: int, m: np.ndarra
     return b0 + int(ys.min()), a0 + int(xs.min()), grown[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
 
 
+def _hidden_edge(labels: np.ndarray, y0: int, x0: int, m: np.ndarray) -> bool:
+    """True when the row just above blob ``m``'s top pixels, or just below its bottom ones, is mostly
+    (>= half its columns) something other than building or sky: an object in front hides the
+    panel's top or bottom, so the panel is taller than it shows."""
+    H = labels.shape[0]
+    h, w = m.shape
+    cols = np.flatnonzero(m.any(0))
+    top = y0 + np.argmax(m[:, cols], 0)
+    bot = y0 + h - 1 - np.argmax(m[::-1, cols], 0)
+    for rows in (top - 1, bot + 1):
+        ok = (rows >= 0) & (rows < H)
+        if not ok.any():
+            continue
+        lab = labels[rows[ok], x0 + cols[ok]]
+        if np.mean((lab != BUILDING) & (lab != SKY)) >= 0.5 and ok.sum() >= 0.5 * cols.size:
+            return True
+    return False
+
+
 def propose(ctx: Context) -> list[Light]:
     """One advertisement per saturated panel on a building.
 
@@ -69,9 +89,11 @@ def propose(ctx: Context) -> list[Light]:
     rim pixels the panel covers at least half of (:func:`_with_edge`) and is kept when it fills
     >= ``ad_min_hull_fill`` of its convex hull and, with depth, is at least ``ad_min_height_m`` tall
     and, unless the frame cuts it, ``ad_min_area_m2`` large (its box's height times its width along
-    the wall, :func:`_width_on_wall`: a sign on a facade receding along the street is foreshortened).
-    Confidence 0.65, +0.25 x how uniform its hue is (seeds 0-2 of the synthetic streets: 96-100 % of
-    the proposed panels match their sign at IoU >= 0.5; docs/proposals.md).
+    the wall, :func:`_width_on_wall`: a sign on a facade receding along the street is foreshortened);
+    one whose top or bottom runs along an object in front (:func:`_hidden_edge`) is held to half the
+    height alone. Confidence 0.7, +0.25 x how uniform the hue of its saturated core is, -0.2 when an
+    object hides its top or bottom (seeds 0-5 of the synthetic default and hard streets, both sizes:
+    all proposed panels match their sign at IoU >= 0.5, 92-100 % on the lights street; docs/proposals.md).
     """
     p = ctx.params
     B = ctx.labels == BUILDING
@@ -101,13 +123,19 @@ def propose(ctx: Context) -> list[Light]:
             if d.size:
                 z = float(np.median(d))
                 # A panel cut by the frame shows only part of its area: it is held to its height alone.
+                # One whose top or bottom edge runs along something in front (a tree, a pole's sign) shows
+                # only part of its height too: it is held to half the height, and is less sure.
                 cut = x0 == 0 or y0 == 0 or x0 + w == ctx.shape[1] or y0 + h == ctx.shape[0]
-                if h * z / fy < p.ad_min_height_m or (
-                        not cut and (h * z / fy) * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2):
+                hidden = _hidden_edge(ctx.labels, y0, x0, m)
+                min_h = p.ad_min_height_m * (0.5 if hidden else 1.0)
+                if h * z / fy < min_h or (not (cut or hidden)
+                                          and (h * z / fy) * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2):
                     continue
         # The hue of the saturated core: the rim's pixels mix in the wall's.
         hue = hsv[cy:cy + core.shape[0], cx:cx + core.shape[1], 0][core].astype(np.float32) * (2 * np.pi / 256.0)
         spread = 1.0 - float(np.hypot(np.cos(hue).mean(), np.sin(hue).mean()))  # circular variance
-        conf = 0.65 + 0.25 * float(np.clip(1.0 - spread / 0.1, 0.0, 1.0))
+        conf = 0.7 + 0.25 * float(np.clip(1.0 - spread / 0.1, 0.0, 1.0))
+        if ctx.depth is not None and _hidden_edge(ctx.labels, y0, x0, m):
+            conf -= 0.2
         out.append(Light(ADVERTISEMENT, y0, x0, m, conf))
     return out
