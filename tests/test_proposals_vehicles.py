@@ -181,3 +181,58 @@ def test_a_far_cars_rear_window_sits_on_its_own_body_top_not_the_typical_one():
     ann = propose_lights(img, lab, depth, intr, inst, params=FLAT).annotation
     panes = [i for i in ann.instance_ids() if class_of(i) == 2]
     assert max((_iou(ann.mask(i), pane) for i in panes), default=0.0) >= 0.7
+
+
+def test_a_face_whose_lower_body_the_car_in_front_hides_keeps_its_body_top():
+    """A grey car at 10 m whose lower body (from 0.81 m down, its outer half) the car in front hides:
+    only 4 full-width body rows show (under 0.15 of its 56-row silhouette), its lamps a few levels off
+    the paint (nothing to snap to). Its body top is the top of those rows and the visible lamp is laid
+    out under it (IoU >= 0.6). The old code took the silhouette's lower 60 % for the body, its top
+    4 rows (0.08 m) too high, the lamp box with it (IoU 0.4)."""
+    img, lab, depth, inst, intr = _frame()
+    truth = _car(img, lab, depth, inst, 55, 145, 1, paint=(150, 150, 150), lamp=(172, 172, 172))
+    front = (slice(80, 120), slice(20, 101))                 # the car in front, 1 m nearer
+    lab[front], img[front], depth[front], inst[front] = CAR, (60, 60, 70), 9.0, CAR * 1000 + 2
+    visible = truth[1] & (inst == CAR * 1000 + 1)
+    assert visible.sum() == truth[1].sum()
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert max((_iou(ann.mask(i), visible) for i in lamps), default=0.0) >= 0.6
+
+
+def test_a_lamp_beside_the_car_in_front_is_not_joined_to_the_seam_of_its_colour():
+    """A car at 8 m (a lamp 9 x 19 px) whose outer part the car in front hides from top to bottom, its
+    white colour bled one pixel into the silhouette all along the cut (the day render's edge blur); the
+    car's red lamp starts right at the cut. The proposed lamp is the lamp (IoU >= 0.7), not the lamp
+    and the seam above and below it. The old code snapped to both (IoU 0.6)."""
+    z = 8.0
+    img, lab, depth, inst, intr = _frame()
+    truth = _car(img, lab, depth, inst, 30, 142, 1, z=z)
+    lamp = truth[0]
+    cut = int(np.flatnonzero(lamp.any(0))[0])                # the car in front ends at the lamp's outer edge
+    front = (slice(0, 120), slice(0, cut))
+    lab[front], img[front], depth[front], inst[front] = CAR, (220, 220, 220), 7.0, CAR * 1000 + 2
+    seam = (inst == CAR * 1000 + 1) & ~lamp
+    seam[:, cut + 1:] = False
+    img[seam] = (220, 220, 220)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert max((_iou(ann.mask(i), lamp) for i in lamps), default=0.0) >= 0.7
+
+
+def test_a_lamp_mostly_hidden_by_the_car_in_front_is_snapped_to_what_shows_of_it():
+    """A car at 8 m whose left lamp the car in front hides but its inner third (a red lamp on green
+    paint, 7 x 9 px showing of 19 x 9; the right lamp does not stand out of the paint): the proposed
+    lamp is what shows of it (IoU >= 0.9). The old code
+    wanted a third of the whole lamp box in off-paint pixels, hidden pixels included, and laid out the
+    box by geometry instead (its rows 0.06-0.23 m below the body top: IoU 0.7)."""
+    z = 8.0
+    img, lab, depth, inst, intr = _frame()
+    truth = _car(img, lab, depth, inst, 30, 142, 1, paint=(40, 90, 50), z=z)
+    img[truth[1]] = (40, 90, 50)                             # the other lamp does not stand out
+    rows, cols = np.flatnonzero(truth[0].any(1)), np.flatnonzero(truth[0].any(0))
+    cut = int(cols[-1]) - 2                                  # the car in front hides all of the lamp
+    front = (slice(int(rows[0]) + 3, 120), slice(0, cut))    # but its top three rows and inner three columns
+    lab[front], img[front], depth[front], inst[front] = CAR, (220, 220, 220), 7.0, CAR * 1000 + 2
+    visible = truth[0] & (inst == CAR * 1000 + 1)
+    assert 0.35 < visible.sum() / truth[0].sum() < 0.5
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert max((_iou(ann.mask(i), visible) for i in lamps), default=0.0) >= 0.9

@@ -30,6 +30,10 @@ BACKGROUND = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 21, 22, 
 #: from the face's edges, under a body top from the silhouette's full-width rows when that is at most
 #: ``SMALL_TOP_MOVE`` rows from the face's (docs/proposals.md, "Seventh pass: far vehicle lamps").
 SMALL_LAMP_PX, SMALL_TOP_MOVE = 3.0, 2
+#: A nearer object cutting a vehicle's full-width body rows from below is this much nearer (m) than its face.
+CUT_NEARER_M = 0.3
+#: Lamp boxes at least this many rows tall snap to the pixels off the paint after a 3x3 opening.
+OPEN_LAMP_PX = 10
 #: A lamp's confidence grows with its pixels up to this many (a lamp of 1-8 px is a pixel or two off as
 #: often as not; beyond, size adds nothing: docs/proposals.md, "Ninth pass: vehicle confidence").
 LAMP_SURE_PX = 9
@@ -244,6 +248,39 @@ def _below_lid(ctx: Context, y0: int, x0: int, m: np.ndarray, c0: int, c1: int, 
     return int(min(top, r0 + int(round(p.vehicle_lid_max_m * float(ctx.intrinsics.fy) / z))))
 
 
+def _cut_below(ctx: Context, y0: int, x0: int, m: np.ndarray, r: int, c0: int, c1: int) -> bool:
+    """Whether the silhouette's full-width rows end at local row ``r`` because something nearer hides
+    the rows below (the car in front of a parked row): over half of the columns c0..c1 the silhouette
+    holds in row ``r`` and loses in row ``r + 1`` are, there, something other than background
+    (``BACKGROUND``) at least ``CUT_NEARER_M`` nearer than the silhouette's median depth in row ``r + 1``
+    (not the face's depth ``z``, which the occluder's depth bleeds into)."""
+    h, w = m.shape
+    if r + 1 >= h:
+        return False
+    lost = np.flatnonzero(m[r, c0:c1 + 1] & ~m[r + 1, c0:c1 + 1]) + c0
+    if lost.size == 0:
+        return False
+    own = ctx.depth[y0 + r + 1, x0:x0 + w][m[r + 1]]
+    own = own[np.isfinite(own)]
+    if own.size == 0:
+        return False
+    lab = ctx.labels[y0 + r + 1, x0 + lost]
+    with np.errstate(invalid="ignore"):  # NaN depth: not nearer
+        nearer = ~np.isin(lab, BACKGROUND) & \
+            (ctx.depth[y0 + r + 1, x0 + lost] < float(np.median(own)) - CUT_NEARER_M)
+    return bool(nearer.mean() > 0.5)
+
+
+def _hidden(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float) -> np.ndarray:
+    """Pixels of a box (image origin y0, x0; ``m`` the silhouette over it) that a nearer object hides: off
+    the silhouette, something other than background (``BACKGROUND``) at least ``CUT_NEARER_M`` nearer
+    than ``z`` (m; the car in front of a parked row)."""
+    h, w = m.shape
+    lab = ctx.labels[y0:y0 + h, x0:x0 + w]
+    with np.errstate(invalid="ignore"):  # NaN depth: not nearer
+        return ~m & ~np.isin(lab, BACKGROUND) & (ctx.depth[y0:y0 + h, x0:x0 + w] < z - CUT_NEARER_M)
+
+
 def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float | None,
                x0: int | None = None) -> tuple[int, int]:
     """Rows (local, inclusive) of the body's end face over columns c0..c1: where the silhouette fills
@@ -275,6 +312,37 @@ def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float 
                 c1 - c0 + 1 >= p.vehicle_small_face_px:  # (the typical height may fall on the lid too)
             r0 = _below_lid(ctx, y0, x0, m, c0, c1, r0, r1, z)
     return r0, r1
+
+
+def _cut_top(ctx: Context, y0: int, x0: int, m: np.ndarray, rows_cols: tuple[int, int], c0: int, c1: int,
+             r0: int, z: float) -> int:
+    """The end face's top row (local) when the car in front hides its lower rows: :func:`_body_rows` wants
+    full-width rows over 0.15 of the silhouette's height and, failing that, took the lower 60 %, whose top
+    is the cabin's or 0.1-0.2 m below the body's (2048x1024 hard seed 0: 18 full-width rows of 137 under
+    the car in front). When
+    the full-width run over the columns ``rows_cols`` (those :func:`_body_rows` judged) is shorter than
+    that and ends at a nearer object (:func:`_cut_below`), the top is the run's, moved below the lid by
+    its depth (:func:`_below_lid`) over the face's columns c0..c1 alone (over all the silhouette's, the
+    face's depth below the cut is the side face's: the car in front hides the face's outer part); ``r0``
+    unchanged otherwise, and when the result is at an implausible height (``vehicle_body_top_m``)
+    (docs/proposals.md, "Ninth pass: vehicle lamps under the car in front")."""
+    h, w = m.shape
+    c0, c1 = max(c0, 0), min(c1, w - 1)
+    a, b = max(rows_cols[0], 0), min(rows_cols[1], w - 1)
+    if c1 - c0 + 1 < ctx.params.vehicle_small_face_px:
+        return r0
+    ys = np.flatnonzero(m.any(1))
+    fill = m[:, a:b + 1].sum(1)
+    body = _run(fill >= 0.95 * max(1, fill.max()))
+    if body is None or not 2 <= body[1] - body[0] + 1 < 0.15 * (ys[-1] - ys[0] + 1) or \
+            not _cut_below(ctx, y0, x0, m, body[1], a, b):
+        return r0
+    top = body[0]
+    if ctx.params.vehicle_lid_max_m > 0:
+        top = _below_lid(ctx, y0, x0, m, c0, c1, body[0], int(ys[-1]), z)
+    top_h = float(ctx.height_above_ground(y0 + top, z))
+    lo_h, hi_h = ctx.params.vehicle_body_top_m
+    return int(top) if lo_h <= top_h <= hi_h else r0
 
 
 def _end_face(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
@@ -343,6 +411,7 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     fw_in = min(w, face_w)
     c0, c1 = (0, fw_in - 1) if left_side else (w - fw_in, w - 1)
     r0, r1 = _body_rows(ctx, y0, m, c0, c1, z, x0)
+    rows_cols = (c0, c1)
     # Is the outer edge the vehicle's own? Not at the image border, nor beside a nearer object.
     outer_g = x0 - 1 if left_side else x0 + w
     cut = not 0 <= outer_g < W
@@ -380,6 +449,8 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     elif inner is None or not 0.6 * face_w <= abs(inner - outer) + 1 <= 1.3 * face_w:
         inner = outer + face_w - 1 if left_side else outer - face_w + 1
     c0, c1 = (outer, inner) if left_side else (inner, outer)
+    if z is not None and ctx.depth is not None:
+        r0 = _cut_top(ctx, y0, x0, m, rows_cols, c0, c1, r0, z)
     # Cut by a nearer object beside it and no inner edge found: the face's place is a guess laid out
     # from the occluder's edge, where the lamps are hidden (the car in front) -- say so.
     placed = not (cut and not at_border and found is None)
@@ -453,7 +524,10 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     not stand out mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
     silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
     are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
-    snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`).
+    snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`). A blob is
+    taken when it holds at least a third of the box's pixels not hidden by a nearer object
+    (:func:`_hidden`); for boxes of ``OPEN_LAMP_PX`` rows or more, from the off-paint pixels after a 3x3
+    opening (the 1-px seam a car in front bleeds along the silhouette's edge joined the lamp).
     """
     p = ctx.params
     h, w = m.shape
@@ -488,6 +562,13 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     cols = np.arange(w)
     off_plate = np.abs(cols + 0.5 - (axis + 0.5)) > plate            # columns clear of the plate zone
     diff = np.abs(img - paint).max(-1) > 40.0
+    if (lr1 - lr0 + 1) >= OPEN_LAMP_PX:
+        # A lamp this tall survives a 3x3 opening; the 1-px seams of colour bled from a car in front along
+        # the silhouette's edge do not, and no longer join a lamp beside the cut (2048x1024 hard seed 0).
+        import cv2
+
+        diff = cv2.morphologyEx((diff & m).astype(np.uint8), cv2.MORPH_OPEN,
+                                np.ones((3, 3), np.uint8)).astype(bool)
     boxes: list[tuple[int, int, int, int, bool] | None] = []          # rows, cols (face coords), snapped?
     blobs: list[np.ndarray | None] = []                                # the snapped pixels
     for side in (0, 1):
@@ -503,7 +584,12 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             win[wr0:wr1 + 1, wc0:wc1 + 1] = True
             win &= m & off_plate[None, :]
             cand = _blob_at(win & diff, (br0 + br1) / 2.0, (bc0 + bc1) / 2.0)
-            full = max(1, (min(br1, h - 1) - max(br0, 0) + 1) * (min(bc1, w - 1) - max(bc0, 0) + 1))
+            # A lamp half hidden by the car in front is judged by the box's pixels not hidden by it
+            # (2048x1024 hard seed 2: a red lamp of 196 px in a 612-px box, 154 px of it behind the car).
+            ya, yb, xa, xb = max(br0, 0), min(br1, h - 1) + 1, max(bc0, 0), min(bc1, w - 1) + 1
+            full = max(1, (yb - ya) * (xb - xa))
+            if z is not None and ctx.depth is not None and yb > ya and xb > xa:
+                full = max(1, full - int(_hidden(ctx, y0 + ya, x0 + xa, m[ya:yb, xa:xb], z).sum()))
             n = int(cand.sum())
             if n >= max(1, full // 3) and n <= 3 * full:
                 if small:
