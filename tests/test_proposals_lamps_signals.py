@@ -186,3 +186,19 @@ def test_a_sign_whose_top_a_tree_hides_is_held_to_half_the_height():
     assert len(ads) == 1
     ys, xs = np.nonzero(ann.mask(ads[0]))
     assert ys.min() == 40 and xs.min() == 45 and 0.5 <= props.confidence[ads[0]] < 0.9
+
+
+def test_a_lamp_whose_pole_top_the_frame_cuts_hangs_under_the_arm():
+    """A close pole (20 px per metre) whose top is above the frame: the arm shows as rows 0-5, the head
+    as rows 0-10 at its end. The lens is under the arm (rows 6-10), not a fixed depth under the first
+    row, which is the frame's edge, not the pole's top (the old proposer took rows 3-10: IoU 0.57)."""
+    img, lab, depth, intr, foot = _pole_frame(20.0, 10.0)
+    grey = (80, 80, 85)
+    lab[0:foot, 60:64], img[0:foot, 60:64] = POLE, grey          # trunk, cut by the frame
+    lab[0:6, 60:101], img[0:6, 60:101] = POLE, grey              # arm
+    lab[0:11, 85:101], img[0:11, 85:101] = POLE, grey            # head, 0.8 m
+    lens = np.zeros(lab.shape, bool)
+    lens[6:11, 86:100] = True
+    img[lens] = (200, 200, 190)
+    ann, lamps = _only(propose_lights(img, lab, depth, intr, params=FLAT), (8, 9))
+    assert len(lamps) == 1 and _iou(ann.mask(lamps[0]), lens) >= 0.85

@@ -37,9 +37,9 @@ def _speck_head(specks: list[tuple[int, int, np.ndarray]], taken: set[int], top:
     return best
 
 
-def _lens(in_band: np.ndarray, top: int, far: int, sign: int, mpp: float, p: ProposalParams) -> np.ndarray:
+def _lens(in_band: np.ndarray, top: float, far: int, sign: int, mpp: float, p: ProposalParams) -> np.ndarray:
     """An arm head's lens (local mask): the pole pixels of the head band (``in_band``) whose centres lie
-    ``lamp_lens_top_m`` or more below the pole's top edge (row ``top``: under the arm) and between
+    ``lamp_lens_top_m`` or more below the pole's top edge (``top``, rows: under the arm) and between
     ``lamp_lens_inset_m`` and ``lamp_lens_inset_m + lamp_lens_len_m`` back from the head's far edge
     (the outer edge of column ``far``, the arm reaching toward ``sign``); ``mpp`` metres per pixel.
 
@@ -129,7 +129,14 @@ def propose(ctx: Context) -> list[Light]:
             far = trunk + sign * reach
             lo, hi = (far - head_w + 1, far) if sign > 0 else (far, far + head_w - 1)
             head = in_band & (np.arange(w)[None, :] >= lo) & (np.arange(w)[None, :] <= hi)
-            lens = _lens(in_band, top, far, sign, mpp, p)
+            if y0 + top == 0:
+                # The frame cuts the pole: its top is not seen. The lens hangs under the arm, whose rows
+                # are those the pole holds halfway between the trunk and the head.
+                arm_rows = np.flatnonzero(in_band[:, (trunk + (lo if sign > 0 else hi)) // 2])
+                lens_top = (int(arm_rows.max()) + 1) - p.lamp_lens_top_m / mpp if arm_rows.size else -np.inf
+            else:
+                lens_top = float(top)
+            lens = _lens(in_band, lens_top, far, sign, mpp, p)
             lamp = lens if lens.sum() >= max(1, head.sum() // 3) else head
             conf = 0.85
         elif (k := _speck_head(specks, taken, y0 + top, x0 + trunk, band, mpp, p)) is not None:
