@@ -205,6 +205,8 @@ class ProposalParams:
     #: A window at most ``window_row_pane_max_px`` wide loses an edge column whose mean departure from
     #: the wall is under this share of its strongest column's: its pane's colour bled there (0: off).
     window_unblur_ratio: float = 0.5
+    #: ... and so does a wider one (a pane's edge blurred into the wall's next column: 2048x1024).
+    window_unblur_any_width: bool = True
     #: Blob pixels nearer than the wall in their image column (read 2 px above and below the blob) by
     #: this (m; 0: no test) and this share of the depth jut out of it: awnings, balcony slabs, their
     #: undersides -- not glass (windows._ledge_split). A blob mostly nearer and lower than

@@ -261,10 +261,13 @@ def _unblur(li: Light, dev: np.ndarray, p) -> None:
     the convex hull keeps both, and half the proposal is wall (mask IoU 0.5: an editor touch-up;
     docs/proposals.md "Ninth pass"). An edge column whose mean departure from the wall (``dev`` over
     the window's box, in window thresholds) is under ``window_unblur_ratio`` of the strongest
-    column's goes, one a side."""
+    column's goes, one a side. With ``window_unblur_any_width`` a wider window too: a pane's edge
+    blurs a third of its colour into the wall's next column, which still passes the thresholds (at
+    2048x1024 the commonest touch-up, a 4-8 px pane proposed 2 px wider; docs/proposals.md "Ninth
+    pass: window masks")."""
     r = float(p.window_unblur_ratio)
     h, w = li.mask.shape
-    if r <= 0 or w < 2 or w > p.window_row_pane_max_px:
+    if r <= 0 or w < 2 or (w > p.window_row_pane_max_px and not p.window_unblur_any_width):
         return
     cnt = li.mask.sum(0)
     prof = np.where(cnt > 0, (dev * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
