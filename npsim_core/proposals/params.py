@@ -56,17 +56,6 @@ class ProposalParams:
     #: away the arm is under a pixel and the labels lose it).
     lamp_max_arm_m: float = 2.6
     lamp_speck_min_px: int = 2
-    #: An arm's head: its lens (the light an annotator draws) starts this far (m) below the pole's top
-    #: (under the arm), spans ``lamp_lens_len_m`` along the arm and ends ``lamp_lens_inset_m`` short of
-    #: the head's far end (the housing's rim and end face); pixels count by their centres
-    #: (street_lamps._lens).
-    lamp_lens_top_m: float = 0.16
-    lamp_lens_len_m: float = 0.8
-    lamp_lens_inset_m: float = 0.06
-    #: A lantern's glass: below a cap this tall (m), this tall, inside a frame this wide at either side.
-    lamp_lantern_cap_m: float = 0.1
-    lamp_lantern_glass_m: float = 0.45
-    lamp_lantern_frame_m: float = 0.06
 
     # --- vehicles
     #: Smallest vehicle instance (pixels) that gets lamps and panes.
