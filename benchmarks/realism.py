@@ -125,7 +125,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from npsim_core.camera import normals_from_depth
     from npsim_core.chain import ChainParams
-    from npsim_core.realism import REAL_NIGHT, global_stats, structure_ratio
+    from npsim_core.realism import REAL_NIGHT, global_stats, stats_within, structure_ratio
     from npsim_core.render.materials import cap_vehicle_details, delit_albedo, estimate_materials, photo_albedo
     from npsim_core.synthetic import street_scene
     from npsim_core.synthetic.cityscapes import fixture_stem, write_cityscapes_fixture
@@ -181,7 +181,10 @@ def main(argv=None) -> int:
     print(f"{'real ACDC nights':34s} " + " ".join(f"{v:6.2f}" for v in REAL_NIGHT.values()))
     for name, (img, _, _) in rows.items():
         st = global_stats(img)
-        print(f"{name:34s} " + " ".join(f"{st[k]:6.2f}" for k in REAL_NIGHT))
+        within = stats_within(st)
+        print(f"{name:34s} " + " ".join(f"{st[k]:6.2f}" for k in REAL_NIGHT)
+              + f"   within 15 %: {sum(within.values())}/{len(within)}"
+              + "".join(f" ({k} {st[k]:.3f} out)" for k, ok in within.items() if not ok))
 
     # De-lit albedo against the street's true albedo (the reference only; never given to the chain).
     true = street_scene(W, H, args.seed, variant=args.variant)
