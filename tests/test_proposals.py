@@ -16,18 +16,9 @@ from npsim_core.errors import NpsimInputError
 from npsim_core.proposals import LightProposals, ProposalParams, propose_for_scene, propose_lights
 from npsim_core.proposals.evaluate import score_category
 
+from proposal_helpers import FLAT, canvas, iou
+
 SKY, ROAD, BUILDING, POLE, TRAFFIC_LIGHT, CAR = 23, 7, 11, 17, 19, 26
-FLAT = ProposalParams(camera_pitch_rad=0.0)
-
-
-def _canvas(H=120, W=200, label=SKY, color=(150, 170, 200)):
-    img = np.zeros((H, W, 3), np.uint8)
-    img[:] = color
-    return img, np.full((H, W), label, np.uint8)
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> float:
-    return float((a & b).sum() / max(1, (a | b).sum()))
 
 
 def _lights(props: LightProposals, classes, threshold=0.5):
@@ -36,7 +27,7 @@ def _lights(props: LightProposals, classes, threshold=0.5):
 
 
 def test_traffic_light_component_yields_three_lamps_in_one_group():
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[30:60, 90:100] = TRAFFIC_LIGHT                       # 10 x 30 px housing, upright
     img[30:60, 90:100] = (15, 15, 15)
     for k, col in enumerate(((200, 20, 20), (200, 140, 0), (20, 180, 60))):
@@ -56,7 +47,7 @@ def test_traffic_light_component_yields_three_lamps_in_one_group():
 
 
 def test_pole_top_yields_one_lamp_at_its_head():
-    img, lab = _canvas(H=200, W=200)
+    img, lab = canvas(H=200, W=200)
     lab[150:, :] = ROAD
     depth = np.full((200, 200), 20.0, np.float32)
     intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
@@ -81,7 +72,7 @@ def test_pole_top_yields_one_lamp_at_its_head():
 
 def _car_frame(rear_color=(200, 20, 20), paint=(40, 60, 140)):
     """A car seen from behind at 10 m (50 px per metre): 1.8 m wide body, cabin above, red lamps."""
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[95:, :] = ROAD
     img[95:] = (70, 70, 75)
     depth = np.full(lab.shape, 10.0, np.float32)
@@ -110,7 +101,7 @@ def test_car_with_red_rear_lamps_yields_a_rear_pair_in_one_car_group():
     ann, lamps = _lights(props, (3, 4, 5, 6))
     assert len(lamps) == 2 and all(class_of(i) == 6 for i in lamps)     # red by day: rear lamps; in the lane: moving
     masks = sorted((ann.mask(i) for i in lamps), key=lambda m: np.nonzero(m)[1].mean())
-    assert _iou(masks[0], truth[0]) >= 0.5 and _iou(masks[1], truth[1]) >= 0.5
+    assert iou(masks[0], truth[0]) >= 0.5 and iou(masks[1], truth[1]) >= 0.5
     gid = ann.group_of(lamps[0])
     assert gid is not None and class_of(gid) == 14 and ann.group_of(lamps[1]) == gid
     panes = [i for i in ann.groups[gid].members if class_of(i) == 2]
@@ -124,7 +115,7 @@ def test_white_lamps_are_front_lamps():
 
 
 def test_facade_grid_of_dark_windows_yields_windows_grouped_per_floor():
-    img, lab = _canvas(H=160, W=240)
+    img, lab = canvas(H=160, W=240)
     lab[20:150, 20:220] = BUILDING
     img[20:150, 20:220] = (170, 150, 120)
     lab[150:, :] = ROAD
@@ -142,8 +133,8 @@ def test_facade_grid_of_dark_windows_yields_windows_grouped_per_floor():
     ann, wins = _lights(props, (1,))
     assert len(wins) == 15
     for r, m in truth:
-        best = max(wins, key=lambda i: _iou(ann.mask(i), m))
-        assert _iou(ann.mask(best), m) >= 0.8
+        best = max(wins, key=lambda i: iou(ann.mask(i), m))
+        assert iou(ann.mask(best), m) >= 0.8
     floors = [g for g in ann.groups.values() if g.class_id == 13]
     assert len(floors) == 3 and all(len(g.members) == 5 for g in floors)
     for g in floors:  # one floor per group: the members share their rows
@@ -169,7 +160,7 @@ def street_small():
 
 
 def test_above_keeps_confident_lights_and_trims_groups():
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[30:60, 90:100] = TRAFFIC_LIGHT
     lab[30:60, 150:170] = TRAFFIC_LIGHT                       # squat: low confidence
     props = propose_lights(img, lab)
@@ -188,7 +179,7 @@ def test_above_keeps_confident_lights_and_trims_groups():
 @pytest.mark.parametrize("case", ["image_dtype", "labels_shape", "labels_unknown", "depth_int", "depth_shape",
                                   "intrinsics_size", "instances_shape", "category"])
 def test_bad_input_raises_a_named_error(case):
-    img, lab = _canvas()
+    img, lab = canvas()
     kw: dict = {}
     if case == "image_dtype":
         img = img.astype(np.float32)
@@ -215,7 +206,7 @@ def test_bad_input_raises_a_named_error(case):
 
 
 def test_all_nan_depth_behaves_like_no_depth():
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[30:60, 90:100] = TRAFFIC_LIGHT
     a = propose_lights(img, lab)
     b = propose_lights(img, lab, depth=np.full(lab.shape, np.nan, np.float32))
@@ -229,7 +220,7 @@ def test_scene_instances_field_is_validated_and_loaded_from_a_dataset(tmp_path):
     from npsim_core.io import write_image
     from npsim_core.scene import Scene
 
-    img, lab = _canvas(H=32, W=64)
+    img, lab = canvas(H=32, W=64)
     with pytest.raises(NpsimInputError, match="instances"):
         Scene("x", img, lab, Intrinsics.cityscapes(64, 32), instances=np.zeros((3, 3), np.int32))
     write_image(tmp_path / "f.png", img)
@@ -274,7 +265,7 @@ def test_touching_vehicles_without_instance_ids_split_where_depth_jumps():
     from npsim_core.proposals.core import _check_inputs
     from npsim_core.proposals.vehicles import _split_by_depth
 
-    img, lab = _canvas(H=60, W=120)
+    img, lab = canvas(H=60, W=120)
     lab[20:50, 10:110] = CAR                                  # one component in the image...
     depth = np.full(lab.shape, 30.0, np.float32)
     depth[20:50, 10:60] = 10.0                                # ...but two cars, 10 m and 16 m away
@@ -292,7 +283,7 @@ def test_touching_vehicles_without_instance_ids_split_where_depth_jumps():
 def test_a_proposed_signal_head_lights_one_lamp_the_one_the_day_photo_shows():
     from npsim_core.render.lights import activate_lights, load_light_table
 
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[30:60, 90:100] = TRAFFIC_LIGHT
     img[30:60, 90:100] = (15, 15, 15)
     for k, col in enumerate(((60, 10, 10), (60, 45, 5), (40, 250, 150))):    # green lit, red and amber dark
@@ -329,7 +320,7 @@ def test_a_car_seen_from_behind_gives_two_symmetric_rear_lamps_and_none_on_its_p
     axis = (xa.min() + xb.max()) / 2.0
     assert abs(axis - (55 + 145 - 1) / 2.0) <= 1.5                    # about the car's vertical axis
     assert abs((axis - xa.max()) - (xb.min() - axis)) <= 1 and len(xa) == len(xb)   # mirror images
-    assert _iou(masks[0], truth[0]) >= 0.5 and _iou(masks[1], truth[1]) >= 0.5
+    assert iou(masks[0], truth[0]) >= 0.5 and iou(masks[1], truth[1]) >= 0.5
 
 
 def test_a_car_at_the_kerb_is_parked_a_car_in_the_lane_is_driving():
@@ -400,7 +391,7 @@ def test_a_vehicle_whose_lamp_rows_fall_below_it_gives_no_empty_slice_warning():
     code averaged that empty set: numpy's 'Mean of empty slice' and a NaN colour)."""
     import warnings
 
-    img, lab = _canvas(H=60, W=120, color=(120, 120, 120))
+    img, lab = canvas(H=60, W=120, color=(120, 120, 120))
     lab[50:53, 20:70] = CAR
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -410,7 +401,7 @@ def test_a_vehicle_whose_lamp_rows_fall_below_it_gives_no_empty_slice_warning():
 
 def _facade(H=160, W=240, wall=(170, 150, 120)):
     """A facade at 20 m, 10 px per metre, seen straight on."""
-    img, lab = _canvas(H=H, W=W)
+    img, lab = canvas(H=H, W=W)
     lab[20:150, 20:220] = BUILDING
     img[20:150, 20:220] = wall
     lab[150:, :] = ROAD
@@ -443,7 +434,7 @@ def test_a_facade_grid_gives_one_window_per_cell_and_none_across_cells():
         y0, y1, x0, x1 = cells[k]
         m = np.zeros(lab.shape, bool)
         m[y0:y1, x0:x1] = True
-        assert _iou(ann.mask(i), m) >= 0.6
+        assert iou(ann.mask(i), m) >= 0.6
 
 
 def test_a_gable_with_six_windows_gives_six():
@@ -479,7 +470,7 @@ def test_a_gable_with_six_windows_gives_six():
     gable = [i for i in wins if np.nonzero(ann.mask(i))[0].max() < 100]
     assert len(gable) == 6
     for m in truth:
-        assert max(_iou(ann.mask(i), m) for i in gable) >= 0.6
+        assert max(iou(ann.mask(i), m) for i in gable) >= 0.6
     assert len(wins) == 10
 
 
@@ -538,7 +529,7 @@ def test_a_dark_signal_head_and_a_cabin_band_pass_the_editors_default_slider():
     """Accepted at the editor's default threshold (0.9): a signal head elongated like one, even with its
     lamps dark by day (no contrast bonus). A cabin whose glass is no darker than the paint is still
     proposed as panes at the default 0.5 (the band above the body is mostly glass)."""
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[30:60, 90:100] = TRAFFIC_LIGHT
     img[30:60, 90:100] = (15, 15, 15)
     props = propose_lights(img, lab)
@@ -553,7 +544,7 @@ def test_a_dark_signal_head_and_a_cabin_band_pass_the_editors_default_slider():
 def test_a_sign_on_a_facade_receding_along_the_street_is_an_advertisement():
     """A 3 x 0.6 m red sign on a wall 5 m left of the camera, 31-34 m away, is 7 px wide (0.46 m of
     image width at its depth): its area is measured along the wall (1.8 m^2), not across the image."""
-    img, lab = _canvas()
+    img, lab = canvas()
     intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
     u = np.arange(200, dtype=np.float64)
     z_wall = np.where(u < 95, -5.0 * 500.0 / np.minimum(u - 99.5, -1.0), 80.0)      # the wall at X = -5 m
@@ -581,14 +572,14 @@ def test_a_car_whose_lower_body_is_hidden_by_the_car_in_front_keeps_its_lamps_on
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     mine = [i for i in lamps if (ann.mask(i) & truth[1]).any() or np.nonzero(ann.mask(i))[1].min() >= 95]
     assert mine and all(np.nonzero(ann.mask(i))[0].min() >= row(0.9) for i in mine)
-    assert max(_iou(ann.mask(i), truth[1]) for i in mine) >= 0.5
+    assert max(iou(ann.mask(i), truth[1]) for i in mine) >= 0.5
 
 
 def _parked_row(far_depth_m: float, near_depth_m: float | None):
     """A road, a red car in front (15 m, columns 100-150) and everything else at ``far_depth_m``;
     the car in front's depth is ``near_depth_m`` (None: the depth does not see it). Returns
     (img, lab, intr, depth, inst, row) with ``row(h, z)`` the image row of height ``h`` m at ``z`` m."""
-    img, lab = _canvas()
+    img, lab = canvas()
     lab[95:], img[95:] = ROAD, (70, 70, 75)
     intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
     depth = np.full(lab.shape, far_depth_m, np.float32)
@@ -621,7 +612,7 @@ def test_a_pedestrian_signal_is_proposed_as_such():
     0.68 m, two lamps, its green figure lit by day), both at 20 m: two lamps, red over green, its group
     marked ``pedestrian`` (its own state) and its state read; the vehicle head keeps three lamps. The
     old proposer gave it three lamps in the vehicles' direction."""
-    img, lab = _canvas()
+    img, lab = canvas()
     intr = Intrinsics(fx=500.0, fy=500.0, cx=99.5, cy=59.5, width=200, height=120)
     depth = np.full(lab.shape, 60.0, np.float32)
     row = lambda h: int(round(59.5 + (1.22 - h) * 25))  # noqa: E731  (20 m: 25 px per metre)
@@ -643,14 +634,14 @@ def test_a_pedestrian_signal_is_proposed_as_such():
     assert ann.meta["traffic_light_states"][str(gid)] == "green"
     truth_green = np.zeros(lab.shape, bool)
     truth_green[row(2.39):row(2.15), 141:147] = True
-    assert _iou(ann.mask(lamps[1]), truth_green) >= 0.5
+    assert iou(ann.mask(lamps[1]), truth_green) >= 0.5
 
 
 def test_a_far_pole_whose_arm_the_labels_lost_gets_its_lamp_at_the_head_beside_its_top():
     """An 8 m pole at 100 m (2 px per metre): the 0.12 m arm is under a pixel and not labelled, so the
     head is a speck of pole 1.8 m beside the trunk's top. The lamp is that speck (the old proposer put
     a low-confidence lamp on the bare trunk top and skipped the speck)."""
-    img, lab = _canvas(H=200, W=200)
+    img, lab = canvas(H=200, W=200)
     lab[150:, :] = ROAD
     depth = np.full((200, 200), 100.0, np.float32)
     intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
@@ -679,7 +670,7 @@ def test_no_lamp_on_a_car_showing_a_fraction_of_its_end_face_even_when_depth_mis
 def test_a_far_pole_whose_foot_is_hidden_still_gets_its_lamp():
     """The same far pole with all but its top 8 px hidden behind a hedge: an 8-px trunk is a pole
     (``pole_min_area_px`` 6; it was 10, so its lamp was missed)."""
-    img, lab = _canvas(H=200, W=200)
+    img, lab = canvas(H=200, W=200)
     lab[150:, :] = ROAD
     depth = np.full((200, 200), 100.0, np.float32)
     intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=99.5, width=200, height=200)
@@ -703,7 +694,7 @@ def test_a_car_whose_cabin_shows_over_the_car_in_front_keeps_its_lamp_on_the_bod
     cab = (slice(0, 66), slice(110, 145))
     depth[cab] = np.where(inst[cab] == CAR * 1000, 7.0, depth[cab])     # the van's depth bled into the cabin
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
-    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+    assert max((iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
 
 
 def test_a_car_cut_by_the_car_in_front_gets_the_lamp_its_end_face_strip_shows():
@@ -719,7 +710,7 @@ def test_a_car_cut_by_the_car_in_front_gets_the_lamp_its_end_face_strip_shows():
     front = (slice(30, 120), slice(75, 200))
     lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 7.0, CAR * 1000 + 1
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
-    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+    assert max((iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
 
 
 def test_a_rear_window_half_covered_by_a_reflection_is_proposed_whole():
@@ -732,7 +723,7 @@ def test_a_rear_window_half_covered_by_a_reflection_is_proposed_whole():
     window[row(1.33):row(0.97), 64:136] = True
     img[row(1.33):row(0.97), 96:136] = (185, 195, 210)               # the reflection
     ann, panes = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (2,))
-    assert max((_iou(ann.mask(i), window) for i in panes), default=0.0) >= 0.5
+    assert max((iou(ann.mask(i), window) for i in panes), default=0.0) >= 0.5
 
 
 def _window_row_annotation():
@@ -794,7 +785,7 @@ def test_a_few_columns_of_a_cut_car_seen_past_the_car_in_front_do_not_place_its_
     notch = (slice(row(0.9), row(0.5)), slice(90, 92))
     lab[notch], img[notch], depth[notch], inst[notch] = CAR, (40, 60, 140), 10.0, CAR * 1000
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
-    assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
+    assert max((iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.5
 
 
 def test_the_boot_lid_seen_over_the_end_face_does_not_lift_the_lamps():
@@ -810,4 +801,4 @@ def test_the_boot_lid_seen_over_the_end_face_does_not_lift_the_lamps():
     depth[lid] = (10.0 + 0.3 * (top - np.arange(top - 6, top)))[:, None]
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     for t in truth:
-        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5
+        assert max((iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5
