@@ -296,6 +296,49 @@ def test_sigterm_to_batch_ends_its_workers_and_leaves_no_half_frame(street, tmp_
             assert verify_frame(frame) is None or not any(frame.iterdir())  # whole or nothing
 
 
+def _stuck_export(out_root: str, name: str):
+    """A worker's frame that is inside an export (its staging folder made) and stuck in native code:
+    SIGTERM is blocked, as it is while a render's kernels compile, so only the SIGKILL ends it."""
+    import signal
+    import tempfile
+    import time
+
+    from npsim_core.io import staging_prefix
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+    folder = Path(out_root) / name
+    folder.mkdir(parents=True, exist_ok=True)
+    tempfile.mkdtemp(prefix=staging_prefix(name), dir=folder)
+    time.sleep(120)
+
+
+def test_a_batch_stopped_while_a_worker_is_stuck_removes_that_workers_staging(tmp_path, monkeypatch):
+    """CI: a SIGTERM'd batch left '.street_s0.partial-*' behind -- its worker, under load, was still
+    in native code when the grace period ended, was killed, and never reached its cleanup."""
+    import functools
+    import time
+
+    from npsim_core.chain import batch
+    from npsim_core.chain.session import FrameSource
+
+    out = tmp_path / "out"
+    monkeypatch.setattr(batch, "stop_workers", functools.partial(batch.stop_workers, grace_s=0.5))
+    src = FrameSource("f0", tmp_path / "f0.png", functools.partial(_stuck_export, str(out), "f0"))
+
+    def log(msg: str) -> None:  # the parent is interrupted once the worker is inside its export
+        if msg.endswith("queued"):
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 60 and not list(out.glob("*/.*.partial-*")):
+                time.sleep(0.05)
+            assert list(out.glob("*/.*.partial-*"))
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        batch.run_batch([src, FrameSource("f1", src.path, functools.partial(_stuck_export, str(out), "f1"))],
+                        ChainParams(), out, workers=2, log=log)
+    assert not list(out.rglob(".*.partial-*"))
+
+
 def test_leftover_staging_folders_are_removed_by_the_next_run_and_said(scene_dir, tmp_path, capsys):
     out = tmp_path / "m"
     junk = out / ".street.partial-999999999-abc"  # a pid that cannot be alive

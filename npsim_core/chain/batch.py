@@ -263,8 +263,13 @@ def run_batch(sources: list[FrameSource], params: ChainParams, out_root: str | P
                         finished(FrameOutcome(src.name, "failed", error=f"worker died: {type(exc).__name__}: {exc}"))
         except BaseException:  # SIGINT/SIGTERM (or any error) in the parent: the workers must not outlive it
             stopped = stop_workers(pool)
+            # A worker killed inside native code (a first render's kernel compile under load outlasts
+            # the grace period) could not remove its staging folder: its pid is gone now, so remove it.
+            from ..io import remove_stale_staging
+
+            remove_stale_staging(out_root, depth=1)
             log(f"interrupted: {stopped} worker process{'es' if stopped != 1 else ''} stopped; frames in flight "
-                "were not written (their staging folders are removed, at the latest by the next run)")
+                "were not written (their staging folders are removed)")
             raise
         pool.shutdown(wait=True)
     return BatchResult([outcomes[s.name] for s in sources if s.name in outcomes], time.perf_counter() - t0,
