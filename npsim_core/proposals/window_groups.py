@@ -150,7 +150,9 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
     around neighbouring windows changes (``lum`` / ``chroma``), or where the step to the next window
     is over ``SPLIT_STEPS`` x the group's median step over wall that shows (nothing in front; the
     blank wall between two blocks of one plane and colour, which an occluder's gap does not show;
-    panes under ``SPLIT_MIN_PX`` wide are too quantised to tell)."""
+    panes under ``SPLIT_MIN_PX`` wide are too quantised to tell alone: their step is cut only where the
+    gap is ``BLANK_MIN_GAP_PX`` wide, blank on the other floors too (:func:`_blank_column`) and the wall's
+    luminance changes across it by ``BLANK_WALL_LUM``)."""
     if idx.size < 2:
         return [idx]
     o = idx[np.argsort(t["cu"][idx])]
@@ -158,13 +160,50 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
     dl = np.abs(np.diff(c[:, 0]))
     dc = np.hypot(*np.diff(c[:, 1:], axis=0).T)
     cut = (dl > lum) | (dc > chroma)  # NaN (no wall seen) compares False: no cut
-    if idx.size >= 4 and np.median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX:
+    if idx.size >= 4:
+        wide = np.median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX
         step = np.hypot(*np.diff(pos[o], axis=0).T)
         for k in np.nonzero(step > SPLIT_STEPS * float(np.median(step)))[0]:
-            _, shown = _gap_is_wall(ctx, feat, t, int(o[k]), int(o[k + 1]), c[k], lum, chroma, tol)
+            i, j = int(o[k]), int(o[k + 1])
+            if not wide and not (t["x0"][j] - t["x1"][i] >= BLANK_MIN_GAP_PX and _blank_column(t, i, j, idx, tol)
+                                 and _side_colour_step(t, o, k) >= BLANK_WALL_LUM):
+                continue  # narrow panes: a step too quantised to tell alone (docs/proposals.md, tenth pass)
+            _, shown = _gap_is_wall(ctx, feat, t, i, j, c[k], lum, chroma, tol)
             cut[k] |= shown >= VISIBLE_SHARE
     ends = np.nonzero(cut)[0] + 1
     return np.split(o, ends)
+
+
+def _blank_column(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
+    """Whether the wall between neighbouring panes ``i`` (left) and ``j`` of one floor is blank on the
+    building's other floors too: a building's end runs down the whole facade, a pane the proposer missed
+    does not (bays repeat from floor to floor). True when other panes (not in ``idx``) on the wall's plane
+    (depth within ``2 tol`` of the inverse-depth line from ``i`` to ``j``; any without depth) lie in the
+    bays of both ``i`` and ``j`` (centre column within a quarter of the gap of theirs) and none in the
+    middle half of the gap."""
+    cu, z = t["cu"], t["z"]
+    a, b = cu[i], cu[j]
+    q = 0.25 * (b - a)
+    if q <= 0:
+        return False
+    other = np.ones(cu.size, bool)
+    other[idx] = False
+    if np.isfinite(z[i]) and np.isfinite(z[j]):
+        f = np.clip((cu - a) / (b - a), -1.0, 2.0)
+        want = 1.0 / (1.0 / z[i] + (1.0 / z[j] - 1.0 / z[i]) * f)
+        other &= ~(np.abs(z - want) > 2.0 * tol * want)  # NaN depth: kept
+    near_i = other & (np.abs(cu - a) <= max(q, 1.0))
+    near_j = other & (np.abs(cu - b) <= max(q, 1.0))
+    inside = other & (cu > a + q) & (cu < b - q)
+    return bool(near_i.any() and near_j.any() and not inside.any())
+
+
+def _side_colour_step(t: dict, o: np.ndarray, k: int) -> float:
+    """Log luminance step (absolute) of the wall colour between the panes ``o[k]`` and ``o[k + 1]`` of a floor
+    sorted along it: the median wall luminance of up to three panes on each side (NaN-free; 0 without)."""
+    a, b = t["wall"][o[max(0, k - 2):k + 1], 0], t["wall"][o[k + 1:k + 4], 0]
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    return float(abs(np.median(a) - np.median(b))) if a.size and b.size else 0.0
 
 
 #: A step along a floor over this many of its median steps, over visible wall, is a building's end.
@@ -172,6 +211,11 @@ BLANK_STEPS = 1.6
 SPLIT_STEPS = 1.6
 #: Median pane width (px) at least, for a cut at a blank step.
 SPLIT_MIN_PX = 3
+#: Narrower panes are cut at a blank step only where the gap is this wide (px) at least, the wall is blank in
+#: that column on the building's other floors too (:func:`_blank_column`) and its luminance changes across
+#: the gap by this much (log) at least (:func:`_side_colour_step`): the end of a building, not a pane missed.
+BLANK_MIN_GAP_PX = 4
+BLANK_WALL_LUM = 0.1
 #: The share of a gap's band the building shows for the gap to count as visible wall.
 VISIBLE_SHARE = 0.6
 #: Steps at most this many median steps are joined across something in front.
