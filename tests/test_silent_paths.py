@@ -339,6 +339,27 @@ def test_a_batch_stopped_while_a_worker_is_stuck_removes_that_workers_staging(tm
     assert not list(out.rglob(".*.partial-*"))
 
 
+def test_a_stop_during_worker_start_up_is_delivered_after_the_spawn():
+    """CI: a SIGTERM'd batch printed a worker's 'EOFError: Ran out of input' traceback -- the stop cut
+    the parent's spawn short, closing the pipe the new worker was reading its start-up data from."""
+    import os
+    import signal
+
+    from npsim_core.chain import batch
+
+    got: list[int] = []
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: got.append(signum))
+    try:
+        with batch._stop_signals_held():
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # give the handler every chance to run here
+                sum(range(100))
+            assert not got  # held while workers spawn ...
+        assert got == [signal.SIGTERM]  # ... and delivered right after, to the handler in place before
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def test_leftover_staging_folders_are_removed_by_the_next_run_and_said(scene_dir, tmp_path, capsys):
     out = tmp_path / "m"
     junk = out / ".street.partial-999999999-abc"  # a pid that cannot be alive

@@ -13,8 +13,11 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
+import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable
@@ -136,12 +139,37 @@ def _stop_worker(signum, frame) -> None:
     os._exit(128 + signum)
 
 
+#: The signals that stop a batch (Ctrl-C, ``kill``).
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextmanager
+def _stop_signals_held():
+    """Hold SIGINT/SIGTERM in the parent while it spawns worker processes, and deliver them after.
+
+    A stop that cut a spawn short closed the pipe the new worker reads its start-up data from, and
+    that worker printed an ``EOFError`` traceback into the batch's stderr. Within this block a stop
+    signal is only recorded; on leaving it the handlers in place before are restored and each recorded
+    signal raised again. Handlers can only be set from the main thread; elsewhere nothing is held (a
+    signal's Python handler runs in the main thread anyway)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: held.append(signum)) for s in _STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(held):
+            signal.raise_signal(s)
+
+
 def _worker_init(threads: int) -> None:
     """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all); then
     a SIGTERM from the parent stops the worker cleanly (:func:`_stop_worker`; before that its
     default action ends it, with nothing written yet)."""
-    import signal
-
     os.environ["OMP_NUM_THREADS"] = str(threads)
     try:
         import cv2
@@ -250,7 +278,8 @@ def run_batch(sources: list[FrameSource], params: ChainParams, out_root: str | P
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_worker_init, initargs=(threads,))
         try:
-            pending = {pool.submit(run_frame, src, params, out_root, nights, layout): src for src in todo}
+            with _stop_signals_held():  # submit spawns the workers: a stop must not cut one's start-up
+                pending = {pool.submit(run_frame, src, params, out_root, nights, layout): src for src in todo}
             for src in todo:
                 log(f"{src.name}: queued")
             while pending:
