@@ -179,3 +179,31 @@ def test_narrow_panes_stay_one_group_across_a_pane_missing_on_one_floor():
         img[_v(10.0):_v(0.0), _u(-0.6):_u(11.5)], np.array((161, 142, 120), np.uint8))
     per_floor, _ = _groups_per_floor(img, labels, depth, [(lo, m) for lo, m in panes if m is not gone[0]])
     assert all(len(g) == 1 for g in per_floor.values()), per_floor
+
+
+def test_floor_joined_across_a_tree_where_a_stripe_runs_along_its_windows():
+    # A light stripe (cladding between the panes of a floor, a row taller than them) runs along each
+    # floor; the wall between the floors keeps the wall's colour. Across a tree the gap's colour is
+    # judged on the wall above and below the floor's panes (docs/proposals.md, "Tenth pass: window groups
+    # at 512x256"): the stripe filled most of the old band, which then read as another wall.
+    img, labels, depth = _street()
+    bays = [-11.0, -8.6, -6.2, -3.8, 2.6, 5.0, 7.4, 9.8]
+    wall = (172, 152, 128)
+    img[_v(10.0):_v(0.0), _u(-12.0):_u(11.5)] = wall
+    labels[_v(10.0):_v(0.0), _u(-12.0):_u(11.5)] = 11
+    depth[_v(10.0):_v(0.0), _u(-12.0):_u(11.5)] = Z
+    for lo, hi in FLOORS:
+        img[_v(hi):_v(lo) + 1, _u(-12.0):_u(11.5)] = (215, 195, 170)
+    panes = []
+    for lo, hi in FLOORS:
+        for x in bays:
+            m = np.zeros((H, W), bool)
+            m[_v(hi):_v(lo), _u(x):_u(x + 1.2)] = True
+            img[m] = GLASS
+            panes.append((lo, m))
+    tree = np.zeros((H, W), bool)
+    tree[_v(11.0):_v(0.0), _u(-2.0):_u(1.5)] = True
+    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    per_floor, _ = _groups_per_floor(img, labels, depth, panes)
+    assert all(len(g) == 1 for g in per_floor.values()), per_floor
+    assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]

@@ -99,6 +99,7 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
     top = t["y0"][i] + f * (t["y0"][j] - t["y0"][i])
     bot = t["y1"][i] + f * (t["y1"][j] - t["y1"][i])
     grow = 0.5 * (bot - top)
+    top0, bot0 = np.round(top).astype(int), np.round(bot).astype(int)
     top, bot = np.round(top - grow).astype(int), np.round(bot + grow).astype(int)
     ya, yb = max(int(top.min()), 0), min(int(bot.max()), H)
     if yb <= ya:
@@ -112,9 +113,13 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
         bld = cv2.erode(bld.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     if bld.sum() < 2:
         return True, shown  # all hidden: a tree, a pole or a car in front
-    fv = feat[ya:yb, xa:xb][bld]
+    # the wall colour above and below the floor's panes (between the floors), where panes nobody proposed
+    # do not lie; the whole band where that shows too little
+    spandrel = bld & ~((rows >= top0[None]) & (rows < bot0[None]))
+    judge = spandrel if spandrel.sum() >= max(2, SPANDREL_SHARE * bld.sum()) else bld
+    fv = feat[ya:yb, xa:xb][judge]
     off = (np.abs(fv[:, 0] - colour[0]) > lum) | (np.hypot(fv[:, 1] - colour[1], fv[:, 2] - colour[2]) > chroma)
-    if off.mean() > 0.5:  # panes nobody proposed lie between, too
+    if off.mean() > 0.5:  # another wall between, or panes nobody proposed (whole band)
         return False, shown
     if ctx.depth is not None and np.isfinite(t["z"][i]) and np.isfinite(t["z"][j]):
         iz = 1.0 / t["z"][i] + (1.0 / t["z"][j] - 1.0 / t["z"][i]) * f
@@ -216,6 +221,9 @@ SPLIT_MIN_PX = 3
 #: the gap by this much (log) at least (:func:`_side_colour_step`): the end of a building, not a pane missed.
 BLANK_MIN_GAP_PX = 4
 BLANK_WALL_LUM = 0.1
+#: The gap's colour is judged on the wall above and below the floor's panes when it is this share of the
+#: building pixels of the band at least.
+SPANDREL_SHARE = 0.25
 #: The share of a gap's band the building shows for the gap to count as visible wall.
 VISIBLE_SHARE = 0.6
 #: Steps at most this many median steps are joined across something in front.
