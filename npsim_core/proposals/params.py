@@ -196,6 +196,12 @@ class ProposalParams:
     window_unblur_ratio: float = 0.5
     #: ... and so does a wider one (a pane's edge blurred into the wall's next column: 2048x1024).
     window_unblur_any_width: bool = True
+    #: A window grows by the rows above its top / below its bottom whose mean departure from the wall
+    #: over its columns is at least ``window_extend_dev`` of the window thresholds and
+    #: ``window_extend_side_ratio`` x the departure of the columns beside it (the rest of its pane:
+    #: glass below a curtain band or a reflection that departs from the wall less; 0: off).
+    window_extend_dev: float = 0.6
+    window_extend_side_ratio: float = 1.5
     #: Blob pixels nearer than the wall in their image column (read 2 px above and below the blob) by
     #: this (m; 0: no test) and this share of the depth jut out of it: awnings, balcony slabs, their
     #: undersides -- not glass (windows._ledge_split). A blob mostly nearer and lower than
@@ -222,6 +228,11 @@ class ProposalParams:
     #: A window wider than this many times the wider of its floor neighbours spans bays (merged panes;
     #: widths shrink fast down a receding facade, so not 1.5).
     window_wide_ratio: float = 1.9
+    #: A window taller than 1.5x its wall's median window height with no floors to cut it along is
+    #: kept (for the area rule, ``window_max_median_ratio``, against whole panes) when it is at most
+    #: this tall (m; 0: always dropped): on a wall of a few windows the height median is often a
+    #: fragment's, while a blob most of a storey tall is a gable, a doorway or a shadow, not a pane.
+    window_tall_keep_m: float = 2.5
     #: Windows cover at most this share of their building region (the least confident beyond it are dropped).
     window_max_lit_share: float = 0.4
     #: A floor's windows belong to another facade (another windows_group) where the wall around them
@@ -257,14 +268,16 @@ class ProposalParams:
     window_oversized_gap_contrast: float = 0.6
     #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
     #: (first confidence, log-luminance and chroma contrast to the wall in a ring around it over the
-    #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels)), for windows at
-    #: least 0.5 confident (the set kept at 0.5 is unchanged). A logistic fit on the synthetic
-    #: streets' windows (seeds 0-2, default / hard / lights, 512x256 and 2048x1024; target: matched
-    #: at mask IoU >= 0.7, no touch-up), the bias raised by 0.5 for the editor's default slider (0.9):
-    #: a false window costs two actions, a true one saves one (docs/proposals.md "Seventh pass").
-    #: All weights 0: the first confidence as it is.
-    window_conf_bias: float = -7.85
-    window_conf_weights: tuple[float, float, float, float, float] = (6.4, 0.35, 1.4, 0.65, 0.27)
+    #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels, ln(1 + row-mates),
+    #: ln(1 + column-mates), another window touching its box)), for windows at least 0.5 confident (the
+    #: set kept at 0.5 is unchanged). A logistic fit on the synthetic streets' windows (seeds 0-2,
+    #: default / hard / lights, 512x256 and 2048x1024; target: matched at mask IoU >= 0.7, no
+    #: touch-up; ``python -m benchmarks.window_confidence --fit``), the bias raised by 1.0 for the
+    #: editor's default slider (0.9): a false window costs two actions, a true one saves one
+    #: (docs/proposals.md "Seventh pass", "Tenth pass: window confidence from the façade grid"). Five
+    #: weights: the seventh pass's rule without the grid terms. All weights 0: the first confidence as it is.
+    window_conf_bias: float = -4.85
+    window_conf_weights: tuple[float, ...] = (3.67, 0.42, 1.30, 0.56, 0.03, 0.74, 0.90, -0.82)
 
     # --- advertisements
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.

@@ -283,6 +283,48 @@ def _unblur(li: Light, dev: np.ndarray, p) -> None:
     li.mask = m[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
 
 
+def _extend_ends(li: Light, dev: np.ndarray, free: np.ndarray, max_h: int, p) -> None:
+    """Give a window the rows of its pane that its top or bottom left out, in place: a pane shows in
+    parts that depart from the wall differently (a bright curtain band or reflection over glass of
+    nearly the wall's colour), the thresholds find the strong part and the hull stops there, while an
+    annotator draws the whole pane. A row above the top (below the bottom) joins when its mean
+    departure from the wall (``dev``, HxW, in window thresholds) is at least ``window_extend_dev`` over
+    two thirds of the window's columns (a pane's width, not a downpipe under it), and its mean over them
+    ``window_extend_side_ratio`` x the mean of the columns just left and right of it (the pane is
+    bounded by wall on both sides; a row of wall between two floors is not),
+    all of it on ``free`` pixels (building, no other window); row by row, stopping at the first that
+    fails, the window at most ``max_h`` rows tall. The new rows copy the columns of the end row."""
+    a, k = float(p.window_extend_dev), float(p.window_extend_side_ratio)
+    if a <= 0:
+        return
+    H, W = dev.shape
+    h, w = li.mask.shape
+    x0, x1 = li.x0, li.x0 + w  # columns [x0, x1)
+    if x0 < 1 or x1 > W - 1:
+        return  # no wall column on both sides to compare with
+
+    def joins(y: int) -> bool:
+        if y < 0 or y >= H or not free[y, x0:x1].all() or not free[y, x0 - 1] or not free[y, x1]:
+            return False
+        row = dev[y, x0:x1]
+        side = 0.5 * float(dev[y, x0 - 1] + dev[y, x1])
+        # across the pane's width, not a downpipe or a crack under it
+        return (row >= a).mean() >= 2.0 / 3.0 and float(row.mean()) >= k * side
+
+    top, bot = li.y0, li.y0 + h - 1
+    up = 0
+    while bot - (top - up - 1) + 1 <= max_h and joins(top - up - 1):
+        up += 1
+    down = 0
+    while (bot + down + 1) - (top - up) + 1 <= max_h and joins(bot + down + 1):
+        down += 1
+    if not (up or down):
+        return
+    m = np.concatenate([np.repeat(li.mask[:1], up, 0), li.mask, np.repeat(li.mask[-1:], down, 0)], 0)
+    li.y0 -= up
+    li.mask = m
+
+
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
     """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
     blob's height (width) -- with fuller columns (rows, over twice that) on both sides: the wall
@@ -720,7 +762,15 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
             span_rows = [(top(xc), bot(xc)) for top, bot, _ in lines
                          if min(bot(xc), y1) - max(top(xc), y0) + 1 >= 0.5 * (bot(xc) - top(xc) + 1)]
             if tall and len(span_rows) < 2:
-                continue  # taller than a window and no floors to cut it along: not a window
+                if not hm[k] <= p.window_tall_keep_m:
+                    continue  # taller than a window and no floors to cut it along: not a window
+                # a pane's height with no floors to cut it along: its size is the area rule's to
+                # judge, against the wall's whole panes (_median_rule) -- the height median of a wall
+                # of a few windows is often a fragment's (a curtain band, a pane's part beside a tree)
+                tall = False
+                if not wide:
+                    kept.append(f)
+                    continue
             if wide and len(span_cols) < 2:
                 if not tall:
                     kept.append(f)  # neighbours may be slivers behind a tree: keep it as found
@@ -1190,6 +1240,17 @@ def propose(ctx: Context) -> list[Group]:
         li = f[3]
         box = (slice(li.y0, li.y0 + li.mask.shape[0]), slice(li.x0, li.x0 + li.mask.shape[1]))
         _unblur(li, np.maximum(np.abs(ratio[box]) / t, chroma[box] / p.window_chroma_delta), p)
+    if p.window_extend_dev > 0 and found:
+        dev = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)
+        taken = np.zeros((H, W), np.int32)
+        for k, f in enumerate(found, 1):
+            li = f[3]
+            taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = k
+        for k, f in enumerate(found, 1):
+            li = f[3]
+            z = _median_depth(ctx, li)
+            max_h = int(p.window_height_m[1] * fy / z) if z else 2 * li.mask.shape[0]
+            _extend_ends(li, dev, B & ((taken == 0) | (taken == k)), max_h, p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
