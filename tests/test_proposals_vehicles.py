@@ -236,3 +236,39 @@ def test_a_lamp_mostly_hidden_by_the_car_in_front_is_snapped_to_what_shows_of_it
     assert 0.35 < visible.sum() / truth[0].sum() < 0.5
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     assert max((_iou(ann.mask(i), visible) for i in lamps), default=0.0) >= 0.9
+
+
+def test_a_car_cut_by_the_image_border_gets_its_lamp_on_the_strip_of_end_face_left():
+    """A grey car at 8 m cut by the frame's right border: 17 px of its end face show (0.15 of its 112 px,
+    a grey lamp on grey paint: nothing to snap to), its side face recedes to the left. The face is laid
+    out from its inner edge, which depth finds, and the visible lamp with it (IoU >= 0.5). The old code
+    took an inner edge only from a strip of 0.3 of the face at the border (as for a face not cut at all),
+    laid the face out from the border instead and proposed its lamp beyond the frame (none)."""
+    z, corner = 8.0, 183
+    img, lab, depth, inst, intr = _frame()
+    ppm = 500.0 / z
+    body, cab = slice(_row(0.9, z), _row(0.3, z)), slice(_row(1.4, z), _row(0.9, z))
+    side = slice(corner - 60, corner)                        # the side face, 12 -> 8.5 m, a shade lighter
+    lab[body, side], img[body, side], inst[body, side] = CAR, (175, 175, 175), CAR * 1000 + 1
+    depth[body, side] = np.linspace(12.0, 8.5, 60)[None, :]
+    for rows, c in ((body, corner), (cab, corner + 6)):
+        lab[rows, c:], img[rows, c:], inst[rows, c:], depth[rows, c:] = CAR, (150, 150, 150), CAR * 1000 + 1, z
+    lamp = np.zeros(lab.shape, bool)
+    lamp[_row(0.83, z):_row(0.68, z), corner + int(round(0.08 * ppm)):corner + int(round(0.38 * ppm))] = True
+    img[lamp] = (150, 150, 150)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert max((_iou(ann.mask(i), lamp) for i in lamps), default=0.0) >= 0.5
+
+
+def test_a_lighter_stripe_through_the_lamp_window_is_not_taken_for_the_lamp():
+    """A grey car at 10 m whose lamps do not stand out of the paint, and a lighter stripe 4 px wide running
+    down its whole body beside the left lamp (as the lighter side face shows inside a face box placed a few
+    pixels off, or an edge highlight): the stripe is taller than a lamp could be, so both lamps are laid out
+    by the face's geometry (IoU >= 0.5). The old code snapped the left lamp to the stripe and mirrored it
+    to the right (IoU 0 for both)."""
+    img, lab, depth, inst, intr = _frame()
+    truth = _car(img, lab, depth, inst, 55, 145, 1, paint=(150, 150, 150), lamp=(150, 150, 150))
+    img[_row(0.9):_row(0.3), 77:81] = (215, 215, 215)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5

@@ -37,6 +37,9 @@ OPEN_LAMP_PX = 10
 #: A lamp's confidence grows with its pixels up to this many (a lamp of 1-8 px is a pixel or two off as
 #: often as not; beyond, size adds nothing: docs/proposals.md, "Ninth pass: vehicle confidence").
 LAMP_SURE_PX = 9
+#: Off-paint pixels taller than this many times the lamp box's rows (+2 px of blur) are not its lamp (the
+#: darker end face or an edge running through the snap window: docs/proposals.md, "Tenth pass").
+LAMP_TALL_RATIO = 1.5
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -432,8 +435,8 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
                     s_, e_ = _run(near)
                     if e_ - s_ > abs(run_end - (idx[0] if left_side else idx[-1])):
                         run_end = e_ if left_side else s_
-                # Cut by the car in front, only a strip of the end face may show (its inner lamp)
-                if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut and not at_border else 0.3) * face_w:
+                # Cut by the car in front or the frame's border, only a strip of the end face may show
+                if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut else 0.3) * face_w:
                     inner = run_end
     if inner is None and face_w >= 6:
         lo, hi = (outer + face_w // 3, outer + 2 * face_w) if left_side else (outer - 2 * face_w, outer - face_w // 3)
@@ -591,7 +594,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             if z is not None and ctx.depth is not None and yb > ya and xb > xa:
                 full = max(1, full - int(_hidden(ctx, y0 + ya, x0 + xa, m[ya:yb, xa:xb], z).sum()))
             n = int(cand.sum())
-            if n >= max(1, full // 3) and n <= 3 * full:
+            rows = np.flatnonzero(cand.any(1))
+            tall = rows.size and rows[-1] - rows[0] + 1 > LAMP_TALL_RATIO * (br1 - br0 + 1) + 2
+            if n >= max(1, full // 3) and n <= 3 * full and not tall:
                 if small:
                     cand = _unblur(cand, 0.15 * ppm, 0.30 * ppm)
                 ys, xs = np.nonzero(cand)
