@@ -32,3 +32,83 @@ def test_window_outcomes_are_the_windows_kept_at_half_with_their_match():
     assert conf.size == iou.size > 0
     assert (conf >= 0.5).all() and (conf < 1.0).all()
     assert ((iou == 0) | (iou >= 0.5)).all() and (iou >= 0.5).any()
+
+
+# --- the façade grid's support (npsim_core/proposals/window_confidence.py; docs/proposals.md "Tenth pass")
+
+from dataclasses import replace  # noqa: E402
+
+from benchmarks.window_confidence import design, fit_logistic, window_records  # noqa: E402
+from npsim_core.proposals.params import ProposalParams  # noqa: E402
+from npsim_core.proposals.window_confidence import grid_mates, window_confidence  # noqa: E402
+
+
+def _lattice(rows=3, cols=4, y=10.0, x=10.0, h=8.0, w=5.0, dy=20.0, dx=12.0):
+    return [[y + r * dy, x + c * dx, h, w] for r in range(rows) for c in range(cols)]
+
+
+def test_a_lattice_pane_has_row_and_column_mates_an_isolated_fleck_none():
+    """A 3 x 4 lattice of like panes: an inner pane has 3 row-mates (its floor) and 2 column-mates (its
+    bay); a fleck of like size off the grid (between floors, out of the bays) has none."""
+    boxes = np.array(_lattice() + [[20.0, 70.0, 8.0, 5.0]])
+    row, col, adj = grid_mates(boxes, np.full(len(boxes), 20.0))
+    assert row[5] == 3 and col[5] == 2 and adj[5] == 0
+    assert row[-1] == 0 and col[-1] == 0
+
+
+def test_mates_must_be_of_like_size_aligned_and_on_the_same_wall():
+    """Beside a pane: a slab as wide as three panes, a pane half a pane lower, and a pane on a wall
+    40 % nearer are no row-mates; a piece of a pane touching it is counted as adjacent."""
+    pane = [10.0, 10.0, 8.0, 5.0]
+    boxes = np.array([pane, [10.0, 22.0, 8.0, 15.0], [14.0, 40.0, 8.0, 5.0], [10.0, 52.0, 8.0, 5.0],
+                      [10.0, 16.0, 3.0, 2.0]])
+    z = np.array([20.0, 20.0, 20.0, 12.0, 20.0])
+    row, col, adj = grid_mates(boxes, z)
+    assert row[0] == 0 and col[0] == 0 and adj[0] == 1
+    row, _, _ = grid_mates(boxes, np.full(5, np.nan))  # without depth the wall is not judged
+    assert row[0] == 1  # the pane on the nearer wall now counts
+
+
+def test_grid_mates_of_no_windows_are_empty():
+    row, col, adj = grid_mates(np.zeros((0, 4)), np.zeros(0))
+    assert row.size == col.size == adj.size == 0
+
+
+def _x(**kw):
+    x = {"ring_lum": 1.5, "ring_chroma": 1.0, "area_px": 12.0, "h_m": 1.2, "row_mates": 0, "col_mates": 0,
+         "adjacent": 0}
+    x.update(kw)
+    return x
+
+
+def test_a_window_the_grid_backs_is_more_confident_than_the_same_window_alone():
+    """Same pane, same contrast: with row- and column-mates it passes the editor's slider (0.9), alone or
+    touched by another window it does not (the seventh pass's rule scored all three alike)."""
+    p = ProposalParams()
+    grid = window_confidence(p, 0.7, _x(row_mates=3, col_mates=2))
+    alone = window_confidence(p, 0.7, _x())
+    touched = window_confidence(p, 0.7, _x(adjacent=1))
+    assert grid >= 0.9 > alone > touched >= 0.5
+    old = replace(p, window_conf_bias=-7.85, window_conf_weights=(6.4, 0.35, 1.4, 0.65, 0.27))
+    assert window_confidence(old, 0.7, _x(row_mates=3, col_mates=2)) == window_confidence(old, 0.7, _x())
+
+
+def test_the_set_kept_at_half_does_not_change():
+    p = ProposalParams()
+    assert window_confidence(p, 0.45, _x(row_mates=5, col_mates=5)) == 0.45
+    assert 0.5 <= window_confidence(p, 0.5, _x(ring_lum=0.0, ring_chroma=0.0, adjacent=1, area_px=3.0)) <= 0.6
+    assert window_confidence(p, 0.99, _x(row_mates=9, col_mates=9, area_px=4.0)) <= p.window_tiny_max_confidence
+
+
+def test_the_fit_tool_reads_the_rule_s_own_terms():
+    """``benchmarks.window_confidence --fit`` fits on ``design``: with the rule's weights it reproduces every
+    logged window's confidence (tiny windows aside), and the Newton fit recovers known weights."""
+    p = ProposalParams()
+    recs = [r for r in window_records(street_scene(256, 128, 0)) if r["conf0"] >= 0.5 and r["area_px"] >= 6]
+    assert recs
+    z = p.window_conf_bias + design(recs) @ np.asarray(p.window_conf_weights)
+    assert np.allclose(0.5 + 0.5 / (1 + np.exp(-z)), [r["conf"] for r in recs])
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(4000, 2))
+    y = (rng.random(4000) < 1 / (1 + np.exp(-(0.5 + X @ [1.5, -2.0])))).astype(float)
+    assert np.allclose(fit_logistic(X, y), [0.5, 1.5, -2.0], atol=0.25)

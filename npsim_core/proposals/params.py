@@ -268,14 +268,16 @@ class ProposalParams:
     window_oversized_gap_contrast: float = 0.6
     #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
     #: (first confidence, log-luminance and chroma contrast to the wall in a ring around it over the
-    #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels)), for windows at
-    #: least 0.5 confident (the set kept at 0.5 is unchanged). A logistic fit on the synthetic
-    #: streets' windows (seeds 0-2, default / hard / lights, 512x256 and 2048x1024; target: matched
-    #: at mask IoU >= 0.7, no touch-up), the bias raised by 0.5 for the editor's default slider (0.9):
-    #: a false window costs two actions, a true one saves one (docs/proposals.md "Seventh pass").
-    #: All weights 0: the first confidence as it is.
-    window_conf_bias: float = -7.85
-    window_conf_weights: tuple[float, float, float, float, float] = (6.4, 0.35, 1.4, 0.65, 0.27)
+    #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels, ln(1 + row-mates),
+    #: ln(1 + column-mates), another window touching its box)), for windows at least 0.5 confident (the
+    #: set kept at 0.5 is unchanged). A logistic fit on the synthetic streets' windows (seeds 0-2,
+    #: default / hard / lights, 512x256 and 2048x1024; target: matched at mask IoU >= 0.7, no
+    #: touch-up; ``python -m benchmarks.window_confidence --fit``), the bias raised by 1.0 for the
+    #: editor's default slider (0.9): a false window costs two actions, a true one saves one
+    #: (docs/proposals.md "Seventh pass", "Tenth pass: window confidence from the façade grid"). Five
+    #: weights: the seventh pass's rule without the grid terms. All weights 0: the first confidence as it is.
+    window_conf_bias: float = -4.85
+    window_conf_weights: tuple[float, ...] = (3.67, 0.42, 1.30, 0.56, 0.03, 0.74, 0.90, -0.82)
 
     # --- advertisements
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.
