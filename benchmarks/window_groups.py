@@ -7,8 +7,11 @@ Per true windows_group (one floor of one building), from the proposed windows th
 mask IoU >= 0.5 (``benchmarks.annotation_actions.match_lights``, as its oracle column accepts them):
 *exact* (all in one proposed group holding no other true group's window), *split* (over two proposed
 groups or more), *merged* (a proposed group holding another true group's window too; a group can be
-split and merged), *none* (no window matched). "before" is the windows proposer's groups per floor of
-each wall piece, "after" those regrouped per building (:mod:`npsim_core.proposals.window_groups`,
+split and merged), *none* (no window matched); *complete*: exact with every pane matched (the only
+groups that save the editor benchmark a group action: one held in part costs the double-click that
+activates it, as much as grouping it from scratch), *false_in*: its proposed group(s) also hold a
+window matching no true one (which keeps the editor's Shift+A review from taking the group). "before"
+is the windows proposer's groups per floor of each wall piece, "after" those regrouped per building (:mod:`npsim_core.proposals.window_groups`,
 docs/proposals.md "Window groups"); the lights and their confidences are the same.
 """
 
@@ -28,7 +31,7 @@ def classify(gt, ann) -> dict[str, int]:
     pg = {m: gid for gid, g in ann.groups.items() for m in g.members}
     tg = {m: gid for gid, g in gt.groups.items() if gid // 1000 == 13 for m in g.members}
     p2t = {b: tg.get(a) for a, (b, _) in match.items()}
-    res = dict(n=0, exact=0, split=0, merged=0, none=0)
+    res = dict(n=0, exact=0, complete=0, split=0, merged=0, false_in=0, none=0)
     for gid, g in gt.groups.items():
         if gid // 1000 != 13:
             continue
@@ -42,6 +45,9 @@ def classify(gt, ann) -> dict[str, int]:
         res["split"] += split
         res["merged"] += merged
         res["exact"] += not split and not merged
+        # exact with every pane matched: the only groups that save the annotator a group action
+        res["complete"] += not split and not merged and all(a in match for a in g.members)
+        res["false_in"] += any(m not in p2t for p in ps if p is not None for m in ann.groups[p].members)
     res["proposed"] = sum(1 for gid in ann.groups if gid // 1000 == 13)
     return res
 
@@ -58,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     from npsim_core.synthetic import street_scene
 
     w, h = parse_size(args.size)
-    keys = ("exact", "split", "merged", "none", "proposed")
+    keys = ("exact", "complete", "split", "merged", "false_in", "none", "proposed")
     print(f"# Window groups against the true ones, synthetic street {w}x{h}\n")
     print("| variant | seed | true groups | " + " | ".join(f"{k} before -> after" for k in keys) + " | regroup s |")
     print("|---" * (4 + len(keys)) + "|")
