@@ -196,8 +196,8 @@ class ProposalParams:
     window_unblur_ratio: float = 0.5
     #: ... and so does a wider one (a pane's edge blurred into the wall's next column: 2048x1024).
     window_unblur_any_width: bool = True
-    #: A window grows by the rows above its top / below its bottom whose mean departure from the wall
-    #: over its columns is at least ``window_extend_dev`` of the window thresholds and
+    #: A window grows by the rows above its top / below its bottom that depart from the wall by at least
+    #: ``window_extend_dev`` of the window thresholds over two thirds of its columns, on mean
     #: ``window_extend_side_ratio`` x the departure of the columns beside it (the rest of its pane:
     #: glass below a curtain band or a reflection that departs from the wall less; 0: off).
     window_extend_dev: float = 0.6

@@ -1249,7 +1249,10 @@ def propose(ctx: Context) -> list[Group]:
         for k, f in enumerate(found, 1):
             li = f[3]
             z = _median_depth(ctx, li)
-            max_h = int(p.window_height_m[1] * fy / z) if z else 2 * li.mask.shape[0]
+            # grown, a window stays within a pane's height (window_tall_keep_m; a blob most of a storey
+            # tall is not a pane): a vertical crease or downpipe departs from the wall all along
+            cap_m = p.window_tall_keep_m if p.window_tall_keep_m > 0 else p.window_height_m[1]
+            max_h = max(li.mask.shape[0], int(cap_m * fy / z)) if z else 2 * li.mask.shape[0]
             _extend_ends(li, dev, B & ((taken == 0) | (taken == k)), max_h, p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
