@@ -290,3 +290,21 @@ def test_a_side_window_standing_out_of_its_paint_is_taken_at_the_slider_one_bare
 
     assert pane(40.0) >= 0.9
     assert 0.5 <= pane(10.0) < 0.9
+
+
+def test_the_black_wheel_beside_the_image_border_is_not_taken_for_a_red_lamp_sliver():
+    """A blue car at 6 m cut by the frame's right border, its lamps beyond it (or not standing out of the
+    paint), and the top of its black wheel at the border reaching 0.62 m, into the rows where a lamp's
+    sliver is looked for: a black pixel on blue paint departs from it "towards red" (its red drops least),
+    but has no colour of a lamp, so no lamp is proposed there. The old code proposed the wheel's top as
+    the rear lamp's sliver."""
+    z = 6.0
+    img, lab, depth, inst, intr = _frame()
+    paint = (46, 77, 132)
+    _car(img, lab, depth, inst, 110, 110 + int(1.8 * 500 / z), 1, paint=paint, lamp=paint, z=z)
+    wheel = (slice(_row(0.62, z), _row(0.0, z)), slice(200 - int(0.25 * 500 / z), 200))
+    lab[wheel], img[wheel], inst[wheel], depth[wheel] = CAR, (20, 20, 20), CAR * 1000 + 1, z
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    on_wheel = np.zeros(lab.shape, bool)
+    on_wheel[wheel] = True
+    assert not any((ann.mask(i) & on_wheel).any() for i in lamps)

@@ -40,6 +40,9 @@ LAMP_SURE_PX = 9
 #: Off-paint pixels taller than this many times the lamp box's rows (+2 px of blur) are not its lamp (the
 #: darker end face or an edge running through the snap window: docs/proposals.md, "Tenth pass").
 LAMP_TALL_RATIO = 1.5
+#: A pixel departing from the paint towards red is a lamp's only with channels this far apart (8-bit): grey
+#: and black (a wheel, a shadow on blue paint) are not (docs/proposals.md, "Tenth pass").
+LAMP_MIN_CHROMA = 15.0
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -655,7 +658,10 @@ def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.nda
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     d = c - np.asarray(paint, np.float32)
     dn = np.sqrt((d * d).sum(-1))
-    leans_red = d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn
+    # ... and has a colour: a black wheel or grey shadow on blue paint departs "towards red" too (its red
+    # drops least), but a lamp's colour, bled into the paint around it, keeps some saturation
+    leans_red = (d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn) & \
+        (c.max(-1) - c.min(-1) > LAMP_MIN_CHROMA)
     red = ((r > 1.5 * np.maximum(g, b)) & (r > 50)) | ((dn > 10.0) & leans_red)
     return red | (d.mean(-1) > 20.0)
 
