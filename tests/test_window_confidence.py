@@ -112,3 +112,27 @@ def test_the_fit_tool_reads_the_rule_s_own_terms():
     X = rng.normal(size=(4000, 2))
     y = (rng.random(4000) < 1 / (1 + np.exp(-(0.5 + X @ [1.5, -2.0])))).astype(float)
     assert np.allclose(fit_logistic(X, y), [0.5, 1.5, -2.0], atol=0.25)
+
+
+def test_on_a_facade_the_lattice_s_panes_are_more_confident_than_a_lone_row_of_the_same_panes():
+    """Through the proposer: a 3 x 3 lattice of faint panes and, on the same wall, a row of three such
+    panes at another level out of the lattice's bays. The same pane, contrast, size and floor of three:
+    the seventh pass's rule scored them alike (0.92); the bay's column-mates now raise the lattice's."""
+    from proposal_helpers import FLAT, canvas
+
+    from npsim_core.camera import Intrinsics
+    from npsim_core.proposals import propose_lights
+
+    img, lab = canvas(H=160, W=240)
+    lab[20:150, 10:230], img[20:150, 10:230] = 11, (170, 150, 120)  # building at 20 m, 10 px a metre
+    lab[150:, :] = 7
+    lattice = [(35 + 35 * r, 25 + 30 * c) for r in range(3) for c in range(3)]
+    row = [(52, 150 + 25 * c) for c in range(3)]
+    for y, x in lattice + row:
+        img[y:y + 12, x:x + 9] = (135, 120, 98)  # a faint 0.9 x 1.2 m pane
+    props = propose_lights(img, lab, np.full(lab.shape, 20.0, np.float32),
+                           Intrinsics(fx=200.0, fy=200.0, cx=119.5, cy=79.5, width=240, height=160),
+                           params=replace(FLAT, categories=("windows",)))
+    conf = [props.confidence.get(int(props.annotation.instance_map[y + 6, x + 4]), 0.0) for y, x in lattice + row]
+    assert len(props.annotation.instance_ids()) == 12 and min(conf) >= 0.5
+    assert min(conf[:9]) > max(conf[9:]) + 0.02
