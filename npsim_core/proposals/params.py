@@ -171,6 +171,9 @@ class ProposalParams:
     #: A blob too large for a window of which at least this share is one colour is a wall piece the
     #: wall reference missed; its pixels differing from that colour are its panes (0: off).
     window_blob_wall_share: float = 0.5
+    #: ... its colour the mode of a histogram of its log luminance in bins this share of the window
+    #: threshold wide (the width of the "near the mode" window: a shaded wall spreads over narrower bins).
+    window_blob_mode_step: float = 0.5
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
     #: A blob too large or ragged for one window is cut where its mean departure from the wall over a

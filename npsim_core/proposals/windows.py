@@ -408,7 +408,9 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     f = feat[y:y + h, x:x + w]
     lum = f[..., 0][m]
     t = -np.log(p.window_dark_ratio)
-    step = t / 4.0
+    # bins as wide as the "near the mode" window below: a wall's shading along a receding face spreads
+    # its luminance over several quarter-threshold bins, none of which then holds its mode
+    step = float(p.window_blob_mode_step) * t
     lo = float(lum.min())
     hist = np.convolve(np.bincount(((lum - lo) / step).astype(np.int64)), [1, 2, 1], mode="same")
     mode = lo + (int(hist.argmax()) + 0.5) * step
