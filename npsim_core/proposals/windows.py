@@ -415,6 +415,8 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     hist = np.convolve(np.bincount(((lum - lo) / step).astype(np.int64)), [1, 2, 1], mode="same")
     mode = lo + (int(hist.argmax()) + 0.5) * step
     near = np.abs(lum - mode) < 0.5 * t
+    if not near.any():
+        return []  # the smoothed mode fell between two colours, neither near it
     ab = np.median(f[..., 1:][m][near], axis=0)
     base = np.array([mode, ab[0], ab[1]], np.float32)
     odd = _differs(f, np.broadcast_to(base, f.shape), p) & m
