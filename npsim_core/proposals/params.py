@@ -237,6 +237,14 @@ class ProposalParams:
     #: this tall (m; 0: always dropped): on a wall of a few windows the height median is often a
     #: fragment's, while a blob most of a storey tall is a gable, a doorway or a shadow, not a pane.
     window_tall_keep_m: float = 2.5
+    #: Two windows of one floor side by side (each >= 3 px wide) with something in front (not building or
+    #: sky) covering the columns between them, no wider than both, are the two parts of one pane cut by a
+    #: pole, a post or a trunk: joined when their rows overlap by at least this share of the taller one
+    #: (0: never; windows._join_across_occluders, docs/proposals.md "Tenth pass: half-panes").
+    window_join_min_overlap: float = 0.6
+    #: ... and the joined box is at most this times as wide as the median of its wall's other windows on
+    #: the floor near its depth (two whole panes with a post in front of the wall between them are wider).
+    window_join_max_width: float = 1.3
     #: Windows cover at most this share of their building region (the least confident beyond it are dropped).
     window_max_lit_share: float = 0.4
     #: A floor's windows belong to another facade (another windows_group) where the wall around them

@@ -325,6 +325,91 @@ def _extend_ends(li: Light, dev: np.ndarray, free: np.ndarray, max_h: int, p) ->
     li.mask = m
 
 
+def _join_across_occluders(ctx: Context, found: list, p) -> list:
+    """Join the two parts of a pane that something in front cuts in two, side by side: a pole, a sign's
+    post, a trunk or a person across a pane leaves its glass either side, each part a blob and a window
+    of its own, while an annotator outlines one pane, its visible parts (docs/proposals.md "Tenth pass:
+    half-panes"). Two windows of one floor (``found`` rows ``[wall id, level, tol, Light]``; not one
+    wall id: :func:`facades` cuts the wall at the post too), each at least 3 px wide, join when their
+    rows overlap by ``window_join_min_overlap`` of the taller one's height, the columns between them --
+    no wider than both parts together -- are covered by a label in front of the wall (not building or
+    sky) over those rows from at most one column beside each part (the blur ``_unblur`` takes off): no
+    wall shows between a part and the occluder, which two panes with their wall between would. With
+    depth their median depths agree within 5 %, the joined box is no wider than a window
+    (``window_height_m[1]``) nor ``window_join_max_width`` x the median width of its walls' other
+    windows on that floor near its depth (a post over the wall between two whole panes); without,
+    no wider than twice the wider part plus the gap. The joined mask is the union (the occluder's
+    pixels stay out, as in an annotator's pane), its first confidence the larger one; repeated so a
+    pane cut by two posts becomes one."""
+    ov = float(p.window_join_min_overlap)
+    if ov <= 0 or len(found) < 2:
+        return found
+    labels = ctx.labels
+    fy = float(ctx.intrinsics.fy)
+    front = ~np.isin(labels, (BUILDING, SKY))
+    zc: dict[int, float | None] = {}  # median depth per window, until it is joined
+    joined = True
+    while joined:
+        joined = False
+        found.sort(key=lambda f: f[3].x0)
+        box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
+                        for f in found])
+        level = np.array([f[1] for f in found], float)
+        z = [zc[id(f[3])] if id(f[3]) in zc else zc.setdefault(id(f[3]), _median_depth(ctx, f[3])) for f in found]
+        zs = np.array([np.nan if v is None else v for v in z])
+        width = box[:, 3] - box[:, 1]
+        wall = np.array([f[0] for f in found])
+        for i in range(len(found)):
+            for j in range(i + 1, len(found)):
+                if box[j, 1] > box[i, 3] + 2 * max(width[i], width[j]) + 8:
+                    break  # sorted by left edge: every later one is farther
+                # one floor (a pole in front splits the wall plane too: facades() cuts at it, so not
+                # the same wall id), columns apart
+                if abs(level[i] - level[j]) > found[i][2] or box[j, 1] <= box[i, 3]:
+                    continue
+                if min(width[i], width[j]) < 3 or box[j, 1] - box[i, 3] > width[i] + width[j]:
+                    continue  # a 1-px column beside a post (its blur, or a far pane of its own); a post
+                    # hiding more of the pane than shows of it: two panes with the post on the wall between
+                ya, yb = max(box[i, 0], box[j, 0]), min(box[i, 2], box[j, 2])
+                if yb - ya < ov * max(box[i, 2] - box[i, 0], box[j, 2] - box[j, 0]):
+                    continue
+                cover = front[ya:yb, box[i, 3]:box[j, 1]].mean(0) >= 0.9
+                c = np.flatnonzero(cover)
+                if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
+                    continue  # wall shows between a part and the occluder: two panes
+                a, b = found[i][3], found[j][3]
+                za, zb = z[i], z[j]
+                y0, y1 = min(box[i, 0], box[j, 0]), max(box[i, 2], box[j, 2])
+                x0, x1 = box[i, 1], max(box[i, 3], box[j, 3])
+                if za is not None and zb is not None:
+                    if abs(za - zb) > 0.05 * max(za, zb) or (x1 - x0) * max(za, zb) / fy > p.window_height_m[1]:
+                        continue
+                    # two whole panes with a post in front of the wall between them: the joined box
+                    # would be wider than the floor's other panes near that depth (parts of one pane
+                    # are each narrower than it)
+                    mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= found[i][2]) \
+                        & (np.abs(zs - za) <= 0.15 * za)
+                    mates[[i, j]] = False
+                    if mates.sum() >= 2 and x1 - x0 > p.window_join_max_width * np.median(width[mates]):
+                        continue
+                elif x1 - x0 > 2 * max(width[i], width[j]) + (box[j, 1] - box[i, 3]):
+                    continue
+                m = np.zeros((y1 - y0, x1 - x0), bool)
+                m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
+                m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
+                a.y0, a.x0, a.mask = int(y0), int(x0), m
+                a.confidence = max(a.confidence, b.confidence)
+                a.cut = a.cut and b.cut
+                zc.pop(id(a), None)
+                found[i][1] = 0.5 * (found[i][1] + found[j][1])
+                del found[j]
+                joined = True
+                break
+            if joined:
+                break
+    return found
+
+
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
     """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
     blob's height (width) -- with fuller columns (rows, over twice that) on both sides: the wall
@@ -1258,6 +1343,7 @@ def propose(ctx: Context) -> list[Group]:
             cap_m = p.window_tall_keep_m if p.window_tall_keep_m > 0 else p.window_height_m[1]
             max_h = max(li.mask.shape[0], int(cap_m * fy / z)) if z else 2 * li.mask.shape[0]
             _extend_ends(li, dev, B & ((taken == 0) | (taken == k)), max_h, p)
+    found = _join_across_occluders(ctx, found, p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
