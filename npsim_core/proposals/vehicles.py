@@ -43,6 +43,8 @@ LAMP_TALL_RATIO = 1.5
 #: A pixel departing from the paint towards red is a lamp's only with channels this far apart (8-bit): grey
 #: and black (a wheel, a shadow on blue paint) are not (docs/proposals.md, "Tenth pass").
 LAMP_MIN_CHROMA = 15.0
+#: Heights (m above the ground) where a red lamp is looked for by colour alone (:func:`_red_lamps`).
+RED_LAMP_H_M = (0.5, 1.1)
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -740,6 +742,36 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     out[y:y + bh, x:x + bw] = True
     return out & win
 
+
+def _red_lamps(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float) -> list[np.ndarray]:
+    """Red rear lamps found by colour alone on a vehicle whose end face gave none (local masks, at most
+    two, largest first): on the silhouette's rows at lamp heights (``RED_LAMP_H_M`` above the ground at
+    depth ``z``), pixels red by day (red over 1.5 times green and blue, over 50) and departing from
+    those rows' median colour by more than ``SLIVER_DIFF``, in connected parts of a lamp's size (0.3-2
+    times a whole lamp's 0.30 x 0.15 m, at most 0.25 m tall and 0.45 m wide, + 2 px of blur). For
+    far cars in a parked row, whose face depth places a few pixels off (docs/proposals.md, "Tenth
+    pass"); none on vehicles whose lamp would be under ``SMALL_LAMP_PX`` tall."""
+    import cv2
+
+    ppm = float(ctx.intrinsics.fy) / z
+    if 0.15 * ppm < SMALL_LAMP_PX:
+        return []
+    h, w = m.shape
+    hts = ctx.height_above_ground(y0 + np.arange(h), z)
+    sel = m & ((hts >= RED_LAMP_H_M[0]) & (hts <= RED_LAMP_H_M[1]))[:, None]
+    if sel.sum() < 4:
+        return []
+    paint = np.median(img[sel], axis=0)
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    red = sel & (r > 1.5 * np.maximum(g, b)) & (r > 50) & (np.abs(img - paint).max(-1) > SLIVER_DIFF)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(red.astype(np.uint8), connectivity=8)
+    whole = 0.30 * 0.15 * ppm * ppm
+    found = [(int(stats[q, cv2.CC_STAT_AREA]), q) for q in range(1, n)
+             if 0.3 * whole <= stats[q, cv2.CC_STAT_AREA] <= 2.0 * whole
+             and stats[q, cv2.CC_STAT_HEIGHT] <= 0.25 * ppm + 2 and stats[q, cv2.CC_STAT_WIDTH] <= 0.45 * ppm + 2]
+    return [lab == q for _, q in sorted(found, reverse=True)[:2]]
+
+
 def _on_side_face(ctx: Context, y0: int, x0: int, lamp: np.ndarray) -> bool:
     """Whether a lamp box lies on a surface receding from the camera (a vehicle's side, or across an
     edge onto something else) rather than on its end face: the depth of its columns (median over
@@ -849,6 +881,11 @@ def propose(ctx: Context) -> list[Group]:
                 sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
                 if sliver is not None and not any((sliver & b).any() for b in lamps):
                     lamps.append(sliver)
+            if n_pair == 0 and placed:  # nothing where the face puts its lamps: red ones by colour alone
+                red = [q for q in _red_lamps(ctx, y0, x0, m, img, z) if not _on_side_face(ctx, y0, x0, q)]
+                if red:  # a sliver on one of them is its better mask; one elsewhere is dropped
+                    kept = [b for b in lamps if any((b & q).any() for q in red)]
+                    lamps = kept + [q for q in red if not any((q & b).any() for b in kept)]
         if distinct == len(lamps) == 2:
             conf += 0.15
         conf = float(np.clip(conf, 0, 1))
