@@ -717,3 +717,26 @@ def test_a_pane_cut_in_two_by_a_post_in_front_is_one_window():
     assert not (cut[0] & (labels == 17)).any()
     for k in (3, 4):
         assert sum(_iou(gt[k], w) >= 0.7 for w in wins.values()) == 1, k
+
+
+def test_a_pane_cut_across_by_a_lamps_arm_in_front_is_one_window():
+    """The same one above the other: a lamp's arm (or a sign) across a pane leaves its upper and lower
+    glass, each proposed as a window of its own before (2048x1024: the upper sash of a receding pane
+    over the slider, its lower part another window)."""
+    img, labels, depth, noise = _canvas()
+    z = 20.0
+    _wall(img, labels, depth, -6.0, 6.0, 9.5, z)
+    gt = {}
+    for b, x in enumerate((-5.5, -3.0, -0.5, 2.0, 4.2)):
+        _pane(img, gt, b, x, x + 1.4, 4.6, 6.6, z)
+    v = int(round(_v(5.6, z)))
+    u0, u1 = int(_u(-1.5, z)), int(_u(3.0, z))
+    img[v - 1:v + 1, u0:u1] = (84, 86, 90)                   # the arm, 2 rows, over panes 2 and 3
+    labels[v - 1:v + 1, u0:u1] = 17
+    depth[v - 1:v + 1, u0:u1] = 6.0
+    for k in gt:
+        gt[k] &= labels == 11
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    for k in (2, 3):
+        cut = [w for w in wins.values() if (w & gt[k]).any()]
+        assert len(cut) == 1 and _iou(gt[k], cut[0]) >= 0.7, (k, [round(_iou(gt[k], w), 2) for w in cut])

@@ -340,75 +340,92 @@ def _join_across_occluders(ctx: Context, found: list, p) -> list:
     windows on that floor near its depth (a post over the wall between two whole panes); without,
     no wider than twice the wider part plus the gap. The joined mask is the union (the occluder's
     pixels stay out, as in an annotator's pane), its first confidence the larger one; repeated so a
-    pane cut by two posts becomes one."""
+    pane cut by two posts becomes one. Then the same one above the other: a lamp's arm, a sign or a
+    wire across a pane (columns overlapping, rows between covered), the joined pane no taller than
+    ``window_tall_keep_m`` with depth."""
     ov = float(p.window_join_min_overlap)
     if ov <= 0 or len(found) < 2:
         return found
-    labels = ctx.labels
     fy = float(ctx.intrinsics.fy)
-    front = ~np.isin(labels, (BUILDING, SKY))
+    front = ~np.isin(ctx.labels, (BUILDING, SKY))
     zc: dict[int, float | None] = {}  # median depth per window, until it is joined
-    joined = True
-    while joined:
-        joined = False
-        found.sort(key=lambda f: f[3].x0)
-        box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
-                        for f in found])
-        level = np.array([f[1] for f in found], float)
-        z = [zc[id(f[3])] if id(f[3]) in zc else zc.setdefault(id(f[3]), _median_depth(ctx, f[3])) for f in found]
-        zs = np.array([np.nan if v is None else v for v in z])
-        width = box[:, 3] - box[:, 1]
-        wall = np.array([f[0] for f in found])
-        for i in range(len(found)):
-            for j in range(i + 1, len(found)):
-                if box[j, 1] > box[i, 3] + 2 * max(width[i], width[j]) + 8:
-                    break  # sorted by left edge: every later one is farther
-                # one floor (a pole in front splits the wall plane too: facades() cuts at it, so not
-                # the same wall id), columns apart
-                if abs(level[i] - level[j]) > found[i][2] or box[j, 1] <= box[i, 3]:
-                    continue
-                if min(width[i], width[j]) < 3 or box[j, 1] - box[i, 3] > width[i] + width[j]:
-                    continue  # a 1-px column beside a post (its blur, or a far pane of its own); a post
-                    # hiding more of the pane than shows of it: two panes with the post on the wall between
-                ya, yb = max(box[i, 0], box[j, 0]), min(box[i, 2], box[j, 2])
-                if yb - ya < ov * max(box[i, 2] - box[i, 0], box[j, 2] - box[j, 0]):
-                    continue
-                cover = front[ya:yb, box[i, 3]:box[j, 1]].mean(0) >= 0.9
-                c = np.flatnonzero(cover)
-                if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
-                    continue  # wall shows between a part and the occluder: two panes
-                a, b = found[i][3], found[j][3]
-                za, zb = z[i], z[j]
-                y0, y1 = min(box[i, 0], box[j, 0]), max(box[i, 2], box[j, 2])
-                x0, x1 = box[i, 1], max(box[i, 3], box[j, 3])
-                if za is not None and zb is not None:
-                    if abs(za - zb) > 0.05 * max(za, zb) or (x1 - x0) * max(za, zb) / fy > p.window_height_m[1]:
-                        continue
-                    # two whole panes with a post in front of the wall between them: the joined box
-                    # would be wider than the floor's other panes near that depth (parts of one pane
-                    # are each narrower than it)
-                    mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= found[i][2]) \
-                        & (np.abs(zs - za) <= 0.15 * za)
-                    mates[[i, j]] = False
-                    if mates.sum() >= 2 and x1 - x0 > p.window_join_max_width * np.median(width[mates]):
-                        continue
-                elif x1 - x0 > 2 * max(width[i], width[j]) + (box[j, 1] - box[i, 3]):
-                    continue
-                m = np.zeros((y1 - y0, x1 - x0), bool)
-                m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
-                m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
-                a.y0, a.x0, a.mask = int(y0), int(x0), m
-                a.confidence = max(a.confidence, b.confidence)
-                a.cut = a.cut and b.cut
-                zc.pop(id(a), None)
-                found[i][1] = 0.5 * (found[i][1] + found[j][1])
-                del found[j]
-                joined = True
-                break
-            if joined:
-                break
+    for ax in (1, 0):  # side by side (a post), then one above the other (an arm, a sign across)
+        joined = True
+        while joined:
+            joined = _join_once(ctx, found, p, ax, ov, fy, front, zc)
     return found
 
+
+def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, front: np.ndarray,
+               zc: dict) -> bool:
+    """One join of :func:`_join_across_occluders` along image axis ``ax`` (1: columns, two parts side by
+    side; 0: rows, one above the other), in place; whether one was made."""
+    co = 1 - ax  # the other axis
+    found.sort(key=lambda f: (f[3].y0, f[3].x0)[ax])
+    box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
+                    for f in found])
+    level = np.array([f[1] for f in found], float)
+    z = [zc[id(f[3])] if id(f[3]) in zc else zc.setdefault(id(f[3]), _median_depth(ctx, f[3])) for f in found]
+    zs = np.array([np.nan if v is None else v for v in z])
+    ext = box[:, 2 + ax] - box[:, ax]  # extent along the join (width for posts, height for arms)
+    ext_co = box[:, 2 + co] - box[:, co]
+    wall = np.array([f[0] for f in found])
+    for i in range(len(found)):
+        for j in range(i + 1, len(found)):
+            gap = box[j, ax] - box[i, 2 + ax]
+            if gap > 2 * max(ext[i], ext[j]) + 8:
+                break  # sorted along the axis: every later one is farther
+            # side by side on one floor (a post in front splits the wall plane too: facades() cuts
+            # at it, so not one wall id); apart along the axis
+            if gap <= 0 or (ax == 1 and abs(level[i] - level[j]) > found[i][2]):
+                continue
+            if min(ext[i], ext[j]) < 3 or gap > ext[i] + ext[j]:
+                continue  # a 1-2 px part beside a post (its blur, or a far pane of its own); a post
+                # hiding more of the pane than shows of it: two panes with the post on the wall between
+            a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
+            if a1 - a0 < ov * max(ext_co[i], ext_co[j]):
+                continue
+            sl = [slice(a0, a1), slice(a0, a1)]
+            sl[ax] = slice(box[i, 2 + ax], box[j, ax])
+            cover = front[tuple(sl)].mean(co) >= 0.9
+            c = np.flatnonzero(cover)
+            if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
+                continue  # wall shows between a part and the occluder: two panes
+            y0, x0 = box[[i, j], 0].min(), box[[i, j], 1].min()
+            y1, x1 = box[[i, j], 2].max(), box[[i, j], 3].max()
+            span = (y1 - y0, x1 - x0)[ax]
+            if z[i] is not None and z[j] is not None:
+                zm = max(z[i], z[j])
+                # the joined pane no taller than a pane without floors (window_tall_keep_m), no wider
+                # than a window
+                cap = p.window_height_m[1] if ax == 1 or p.window_tall_keep_m <= 0 else p.window_tall_keep_m
+                if abs(z[i] - z[j]) > 0.05 * zm or span * zm / fy > cap:
+                    continue
+                if ax == 1:
+                    # two whole panes with a post over the wall between them: the joined box would be
+                    # wider than its wall's other panes on the floor near that depth
+                    mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= found[i][2]) \
+                        & (np.abs(zs - z[i]) <= 0.15 * z[i])
+                    mates[[i, j]] = False
+                    if mates.sum() >= 2 and span > p.window_join_max_width * np.median(ext[mates]):
+                        continue
+            elif span > 2 * max(ext[i], ext[j]) + gap:
+                continue
+            a, b = found[i][3], found[j][3]
+            m = np.zeros((y1 - y0, x1 - x0), bool)
+            m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
+            m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
+            a.y0, a.x0, a.mask = int(y0), int(x0), m
+            a.confidence = max(a.confidence, b.confidence)
+            a.cut = a.cut and b.cut
+            zc.pop(id(a), None)
+            if ax == 0 and z[i] is not None:
+                found[i][1] = fl_level(ctx, a)
+            else:
+                found[i][1] = 0.5 * (found[i][1] + found[j][1])
+            del found[j]
+            return True
+    return False
 
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
     """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
