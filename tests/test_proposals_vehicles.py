@@ -278,8 +278,8 @@ def test_a_side_window_standing_out_of_its_paint_is_taken_at_the_slider_one_bare
     """The pane score (``vehicles._rescore``): a side window of 100 px whose colour departs 40 levels from
     the car's paint around it, on a car whose two lamps were found, is accepted at the editor's slider
     (>= 0.9); the same pane only 10 levels off its paint is not. Such panes were right (IoU >= 0.7) as
-    often as those scored 0.9-0.95 on held-out streets (docs/proposals.md, "Tenth pass"); the old bias
-    scored the first 0.887."""
+    often as those scored 0.9-0.95 on held-out streets (docs/proposals.md, "Tenth pass: vehicle lamps");
+    the old bias scored the first 0.887."""
     from npsim_core.proposals.vehicles import _rescore
 
     p = ProposalParams()

@@ -38,10 +38,12 @@ OPEN_LAMP_PX = 10
 #: often as not; beyond, size adds nothing: docs/proposals.md, "Ninth pass: vehicle confidence").
 LAMP_SURE_PX = 9
 #: Off-paint pixels taller than this many times the lamp box's rows (+2 px of blur) are not its lamp (the
-#: darker end face or an edge running through the snap window: docs/proposals.md, "Tenth pass").
+#: darker end face or an edge running through the snap window: docs/proposals.md, "Tenth pass: vehicle
+#: lamps").
 LAMP_TALL_RATIO = 1.5
 #: A pixel departing from the paint towards red is a lamp's only with channels this far apart (8-bit): grey
-#: and black (a wheel, a shadow on blue paint) are not (docs/proposals.md, "Tenth pass").
+#: and black (a wheel, a shadow on blue paint) are not
+#: (docs/proposals.md, "Tenth pass: vehicle lamps").
 LAMP_MIN_CHROMA = 15.0
 #: Heights (m above the ground) where a red lamp is looked for by colour alone (:func:`_red_lamps`).
 RED_LAMP_H_M = (0.5, 1.1)
@@ -750,7 +752,7 @@ def _red_lamps(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z
     those rows' median colour by more than ``SLIVER_DIFF``, in connected parts of a lamp's size (0.3-2
     times a whole lamp's 0.30 x 0.15 m, at most 0.25 m tall and 0.45 m wide, + 2 px of blur). For
     far cars in a parked row, whose face depth places a few pixels off (docs/proposals.md, "Tenth
-    pass"); none on vehicles whose lamp would be under ``SMALL_LAMP_PX`` tall."""
+    pass: vehicle lamps"); none on vehicles whose lamp would be under ``SMALL_LAMP_PX`` tall."""
     import cv2
 
     ppm = float(ctx.intrinsics.fy) / z
