@@ -96,6 +96,14 @@ def test_adjacent_buildings_of_different_colour_keep_their_own_groups():
         assert per_left[lo] != per_right[lo]
 
 
+def _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right) -> None:
+    per_left, _ = _groups_per_floor(img, labels, depth, left)
+    per_right, _ = _groups_per_floor(img, labels, depth, right)
+    for lo, _hi in FLOORS:
+        assert len(per_left[lo]) == 1 and len(per_right[lo]) == 1
+        assert per_left[lo] != per_right[lo]
+
+
 def test_blank_wall_between_two_buildings_of_one_colour_splits_the_floor():
     # Two blocks in one colour on one plane: the bays' rhythm breaks over wall nothing hides.
     img, labels, depth = _street()
@@ -103,11 +111,7 @@ def test_blank_wall_between_two_buildings_of_one_colour_splits_the_floor():
                       [-11.0, -8.6, -6.2, -3.8, 3.8, 6.2, 8.6])
     left = [(lo, m) for lo, m in panes if m[:, :_u(0.0)].any()]
     right = [(lo, m) for lo, m in panes if m[:, _u(0.0):].any()]
-    per_left, _ = _groups_per_floor(img, labels, depth, left)
-    per_right, _ = _groups_per_floor(img, labels, depth, right)
-    for lo, _hi in FLOORS:  # old code: one group per floor over both blocks
-        assert len(per_left[lo]) == 1 and len(per_right[lo]) == 1
-        assert per_left[lo] != per_right[lo]
+    _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
 
 
 def test_floor_joined_across_a_tree_though_its_level_from_depth_drifts_along_the_wall():
@@ -158,11 +162,7 @@ def test_narrow_panes_split_where_the_wall_is_blank_on_every_floor_and_its_shade
                      [-11.0, -9.6, -8.2, -6.8, -5.4, -4.0, -2.6], width=0.35)
     right = _building(img, labels, depth, -0.4, 11.5, (161, 142, 120),
                       [1.4, 2.8, 4.2, 5.6, 7.0, 8.4, 9.8], width=0.35)
-    per_left, _ = _groups_per_floor(img, labels, depth, left)
-    per_right, _ = _groups_per_floor(img, labels, depth, right)
-    for lo, _hi in FLOORS:  # old code: one group per floor over both blocks
-        assert len(per_left[lo]) == 1 and len(per_right[lo]) == 1
-        assert per_left[lo] != per_right[lo]
+    _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
 
 
 def test_narrow_panes_stay_one_group_across_a_pane_missing_on_one_floor():
