@@ -740,3 +740,28 @@ def test_a_pane_cut_across_by_a_lamps_arm_in_front_is_one_window():
     for k in (2, 3):
         cut = [w for w in wins.values() if (w & gt[k]).any()]
         assert len(cut) == 1 and _iou(gt[k], cut[0]) >= 0.7, (k, [round(_iou(gt[k], w), 2) for w in cut])
+
+
+def test_a_panes_upper_sash_and_its_lower_part_touching_are_one_window():
+    """A receding pane's sky-reflecting upper sash and its darker lower part came out as two windows
+    touching end to end, their columns in line (2048x1024: the upper sash a half-pane over the slider);
+    they are one pane. Two panes of one bay with wall between them (two floors) stay two."""
+    from npsim_core.proposals.core import Context, Light
+    from npsim_core.proposals.windows import _join_across_occluders
+
+    labels = np.full((H, W), 11, np.uint8)
+    depth = np.full((H, W), 20.0, np.float32)
+    ctx = Context(np.zeros((H, W, 3), np.uint8), labels, depth, K, None, PARAMS)
+
+    def part(y0, h, x0=100):
+        return [0, float(y0), 0.6, Light(1, y0, x0, np.ones((h, 4), bool), 0.95)]
+
+    # a slanted pane's two parts: boxes overlapping by a row, masks not
+    upper, lower = part(20, 10), part(29, 9)
+    upper[3].mask[-1, 2:] = False
+    lower[3].mask[0, :2] = False
+    floors = [part(20, 10, 160), part(45, 10, 160)]        # another bay: one pane a floor, 15 rows apart
+    out = _join_across_occluders(ctx, [upper, lower] + floors, PARAMS)
+    joined = [f[3] for f in out if f[3].x0 == 100]
+    assert len(joined) == 1 and (joined[0].y0, joined[0].mask.shape) == (20, (18, 4))
+    assert len([f for f in out if f[3].x0 == 160]) == 2

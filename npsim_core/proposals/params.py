@@ -245,6 +245,10 @@ class ProposalParams:
     #: ... and the joined box is at most this times as wide as the median of its wall's other windows on
     #: the floor near its depth (two whole panes with a post in front of the wall between them are wider).
     window_join_max_width: float = 1.3
+    #: ... and two windows touching end to end (boxes at most a row apart or overlapping by under half the
+    #: shorter, masks apart), left and right edges in line within a pixel: a pane's upper sash and its
+    #: lower part (the same height caps).
+    window_join_sash: bool = True
     #: Windows cover at most this share of their building region (the least confident beyond it are dropped).
     window_max_lit_share: float = 0.4
     #: A floor's windows belong to another facade (another windows_group) where the wall around them

@@ -342,7 +342,10 @@ def _join_across_occluders(ctx: Context, found: list, p) -> list:
     pixels stay out, as in an annotator's pane), its first confidence the larger one; repeated so a
     pane cut by two posts becomes one. Then the same one above the other: a lamp's arm, a sign or a
     wire across a pane (columns overlapping, rows between covered), the joined pane no taller than
-    ``window_tall_keep_m`` with depth."""
+    ``window_tall_keep_m`` with depth. Last (``window_join_sash``) two windows touching end to end with
+    their left and right edges in line within a pixel, whatever lies between: a receding pane's
+    sky-reflecting upper sash and its darker lower part (their boxes overlap on a slanted pane, their
+    masks do not), the joined pane held to the same height caps and its floor's other panes' height."""
     ov = float(p.window_join_min_overlap)
     if ov <= 0 or len(found) < 2:
         return found
@@ -353,13 +356,17 @@ def _join_across_occluders(ctx: Context, found: list, p) -> list:
         joined = True
         while joined:
             joined = _join_once(ctx, found, p, ax, ov, fy, front, zc)
+    joined = p.window_join_sash
+    while joined:  # an upper sash over its lower part, touching
+        joined = _join_once(ctx, found, p, 0, ov, fy, front, zc, sash=True)
     return found
 
 
 def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, front: np.ndarray,
-               zc: dict) -> bool:
+               zc: dict, sash: bool = False) -> bool:
     """One join of :func:`_join_across_occluders` along image axis ``ax`` (1: columns, two parts side by
-    side; 0: rows, one above the other), in place; whether one was made."""
+    side; 0: rows, one above the other; ``sash``: rows, touching, no occluder), in place; whether one
+    was made."""
     co = 1 - ax  # the other axis
     found.sort(key=lambda f: (f[3].y0, f[3].x0)[ax])
     box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
@@ -376,8 +383,13 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
             if gap > 2 * max(ext[i], ext[j]) + 8:
                 break  # sorted along the axis: every later one is farther
             # side by side on one floor (a post in front splits the wall plane too: facades() cuts
-            # at it, so not one wall id); apart along the axis
-            if gap <= 0 or (ax == 1 and abs(level[i] - level[j]) > found[i][2]):
+            # at it, so not one wall id); apart along the axis (a sash's parts on a slanted receding
+            # pane: boxes overlapping, masks not)
+            least = -0.5 * min(ext[i], ext[j]) if sash else 1
+            if gap < least or (ax == 1 and abs(level[i] - level[j]) > found[i][2]):
+                continue
+            if sash and (gap > 1 or abs(box[i, 1] - box[j, 1]) > 1 or abs(box[i, 3] - box[j, 3]) > 1
+                         or min(ext_co[i], ext_co[j]) < 2):
                 continue
             if min(ext[i], ext[j]) < 3 or gap > ext[i] + ext[j]:
                 continue  # a 1-2 px part beside a post (its blur, or a far pane of its own); a post
@@ -387,10 +399,11 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                 continue
             sl = [slice(a0, a1), slice(a0, a1)]
             sl[ax] = slice(box[i, 2 + ax], box[j, ax])
-            cover = front[tuple(sl)].mean(co) >= 0.9
-            c = np.flatnonzero(cover)
-            if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
-                continue  # wall shows between a part and the occluder: two panes
+            if not sash:
+                cover = front[tuple(sl)].mean(co) >= 0.9
+                c = np.flatnonzero(cover)
+                if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
+                    continue  # wall shows between a part and the occluder: two panes
             y0, x0 = box[[i, j], 0].min(), box[[i, j], 1].min()
             y1, x1 = box[[i, j], 2].max(), box[[i, j], 3].max()
             span = (y1 - y0, x1 - x0)[ax]
@@ -401,7 +414,7 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                 cap = p.window_height_m[1] if ax == 1 or p.window_tall_keep_m <= 0 else p.window_tall_keep_m
                 if abs(z[i] - z[j]) > 0.05 * zm or span * zm / fy > cap:
                     continue
-                if ax == 1:
+                if ax == 1 or sash:
                     # two whole panes with a post over the wall between them: the joined box would be
                     # wider than its wall's other panes on the floor near that depth
                     mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= found[i][2]) \
@@ -426,6 +439,7 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
             del found[j]
             return True
     return False
+
 
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:
     """Cut a blob where a run of its columns (then rows) is nearly empty -- under ``gap`` of the
