@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from npsim_core.camera import Intrinsics
-from npsim_core.proposals import propose_lights
+from npsim_core.proposals import ProposalParams, propose_lights
 from npsim_core.synthetic import street_right_view, street_scene
 from npsim_core.synthetic.cityscapes import BASELINE, ego_vehicle_mask, sgm_disparity
 
@@ -26,7 +26,8 @@ import os
 
 # NPSIM_FUZZ_SIZES="512x256,1024x512" searches larger frames locally (slow); the suite uses the small ones
 SIZES = tuple(tuple(int(v) for v in s.split("x")) for s in
-              os.environ.get("NPSIM_FUZZ_SIZES", "128x64,192x96,256x128").split(","))
+              os.environ.get("NPSIM_FUZZ_SIZES", "128x64,256x128,512x256").split(","))
+SEEDS = int(os.environ.get("NPSIM_FUZZ_SEEDS", "3")) - 1     # fixture seeds 0..SEEDS
 VARIANTS = ("default", "hard", "lights")
 SLIVER_CLASSES = (11, 17, 19, 20, 24, 26, 27, 28, 32, 33)   # building, pole, lights, person, vehicles
 
@@ -95,6 +96,9 @@ def _corrupt_depth(depth: np.ndarray, mode: str, rng: np.random.Generator) -> np
         depth[:, : int(rng.integers(0, max(1, Wc // 6)))] = np.nan      # left occlusion band
     elif mode == "mostly-nan":
         depth[rng.random(depth.shape) < 0.97] = np.nan
+    elif mode == "units":      # millimetres, or a disparity passed as depth
+        with np.errstate(divide="ignore"):   # 0 -> inf: invalid either way
+            depth = depth * np.float32(1000.0) if rng.random() < 0.5 else np.float32(50.0) / depth
     elif mode == "float64":
         return depth.astype(np.float64)
     return depth
@@ -118,6 +122,12 @@ def _expose(img: np.ndarray, lab: np.ndarray, mode: str, rng: np.random.Generato
         brick = ((yy // 2 + (xx // 4) * 0) % 2) * rng.uniform(5, 40) + rng.normal(0, 8, lab.shape)
         shade = 30 * np.sin(xx / rng.uniform(3, 30)) * np.cos(yy / rng.uniform(3, 30))
         f += np.where(lab == 11, brick + shade, 0)[..., None]
+    elif mode == "courses":    # walls of two or three clean colours: brick courses, tiles, a striped awning
+        yy, xx = np.mgrid[:lab.shape[0], :lab.shape[1]]
+        period = int(rng.integers(2, 6))
+        k = ((yy // period + (xx // (2 * period)) * int(rng.integers(0, 2))) % int(rng.integers(2, 4)))
+        gain = np.float32(rng.uniform(1.1, 2.5)) ** k.astype(np.float32)
+        f = np.where((lab == 11)[..., None], f * gain[..., None], f)
     elif mode == "jpeg":
         ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(5, 40))])
         return cv2.imdecode(buf, cv2.IMREAD_COLOR)
@@ -128,7 +138,8 @@ def _expose(img: np.ndarray, lab: np.ndarray, mode: str, rng: np.random.Generato
 def _real_like(draw):
     """A synthetic street (cached) perturbed towards a real frame; the last item names the perturbations."""
     W, H = draw(st.sampled_from(SIZES))
-    seed, variant, sgm = draw(st.integers(0, 2)), draw(st.sampled_from(VARIANTS)), draw(st.booleans())
+    seed, variant, sgm = draw(st.integers(0, SEEDS)), draw(st.sampled_from(VARIANTS)), \
+        draw(st.booleans()) and not os.environ.get("NPSIM_FUZZ_NO_SGM")
     img, lab, depth, intr, inst = _street(W, H, seed, variant, sgm)
     lab = lab.copy()
     inst = None if inst is None else inst.astype(np.int32).copy()
@@ -152,10 +163,11 @@ def _real_like(draw):
     lab = np.ascontiguousarray(lab)
     Hc, Wc = lab.shape
     for mode in draw(st.lists(st.sampled_from(["none", "patches", "speckle", "streaks", "drift", "const", "fat",
-                                               "mostly-nan", "float64"]), max_size=3)):
+                                               "mostly-nan", "units", "float64"]), max_size=3)):
         tags.append(mode)
         depth = None if depth is None or mode == "none" else _corrupt_depth(depth, mode, rng)
-    for mode in draw(st.lists(st.sampled_from(["dark", "blown", "noise", "channel", "flat", "texture", "jpeg"]),
+    for mode in draw(st.lists(st.sampled_from(["dark", "blown", "noise", "channel", "flat", "texture", "courses",
+                                               "jpeg"]),
                               max_size=2)):
         tags.append(mode)
         img = _expose(img, lab, mode, rng)
@@ -188,7 +200,7 @@ def _real_like(draw):
             else:
                 lab[y:y + int(rng.integers(1, Hc)), x] = c
     # instances
-    imode = draw(st.sampled_from(["keep", "none", "zeros", "merged", "dropped"]))
+    imode = draw(st.sampled_from(["keep", "none", "zeros", "merged", "dropped", "holes", "stale"]))
     tags.append(imode)
     if inst is None or imode == "none":
         inst = None
@@ -200,20 +212,27 @@ def _real_like(draw):
         ids = np.unique(inst[inst >= 1000])
         for i in ids[rng.random(ids.size) < 0.5]:
             inst[inst == i] = i // 1000
-    if inst is not None:   # labels edited above: keep each id's class that of its label, as real maps are
+    elif imode == "holes":    # ids lost on some pixels (0: unlabelled)
+        inst[rng.random(inst.shape) < rng.uniform(0.01, 0.5)] = 0
+    if inst is not None and imode != "stale":   # labels edited above: each id's class that of its label
+        # ("stale": the labels were edited -- a car relabelled road -- but the instance map was not)
         inst = np.where((inst >= 1000) & (inst // 1000 != lab), lab, inst).astype(np.int32)
+    # the camera's pose from a Cityscapes camera JSON (propose_for_scene passes it): another car, a tilt
+    pose = draw(st.sampled_from([(1.22, 0.038), (1.22, 0.0), (0.6, -0.08), (2.5, 0.25)]))
     thr = draw(st.sampled_from([0.0, 0.5, 0.9, 1.0]))      # the editor's slider
-    return img, lab, depth, intr, inst, thr, f"{W}x{H} s{seed} {variant}{' sgm' * sgm} " + " ".join(tags) + f" above{thr}"
+    name = f"{W}x{H} s{seed} {variant}{' sgm' * sgm} " + " ".join(tags) + f" pose{pose} above{thr}"
+    return img, lab, depth, intr, inst, (pose, thr), name
 
 
 def check_real_like(case) -> None:
     """Assert the proposers' contract on one real-like frame (used by the property test)."""
     from npsim_core.render.lights import activate_lights, load_light_table
 
-    img, lab, depth, intr, inst, thr, _ = case
+    img, lab, depth, intr, inst, ((height, pitch), thr), _ = case
+    params = ProposalParams(camera_height_m=height, camera_pitch_rad=pitch)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        props = propose_lights(img, lab, depth, intr, inst)
+        props = propose_lights(img, lab, depth, intr, inst, params)
         ann = props.above(0.0)
         act = activate_lights(ann, load_light_table(), 0, image=img)
         kept = props.above(thr)

@@ -765,3 +765,23 @@ def test_a_panes_upper_sash_and_its_lower_part_touching_are_one_window():
     joined = [f[3] for f in out if f[3].x0 == 100]
     assert len(joined) == 1 and (joined[0].y0, joined[0].mask.shape) == (20, (18, 4))
     assert len([f for f in out if f[3].x0 == 160]) == 2
+
+
+def test_a_wide_lens_on_the_hard_street_gives_no_empty_slice_warning():
+    """The hard street (seed 1, 512x256) through a lens of 0.4x the focal length (a ~100 degree wide
+    angle): a wall piece's smoothed luminance mode falls between two colours with no pixel near it;
+    ``_blob_panes`` averaged that empty set ('Mean of empty slice', a NaN reference) before cdccd98.
+    Found by tests/test_proposals_fuzz.py at 512x256; it gives no panes now."""
+    import warnings
+    from dataclasses import replace
+
+    from npsim_core.annotation import class_of
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(512, 256, 1, "hard")
+    wide = replace(s.intrinsics, fx=0.4 * s.intrinsics.fx, fy=0.4 * s.intrinsics.fy)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        props = propose_lights(s.image, s.labels, s.depth, wide)
+    assert all(np.isfinite(v) and 0.0 <= v <= 1.0 for v in props.confidence.values())
+    assert any(class_of(i) == 1 for i in props.annotation.instance_ids())       # windows still proposed
