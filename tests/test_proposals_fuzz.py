@@ -173,7 +173,7 @@ def _real_like(draw):
         img = _expose(img, lab, mode, rng)
     img = np.ascontiguousarray(img)
     # labels
-    lmode = draw(st.sampled_from(["keep", "thin", "erase", "slivers", "shift", "one-class", "dilate"]))
+    lmode = draw(st.sampled_from(["keep", "thin", "erase", "slivers", "shift", "one-class", "dilate", "border"]))
     tags.append(lmode)
     present = np.unique(lab)
     if lmode == "thin":     # a class eroded to its core, the rim unlabelled, as a coarse annotation does
@@ -188,6 +188,14 @@ def _real_like(draw):
     elif lmode == "dilate":   # a class's region grown over its neighbours (fattened polygon)
         c = int(rng.choice(present))
         lab[cv2.dilate((lab == c).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0] = c
+    elif lmode == "border":   # Cityscapes' rectification border (2) and out-of-roi (3) frame, no depth there
+        b = int(rng.integers(1, max(2, min(Hc, Wc) // 6)))
+        edge = np.ones((Hc, Wc), bool)
+        edge[b:Hc - b, b:Wc - b] = False
+        lab[edge] = 3
+        lab[:, :b][edge[:, :b]] = 2
+        if depth is not None:
+            depth = np.where(edge, np.nan, depth)
     elif lmode == "erase":
         c = int(rng.choice(present))
         lab[lab == c] = 0
@@ -200,7 +208,7 @@ def _real_like(draw):
             else:
                 lab[y:y + int(rng.integers(1, Hc)), x] = c
     # instances
-    imode = draw(st.sampled_from(["keep", "none", "zeros", "merged", "dropped", "holes", "stale"]))
+    imode = draw(st.sampled_from(["keep", "none", "zeros", "merged", "dropped", "holes", "stale", "people"]))
     tags.append(imode)
     if inst is None or imode == "none":
         inst = None
@@ -212,6 +220,10 @@ def _real_like(draw):
         ids = np.unique(inst[inst >= 1000])
         for i in ids[rng.random(ids.size) < 0.5]:
             inst[inst == i] = i // 1000
+    elif imode == "people":   # persons, riders and bicycles have instance ids too in Cityscapes
+        for c in (24, 25, 32, 33):
+            n, comp = cv2.connectedComponents((lab == c).astype(np.uint8), connectivity=8)
+            inst = np.where(comp > 0, c * 1000 + comp, inst).astype(np.int32)
     elif imode == "holes":    # ids lost on some pixels (0: unlabelled)
         inst[rng.random(inst.shape) < rng.uniform(0.01, 0.5)] = 0
     if inst is not None and imode != "stale":   # labels edited above: each id's class that of its label
