@@ -377,26 +377,33 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
     ext = box[:, 2 + ax] - box[:, ax]  # extent along the join (width for posts, height for arms)
     ext_co = box[:, 2 + co] - box[:, co]
     wall = np.array([f[0] for f in found])
-    for i in range(len(found)):
-        for j in range(i + 1, len(found)):
-            gap = box[j, ax] - box[i, 2 + ax]
-            if gap > 2 * max(ext[i], ext[j]) + 8:
-                break  # sorted along the axis: every later one is farther
-            # side by side on one floor (a post in front splits the wall plane too: facades() cuts
-            # at it, so not one wall id); apart along the axis (a sash's parts on a slanted receding
-            # pane: boxes overlapping, masks not)
-            least = -0.5 * min(ext[i], ext[j]) if sash else 1
-            if gap < least or (ax == 1 and abs(level[i] - level[j]) > found[i][2]):
-                continue
-            if sash and (gap > 1 or abs(box[i, 1] - box[j, 1]) > 1 or abs(box[i, 3] - box[j, 3]) > 1
-                         or min(ext_co[i], ext_co[j]) < 2):
-                continue
-            if min(ext[i], ext[j]) < 3 or gap > ext[i] + ext[j]:
-                continue  # a 1-2 px part beside a post (its blur, or a far pane of its own); a post
-                # hiding more of the pane than shows of it: two panes with the post on the wall between
+    n = len(found)
+    for i in range(n):
+        # the box tests on every later window at once (a textured wall gives a thousand windows and
+        # this runs once per join: per pair in Python it took minutes); the loop below keeps their
+        # order, so the first join made is the same
+        J = np.arange(i + 1, n)
+        gap = box[J, ax] - box[i, 2 + ax]
+        far = np.flatnonzero(gap > 2 * np.maximum(ext[i], ext[J]) + 8)
+        if far.size:  # sorted along the axis: every later one is farther
+            J, gap = J[:far[0]], gap[:far[0]]
+        small = np.minimum(ext[i], ext[J])
+        # side by side on one floor (a post in front splits the wall plane too: facades() cuts
+        # at it, so not one wall id); apart along the axis (a sash's parts on a slanted receding
+        # pane: boxes overlapping, masks not)
+        ok = gap >= (-0.5 * small if sash else 1)
+        if ax == 1:
+            ok &= np.abs(level[i] - level[J]) <= found[i][2]
+        if sash:
+            ok &= (gap <= 1) & (np.abs(box[i, 1] - box[J, 1]) <= 1) & (np.abs(box[i, 3] - box[J, 3]) <= 1) \
+                & (np.minimum(ext_co[i], ext_co[J]) >= 2)
+        # a 1-2 px part beside a post (its blur, or a far pane of its own); a post hiding more of the
+        # pane than shows of it: two panes with the post on the wall between
+        ok &= (small >= 3) & (gap <= ext[i] + ext[J])
+        ok &= np.minimum(box[i, 2 + co], box[J, 2 + co]) - np.maximum(box[i, co], box[J, co]) \
+            >= ov * np.maximum(ext_co[i], ext_co[J])
+        for j, gap in zip(J[ok].tolist(), gap[ok].tolist()):
             a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
-            if a1 - a0 < ov * max(ext_co[i], ext_co[j]):
-                continue
             sl = [slice(a0, a1), slice(a0, a1)]
             sl[ax] = slice(box[i, 2 + ax], box[j, ax])
             if not sash:
