@@ -1,14 +1,16 @@
 """Real-like input for the light proposers (#26 item 6): no exception, warning, NaN or empty light.
 
 The synthetic streets are perturbed the ways a real Cityscapes frame differs from them: crops and
-rescaling (intrinsics adjusted), SGM-like depth (holes, NaN/inf/0/negative patches, speckle, drift,
-one constant depth), exposure extremes and a dropped channel, labels thinned or with a class erased
-or added as 1-px slivers, instance ids missing or merged.  See docs/proposals.md, "Tenth pass:
-real-like input".
+rescaling (intrinsics adjusted), odd lenses and camera poses, SGM stereo depth and corrupted depth
+(holes, NaN/inf/0/negative patches, speckle, streaks, drift, one constant depth, wrong units),
+exposure extremes, a dropped channel, textured walls and JPEG, labels thinned, shifted, erased,
+framed or added as 1-px slivers, instance ids missing, merged or stale.  See docs/proposals.md,
+"Tenth pass: real-like input".
 """
 from __future__ import annotations
 
 import functools
+import os
 import warnings
 from dataclasses import replace
 
@@ -22,9 +24,8 @@ from npsim_core.proposals import ProposalParams, propose_lights
 from npsim_core.synthetic import street_right_view, street_scene
 from npsim_core.synthetic.cityscapes import BASELINE, ego_vehicle_mask, sgm_disparity
 
-import os
-
-# NPSIM_FUZZ_SIZES="512x256,1024x512" searches larger frames locally (slow); the suite uses the small ones
+# NPSIM_FUZZ_SIZES="1024x512,2048x1024" searches larger frames locally (slow; NPSIM_FUZZ_NO_SGM=1 skips
+# rendering their stereo pairs); the suite's sizes: the _blob_panes empty mode showed only at 512x256
 SIZES = tuple(tuple(int(v) for v in s.split("x")) for s in
               os.environ.get("NPSIM_FUZZ_SIZES", "128x64,256x128,512x256").split(","))
 SEEDS = int(os.environ.get("NPSIM_FUZZ_SEEDS", "3")) - 1     # fixture seeds 0..SEEDS
