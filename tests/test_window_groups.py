@@ -55,6 +55,13 @@ def _building(img, labels, depth, x0_m, x1_m, colour, bays, width=1.2):
     return panes
 
 
+def _plant_tree(img, labels, depth, x0_m, x1_m) -> None:
+    """A tree 10 m from the camera, from the ground up to 11 m, in front of the facade."""
+    tree = np.zeros((H, W), bool)
+    tree[_v(11.0):_v(0.0), _u(x0_m):_u(x1_m)] = True
+    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+
+
 def _groups_per_floor(img, labels, depth, panes):
     """Per floor: the set of proposed windows_groups holding the windows that match its panes."""
     rng = np.random.default_rng(0)
@@ -76,9 +83,7 @@ def test_one_group_per_floor_across_a_tree_in_front():
     bays = [-11.0, -8.6, -6.2, -3.8, 2.6, 5.0, 7.4, 9.8]
     panes = _building(img, labels, depth, -12.0, 11.5, (172, 152, 128), bays)
     # a tree 10 m away, taller than the wall, hides it between x = -2 m and 1.5 m (and no pane)
-    tree = np.zeros((H, W), bool)
-    tree[_v(11.0):_v(0.0), _u(-2.0):_u(1.5)] = True
-    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    _plant_tree(img, labels, depth, -2.0, 1.5)
     per_floor, ann = _groups_per_floor(img, labels, depth, panes)
     assert all(len(g) == 1 for g in per_floor.values()), per_floor  # old code: two groups per floor
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]  # floors stay apart
@@ -121,9 +126,7 @@ def test_floor_joined_across_a_tree_though_its_level_from_depth_drifts_along_the
     img, labels, depth = _street()
     bays = [-16.4, -14.0, -11.6, -9.2, -6.8, -4.4, 2.6, 5.0, 7.4, 9.8, 12.2, 14.6]
     panes = _building(img, labels, depth, -17.0, 15.5, (172, 152, 128), bays)
-    tree = np.zeros((H, W), bool)
-    tree[_v(11.0):_v(0.0), _u(-2.0):_u(1.5)] = True
-    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    _plant_tree(img, labels, depth, -2.0, 1.5)
     depth *= np.exp(0.28 * (np.arange(W) - K.cx) / W)[None].astype(np.float32)
     per_floor, _ = _groups_per_floor(img, labels, depth, panes)
     assert all(len(g) == 1 for g in per_floor.values()), per_floor  # old code: two groups upstairs
@@ -144,9 +147,7 @@ def test_single_panes_across_a_tree_take_the_bay_of_the_floor_above():
             m[_v(hi):_v(lo), _u(x):_u(x + width)] = True
             img[m] = GLASS
             panes.append((lo, m))
-    tree = np.zeros((H, W), bool)
-    tree[_v(11.0):_v(0.0), _u(-2.5):_u(1.5)] = True
-    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    _plant_tree(img, labels, depth, -2.5, 1.5)
     per_floor, _ = _groups_per_floor(img, labels, depth, panes)
     assert all(len(g) == 1 for g in per_floor.values()), per_floor  # old code: two groups downstairs
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
@@ -201,9 +202,7 @@ def test_floor_joined_across_a_tree_where_a_stripe_runs_along_its_windows():
             m[_v(hi):_v(lo), _u(x):_u(x + 1.2)] = True
             img[m] = GLASS
             panes.append((lo, m))
-    tree = np.zeros((H, W), bool)
-    tree[_v(11.0):_v(0.0), _u(-2.0):_u(1.5)] = True
-    img[tree], labels[tree], depth[tree] = LEAVES, 21, 10.0
+    _plant_tree(img, labels, depth, -2.0, 1.5)
     per_floor, _ = _groups_per_floor(img, labels, depth, panes)
     assert all(len(g) == 1 for g in per_floor.values()), per_floor
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
