@@ -584,6 +584,14 @@ def test_a_one_pixel_pane_is_not_widened_by_the_colour_it_bled_beside_it():
     assert tight >= 0.8 * len(gt), f"{tight} of {len(gt)} panes proposed at IoU >= 0.7"
 
 
+def _two_floors_of_seven(z: float):
+    """(floor, bay), top row and left column of the panes of a wall at ``z`` m: two floors (sills
+    at 3.0 and 6.2 m) of seven bays 2.4 m apart."""
+    for f, sill in enumerate((3.0, 6.2)):
+        for b in range(7):
+            yield (f, b), int(round(_v(sill + 1.6, z))), int(round(_u(-7.2 + 2.4 * b, z)))
+
+
 def test_a_pane_is_not_widened_by_its_edges_blurred_into_the_wall():
     """A pane's edge blurs into the wall's next column on either side (a third of its colour: the
     render's 3x3 edge blur, a camera's point spread); those columns still differ from the wall, and
@@ -596,16 +604,13 @@ def test_a_pane_is_not_widened_by_its_edges_blurred_into_the_wall():
     _wall(img, labels, depth, -9.0, 9.0, 9.5, z)
     gt = {}
     bleed = ((2 * np.array(WALL) + np.array(GLASS)) / 3).astype(np.uint8)
-    for f, sill in enumerate((3.0, 6.2)):
-        for b in range(7):
-            c0 = int(round(_u(-7.2 + 2.4 * b, z)))
-            r0 = int(round(_v(sill + 1.6, z)))
-            m = np.zeros((H, W), bool)
-            m[r0:r0 + 12, c0:c0 + 4] = True
-            img[m] = GLASS
-            img[r0:r0 + 12, c0 - 1] = bleed
-            img[r0:r0 + 12, c0 + 4] = bleed
-            gt[(f, b)] = m
+    for key, r0, c0 in _two_floors_of_seven(z):
+        m = np.zeros((H, W), bool)
+        m[r0:r0 + 12, c0:c0 + 4] = True
+        img[m] = GLASS
+        img[r0:r0 + 12, c0 - 1] = bleed
+        img[r0:r0 + 12, c0 + 4] = bleed
+        gt[key] = m
     wins, _ = _windows(_run(img, labels, depth, noise))
     tight = sum(any(_iou(g, w) >= 0.8 for w in wins.values()) for g in gt.values())
     assert tight >= 0.8 * len(gt), f"{tight} of {len(gt)} panes proposed at IoU >= 0.8"
@@ -623,15 +628,12 @@ def test_a_pane_found_by_its_dark_top_gets_its_faint_lower_part():
     _wall(img, labels, depth, -9.0, 9.0, 9.5, z)
     gt = {}
     faint = (165, 152, 139)  # the wall's colour tinted 6 Lab units bluer: under the chroma threshold
-    for f, sill in enumerate((3.0, 6.2)):
-        for b in range(7):
-            c0 = int(round(_u(-7.2 + 2.4 * b, z)))
-            r0 = int(round(_v(sill + 1.6, z)))
-            m = np.zeros((H, W), bool)
-            m[r0:r0 + 12, c0:c0 + 2] = True
-            img[r0:r0 + 5, c0:c0 + 2] = GLASS
-            img[r0 + 5:r0 + 12, c0:c0 + 2] = faint
-            gt[(f, b)] = m
+    for key, r0, c0 in _two_floors_of_seven(z):
+        m = np.zeros((H, W), bool)
+        m[r0:r0 + 12, c0:c0 + 2] = True
+        img[r0:r0 + 5, c0:c0 + 2] = GLASS
+        img[r0 + 5:r0 + 12, c0:c0 + 2] = faint
+        gt[key] = m
     wins, _ = _windows(_run(img, labels, depth, noise))
     tight = sum(any(_iou(g, w) >= 0.7 for w in wins.values()) for g in gt.values())
     assert tight >= 0.8 * len(gt), f"{tight} of {len(gt)} panes proposed at IoU >= 0.7"
