@@ -166,18 +166,3 @@ def scene_dir(street, tmp_path_factory):
 
     return save_scene(street, tmp_path_factory.mktemp("scene") / "street")
 
-
-@pytest.fixture(autouse=True)
-def _no_background_job_outlives_its_test(request):
-    """A GUI test ends only when the jobs it started in Qt's global thread pool have ended, before
-    pytest-qt closes its widgets: a job still running could otherwise signal into a widget being
-    deleted, or into the next test (one CI run lost two xdist workers to a segfault in a test's
-    call; which test was not found)."""
-    if "qtbot" not in request.fixturenames:
-        yield
-        return
-    request.getfixturevalue("qtbot")  # set up before this fixture, so torn down after it
-    yield
-    from PySide6.QtCore import QThreadPool
-
-    QThreadPool.globalInstance().waitForDone(30_000)
