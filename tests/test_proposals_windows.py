@@ -787,3 +787,58 @@ def test_a_wide_lens_on_the_hard_street_gives_no_empty_slice_warning():
         props = propose_lights(s.image, s.labels, s.depth, wide)
     assert all(np.isfinite(v) and 0.0 <= v <= 1.0 for v in props.confidence.values())
     assert any(class_of(i) == 1 for i in props.annotation.instance_ids())       # windows still proposed
+
+
+def _joins_both_ways(W_: int, H_: int, seed: int, variant: str, depth: bool, texture: bool):
+    """The windows before the occluder joins on a fixture street (its walls textured twice as
+    tests/test_proposals_fuzz.py does, rng ``seed``; with or without depth), and the joins made by the
+    one-pass scan and by rescanning every window after each join: (before, one pass, rescanned)."""
+    import copy
+
+    from test_proposals_fuzz import _expose
+
+    import npsim_core.proposals.windows as wmod
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W_, H_, seed, variant)
+    img = s.image
+    if texture:
+        rng = np.random.default_rng(seed)
+        img = _expose(_expose(img, s.labels, "texture", rng), s.labels, "texture", rng)
+    seen = []
+    join = wmod._join_across_occluders
+
+    def spy(ctx, found, p):
+        seen.append((ctx, copy.deepcopy(found)))
+        return join(ctx, found, p)
+
+    wmod._join_across_occluders = spy
+    try:
+        propose_lights(img, s.labels, s.depth if depth else None, s.intrinsics, None,
+                       ProposalParams(categories=("windows",)))
+    finally:
+        wmod._join_across_occluders = join
+    ctx, found = seen[0]
+
+    def key(out):
+        return [(f[0], f[1], f[2], f[3].y0, f[3].x0, f[3].mask.tobytes(), f[3].mask.shape, f[3].confidence,
+                 f[3].cut) for f in out]
+
+    one = key(join(ctx, copy.deepcopy(found), ctx.params))
+    every = key(join(ctx, copy.deepcopy(found), ctx.params, rescan=True))
+    return found, one, every
+
+
+def test_the_occluder_joins_on_a_textured_wall_without_depth_are_those_of_a_full_rescan():
+    """A brick-textured wall without depth (the editor on a bare image) gives hundreds of window
+    candidates; the occluder joins rescanned all of them after every join (274 s at 2048x1024). Now a
+    window's scan is redone only when a join changed what it read: the joins must be exactly those of
+    rescanning everything after each join (docs/proposals.md "Eleventh pass: one pass over the
+    occluder joins"), here on the default street at 256x128 without depth and on the hard one with
+    depth (where the joins also compare with the wall's other panes)."""
+    found, one, every = _joins_both_ways(256, 128, 0, "default", depth=False, texture=True)
+    assert len(found) >= 100 and len(found) - len(one) >= 10   # the case: many candidates, many joins
+    assert one == every
+    found, one, every = _joins_both_ways(256, 128, 1, "hard", depth=True, texture=True)
+    assert len(found) - len(one) >= 3
+    assert one == every

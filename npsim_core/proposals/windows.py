@@ -325,7 +325,7 @@ def _extend_ends(li: Light, dev: np.ndarray, free: np.ndarray, max_h: int, p) ->
     li.mask = m
 
 
-def _join_across_occluders(ctx: Context, found: list, p) -> list:
+def _join_across_occluders(ctx: Context, found: list, p, rescan: bool = False) -> list:
     """Join the two parts of a pane that something in front cuts in two, side by side: a pole, a sign's
     post, a trunk or a person across a pane leaves its glass either side, each part a blob and a window
     of its own, while an annotator outlines one pane, its visible parts (docs/proposals.md "Tenth pass:
@@ -345,7 +345,8 @@ def _join_across_occluders(ctx: Context, found: list, p) -> list:
     ``window_tall_keep_m`` with depth. Last (``window_join_sash``) two windows touching end to end with
     their left and right edges in line within a pixel, whatever lies between: a receding pane's
     sky-reflecting upper sash and its darker lower part (their boxes overlap on a slanted pane, their
-    masks do not), the joined pane held to the same height caps and its floor's other panes' height."""
+    masks do not), the joined pane held to the same height caps and its floor's other panes' height.
+    ``rescan``: redo every window's scan after each join (the same joins, slowly; for tests)."""
     ov = float(p.window_join_min_overlap)
     if ov <= 0 or len(found) < 2:
         return found
@@ -353,56 +354,71 @@ def _join_across_occluders(ctx: Context, found: list, p) -> list:
     front = ~np.isin(ctx.labels, (BUILDING, SKY))
     zc: dict[int, float | None] = {}  # median depth per window, until it is joined
     for ax in (1, 0):  # side by side (a post), then one above the other (an arm, a sign across)
-        joined = True
-        while joined:
-            joined = _join_once(ctx, found, p, ax, ov, fy, front, zc)
-    joined = p.window_join_sash
-    while joined:  # an upper sash over its lower part, touching
-        joined = _join_once(ctx, found, p, 0, ov, fy, front, zc, sash=True)
+        _join_pass(ctx, found, p, ax, ov, fy, front, zc, rescan=rescan)
+    if p.window_join_sash:  # an upper sash over its lower part, touching
+        _join_pass(ctx, found, p, 0, ov, fy, front, zc, sash=True, rescan=rescan)
     return found
 
 
-def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, front: np.ndarray,
-               zc: dict, sash: bool = False) -> bool:
-    """One join of :func:`_join_across_occluders` along image axis ``ax`` (1: columns, two parts side by
-    side; 0: rows, one above the other; ``sash``: rows, touching, no occluder), in place; whether one
-    was made."""
+def _join_pass(ctx: Context, found: list, p, ax: int, ov: float, fy: float, front: np.ndarray,
+               zc: dict, sash: bool = False, rescan: bool = False) -> None:
+    """The joins of :func:`_join_across_occluders` along image axis ``ax`` (1: columns, two parts side
+    by side; 0: rows, one above the other; ``sash``: rows, touching, no occluder), in place, until none
+    is left. Each join is the first pair, in the order of the windows along the axis, that passes the
+    tests, as if the pairs were rescanned from the start after every join; but a window's scan (its
+    pairs with the windows after it) is redone only when a join changed what it read -- the windows
+    up to the first one too far away along the axis, and the widths of the walls whose other panes
+    it compared with -- so a textured wall's thousand candidates are scanned about once, not once per
+    join (docs/proposals.md "Eleventh pass: one pass over the occluder joins")."""
     co = 1 - ax  # the other axis
-    found.sort(key=lambda f: (f[3].y0, f[3].x0)[ax])
+    found.sort(key=lambda f: (f[3].y0, f[3].x0)[ax])  # a join keeps the first part's key: stays sorted
     box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
-                    for f in found])
+                    for f in found], np.int64).reshape(-1, 4)
     level = np.array([f[1] for f in found], float)
+    tol = np.array([f[2] for f in found], float)
     z = [zc[id(f[3])] if id(f[3]) in zc else zc.setdefault(id(f[3]), _median_depth(ctx, f[3])) for f in found]
-    zs = np.array([np.nan if v is None else v for v in z])
-    ext = box[:, 2 + ax] - box[:, ax]  # extent along the join (width for posts, height for arms)
-    ext_co = box[:, 2 + co] - box[:, co]
+    zs = np.array([np.nan if v is None else v for v in z], float)
     wall = np.array([f[0] for f in found])
     n = len(found)
-    for i in range(n):
-        # the box tests on every later window at once (a textured wall gives a thousand windows and
-        # this runs once per join: per pair in Python it took minutes); the loop below keeps their
-        # order, so the first join made is the same
-        J = np.arange(i + 1, n)
+    dirty = np.ones(n, bool)  # the window's scan is to be (re)done
+    reach = np.zeros(n, np.int64)  # the last window its scan read
+    walls_read: dict[int, set] = {}  # id of a window's Light -> walls whose panes its scan compared with, if any
+
+    def box_ok(i, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The box tests of windows ``i`` (one, or one per ``J``) and ``J`` after them: which pass, and
+        their gaps along the axis."""
+        ext_i, ext_j = box[i, 2 + ax] - box[i, ax], box[J, 2 + ax] - box[J, ax]  # along the join
         gap = box[J, ax] - box[i, 2 + ax]
-        far = np.flatnonzero(gap > 2 * np.maximum(ext[i], ext[J]) + 8)
-        if far.size:  # sorted along the axis: every later one is farther
-            J, gap = J[:far[0]], gap[:far[0]]
-        small = np.minimum(ext[i], ext[J])
+        small = np.minimum(ext_i, ext_j)
         # side by side on one floor (a post in front splits the wall plane too: facades() cuts
         # at it, so not one wall id); apart along the axis (a sash's parts on a slanted receding
         # pane: boxes overlapping, masks not)
         ok = gap >= (-0.5 * small if sash else 1)
         if ax == 1:
-            ok &= np.abs(level[i] - level[J]) <= found[i][2]
+            ok &= np.abs(level[i] - level[J]) <= tol[i]
         if sash:
             ok &= (gap <= 1) & (np.abs(box[i, 1] - box[J, 1]) <= 1) & (np.abs(box[i, 3] - box[J, 3]) <= 1) \
-                & (np.minimum(ext_co[i], ext_co[J]) >= 2)
+                & (np.minimum(box[i, 3] - box[i, 1], box[J, 3] - box[J, 1]) >= 2)
         # a 1-2 px part beside a post (its blur, or a far pane of its own); a post hiding more of the
         # pane than shows of it: two panes with the post on the wall between
-        ok &= (small >= 3) & (gap <= ext[i] + ext[J])
+        ok &= (small >= 3) & (gap <= ext_i + ext_j)
         ok &= np.minimum(box[i, 2 + co], box[J, 2 + co]) - np.maximum(box[i, co], box[J, co]) \
-            >= ov * np.maximum(ext_co[i], ext_co[J])
-        for j, gap in zip(J[ok].tolist(), gap[ok].tolist()):
+            >= ov * np.maximum(box[i, 2 + co] - box[i, co], box[J, 2 + co] - box[J, co])
+        return ok, gap
+
+    def scan(i: int) -> int | None:
+        """The first window after ``i`` that joins it; records what the scan read."""
+        read: set = set()
+        walls_read.pop(id(found[i][3]), None)
+        J = np.arange(i + 1, n)
+        ext_i, ext_j = box[i, 2 + ax] - box[i, ax], box[J, 2 + ax] - box[J, ax]
+        far = np.flatnonzero(box[J, ax] - box[i, 2 + ax] > 2 * np.maximum(ext_i, ext_j) + 8)
+        reach[i] = n - 1
+        if far.size:  # sorted along the axis: every later one is farther
+            J = J[:far[0]]
+            reach[i] = i + 1 + far[0]
+        ok, gap = box_ok(i, J)
+        for j, g in zip(J[ok].tolist(), gap[ok].tolist()):
             a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
             sl = [slice(a0, a1), slice(a0, a1)]
             sl[ax] = slice(box[i, 2 + ax], box[j, ax])
@@ -411,9 +427,8 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                 c = np.flatnonzero(cover)
                 if c.size == 0 or c[0] > 1 or c[-1] < cover.size - 2 or not cover[c[0]:c[-1] + 1].all():
                     continue  # wall shows between a part and the occluder: two panes
-            y0, x0 = box[[i, j], 0].min(), box[[i, j], 1].min()
-            y1, x1 = box[[i, j], 2].max(), box[[i, j], 3].max()
-            span = (y1 - y0, x1 - x0)[ax]
+            span = (max(box[i, 2], box[j, 2]) - min(box[i, 0], box[j, 0]),
+                    max(box[i, 3], box[j, 3]) - min(box[i, 1], box[j, 1]))[ax]
             if z[i] is not None and z[j] is not None:
                 zm = max(z[i], z[j])
                 # the joined pane no taller than a pane without floors (window_tall_keep_m), no wider
@@ -424,28 +439,74 @@ def _join_once(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                 if ax == 1 or sash:
                     # two whole panes with a post over the wall between them: the joined box would be
                     # wider than its wall's other panes on the floor near that depth
-                    mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= found[i][2]) \
+                    read.update((wall[i].item(), wall[j].item()))
+                    mates = np.isin(wall, (wall[i], wall[j])) & (np.abs(level - level[i]) <= tol[i]) \
                         & (np.abs(zs - z[i]) <= 0.15 * z[i])
                     mates[[i, j]] = False
-                    if mates.sum() >= 2 and span > p.window_join_max_width * np.median(ext[mates]):
+                    ext = box[mates, 2 + ax] - box[mates, ax]
+                    if ext.size >= 2 and span > p.window_join_max_width * np.median(ext):
                         continue
-            elif span > 2 * max(ext[i], ext[j]) + gap:
+            elif span > 2 * max(box[i, 2 + ax] - box[i, ax], box[j, 2 + ax] - box[j, ax]) + g:
                 continue
-            a, b = found[i][3], found[j][3]
-            m = np.zeros((y1 - y0, x1 - x0), bool)
-            m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
-            m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
-            a.y0, a.x0, a.mask = int(y0), int(x0), m
-            a.confidence = max(a.confidence, b.confidence)
-            a.cut = a.cut and b.cut
-            zc.pop(id(a), None)
-            if ax == 0 and z[i] is not None:
-                found[i][1] = fl_level(ctx, a)
-            else:
-                found[i][1] = 0.5 * (found[i][1] + found[j][1])
-            del found[j]
-            return True
-    return False
+            break
+        else:
+            j = None
+        if read:
+            walls_read[id(found[i][3])] = read
+        return j
+
+    i = 0
+    while i < n:
+        if not dirty[i]:
+            i += 1
+            continue
+        dirty[i] = False
+        j = scan(i)
+        if j is None:
+            i += 1
+            continue
+        a, b = found[i][3], found[j][3]
+        y0, x0 = box[[i, j], 0].min(), box[[i, j], 1].min()
+        y1, x1 = box[[i, j], 2].max(), box[[i, j], 3].max()
+        m = np.zeros((y1 - y0, x1 - x0), bool)
+        m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
+        m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
+        a.y0, a.x0, a.mask = int(y0), int(x0), m
+        a.confidence = max(a.confidence, b.confidence)
+        a.cut = a.cut and b.cut
+        zc.pop(id(a), None)
+        if ax == 0 and z[i] is not None:
+            found[i][1] = fl_level(ctx, a)
+        else:
+            found[i][1] = 0.5 * (found[i][1] + found[j][1])
+        # what changed: window i (box, level, depth) and j (gone). Redo the scans that stopped at
+        # either (the first one too far away: i may no longer be, j is gone), those before i that
+        # read it and whose box tests it now passes (it failed the others before, or they would have
+        # joined it), and those that compared with the panes of their walls; j failed every scan
+        # that read it, so its going changes no other
+        idx = np.arange(n)
+        hit = {wall[i].item(), wall[j].item()}
+        box[i] = (y0, x0, y1, x1)
+        level[i] = found[i][1]
+        redo = ((idx < i) & (reach == i)) | ((idx < j) & (reach == j))
+        before = np.flatnonzero((idx < i) & (reach > i))
+        if before.size:
+            redo[before[box_ok(before, np.full(before.size, i))[0]]] = True
+        if any(r & hit for r in walls_read.values()):
+            redo |= np.array([bool(walls_read.get(id(f[3]), set()) & hit) for f in found])
+        redo[i] = True
+        if rescan:
+            redo[:] = True
+        walls_read.pop(id(b), None)
+        del found[j]
+        z[i] = zc.setdefault(id(a), _median_depth(ctx, a))
+        zs[i] = np.nan if z[i] is None else z[i]
+        del z[j]
+        box, level, tol, zs, wall = (np.delete(v, j, 0) for v in (box, level, tol, zs, wall))
+        dirty = np.delete(dirty | redo, j)
+        reach = np.delete(np.where(reach > j, reach - 1, reach), j)
+        n -= 1
+        i = int(np.argmax(dirty))  # the first scan to redo (i's own at the latest)
 
 
 def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarray]]:

@@ -1,0 +1,81 @@
+"""Light proposals on a brick-textured street, with and without depth: time against image size.
+
+    .venv/bin/python -m benchmarks.proposals_textured [--sizes 512x256,1024x512,2048x1024]
+                                                      [--seeds 0] [--depth none,scene]
+
+The editor opened on a bare image (``npsim annotate IMAGE``) proposes without depth; on a strongly
+textured facade the window proposer then finds hundreds to thousands of candidates, and its
+stages that compare candidates pairwise set the time (docs/proposals.md "Eleventh pass: one pass
+over the occluder joins"). The frame: the default fixture street, its walls textured twice by
+tests/test_proposals_fuzz.py's ``_expose(..., "texture")`` (rng = seed). Per size, seed and depth:
+the time of ``propose_lights`` (the scene's intrinsics; no instance ids), the part of it in the
+windows' occluder joins, the window candidates entering the joins and the windows proposed. Target:
+<= 2 s at 2048x1024 (README). Prints the 1-min load average with each row (2 cores shared).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def textured(W: int, H: int, seed: int):
+    """The default street at WxH, its walls textured twice (rng ``seed``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from test_proposals_fuzz import _expose  # the fuzz test's texture: one generator
+
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W, H, seed, "default")
+    rng = np.random.default_rng(seed)
+    img = _expose(_expose(s.image, s.labels, "texture", rng), s.labels, "texture", rng)
+    return s, img
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="512x256,1024x512,2048x1024")
+    ap.add_argument("--seeds", default="0")
+    ap.add_argument("--depth", default="none,scene", help="none (a bare image) and/or scene")
+    a = ap.parse_args(argv)
+    import npsim_core.proposals.windows as wmod
+    from npsim_core.proposals import propose_lights
+
+    join = wmod._join_across_occluders
+    spent = {"join": 0.0, "n": 0}
+
+    def timed(ctx, found, p):
+        spent["n"] = len(found)
+        t = time.perf_counter()
+        out = join(ctx, found, p)
+        spent["join"] += time.perf_counter() - t
+        return out
+
+    wmod._join_across_occluders = timed
+    print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'joins s':>8} {'cands':>6} {'windows':>7} {'load':>5}")
+    try:
+        for size in a.sizes.split(","):
+            W, H = (int(v) for v in size.split("x"))
+            for seed in (int(v) for v in a.seeds.split(",")):
+                s, img = textured(W, H, seed)
+                for dmode in a.depth.split(","):
+                    spent.update(join=0.0, n=0)
+                    depth = None if dmode == "none" else s.depth
+                    t = time.perf_counter()
+                    props = propose_lights(img, s.labels, depth, s.intrinsics, None)
+                    total = time.perf_counter() - t
+                    nwin = len(props.category_ids("windows"))
+                    print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {spent['join']:8.2f} {spent['n']:6d} "
+                          f"{nwin:7d} {os.getloadavg()[0]:5.2f}", flush=True)
+    finally:
+        wmod._join_across_occluders = join
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
