@@ -410,13 +410,19 @@ def _join_pass(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
         """The first window after ``i`` that joins it; records what the scan read."""
         read: set = set()
         walls_read.pop(id(found[i][3]), None)
-        J = np.arange(i + 1, n)
-        ext_i, ext_j = box[i, 2 + ax] - box[i, ax], box[J, 2 + ax] - box[J, ax]
-        far = np.flatnonzero(box[J, ax] - box[i, 2 + ax] > 2 * np.maximum(ext_i, ext_j) + 8)
-        reach[i] = n - 1
-        if far.size:  # sorted along the axis: every later one is farther
-            J = J[:far[0]]
-            reach[i] = i + 1 + far[0]
+        # the windows after i up to the first one too far away along the axis (sorted: every later
+        # one is farther), looked for in chunks doubling in size
+        ext_i, lo, step, end = box[i, 2 + ax] - box[i, ax], i + 1, 64, n
+        while lo < n:
+            hi = min(n, lo + step)
+            far = np.flatnonzero(box[lo:hi, ax] - box[i, 2 + ax]
+                                 > 2 * np.maximum(ext_i, box[lo:hi, 2 + ax] - box[lo:hi, ax]) + 8)
+            if far.size:
+                end = lo + int(far[0])
+                break
+            lo, step = hi, 2 * step
+        reach[i] = min(end, n - 1)
+        J = np.arange(i + 1, end)
         ok, gap = box_ok(i, J)
         for j, g in zip(J[ok].tolist(), gap[ok].tolist()):
             a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
@@ -797,20 +803,31 @@ def _fit_line(x: np.ndarray, y: np.ndarray):
     return lambda q: m + 0.0 * q
 
 
+def _paint_boxes(shape: tuple[int, int], boxes: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """HxW bool, True on the boxes (y0, y1, x0, x1 inclusive, inside the image): a box (clipped to the
+    image) overlaps one of them iff a pixel of it is True."""
+    occ = np.zeros(shape, bool)
+    for y0, y1, x0, x1 in boxes:
+        occ[y0:y1 + 1, x0:x1 + 1] = True
+    return occ
+
+
 def _columns(boxes: list[tuple[int, int, int, int]]) -> list[tuple[float, float, int]]:
     """Bays of a facade from window boxes (y0, y1, x0, x1 inclusive): windows whose column ranges
     overlap by at least half the narrower form one bay; returns (median x0, median x1, count)."""
     cols: list[list[tuple[int, int]]] = []
+    meds: list[tuple[float, float]] = []  # per bay its median x0, x1 (changes only when it grows)
     for _, _, x0, x1 in sorted(boxes, key=lambda b: (b[2] + b[3])):
-        for c in cols:
-            a0, a1 = np.median([q[0] for q in c]), np.median([q[1] for q in c])
+        for k, (c, (a0, a1)) in enumerate(zip(cols, meds)):
             ov = min(a1, x1) - max(a0, x0) + 1
             if ov >= 0.5 * min(a1 - a0 + 1, x1 - x0 + 1):
                 c.append((x0, x1))
+                meds[k] = (np.median([q[0] for q in c]), np.median([q[1] for q in c]))
                 break
         else:
             cols.append([(x0, x1)])
-    return [(float(np.median([q[0] for q in c])), float(np.median([q[1] for q in c])), len(c)) for c in cols]
+            meds.append((np.median([x0]), np.median([x1])))
+    return [(float(a0), float(a1), len(c)) for c, (a0, a1) in zip(cols, meds)]
 
 
 def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray, B: np.ndarray,
@@ -981,8 +998,10 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                     nl.kind = "window"
                     kept.append([b_id, fl_level(ctx, nl), f[2], nl])
         # empty cells of regular floors that look faintly like a window
-        have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
-                for f in kept]
+        # boxes of the windows kept, painted: a cell overlaps one iff a pixel of it is painted (a
+        # thousand candidates on a textured wall without depth made the pairwise test minutes)
+        have = _paint_boxes((H, W), [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0,
+                                      f[3].x0 + f[3].mask.shape[1] - 1) for f in kept])
         for top, bot, fl in lines:
             if len(fl) < 3:
                 continue
@@ -992,7 +1011,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 a0, a1 = int(round(c0)), int(round(c1))
                 if r1 - r0 < 1 or a1 - a0 < 0 or r0 < 0 or a0 < 0 or r1 >= H or a1 >= W:
                     continue
-                if any(min(a1, q[3]) >= max(a0, q[2]) and min(r1, q[1]) >= max(r0, q[0]) for q in have):
+                if have[r0:r1 + 1, a0:a1 + 1].any():
                     continue
                 inside = (bld[r0:r1 + 1, a0:a1 + 1] == b_id) & B[r0:r1 + 1, a0:a1 + 1]
                 if inside.mean() < 0.8:
@@ -1004,7 +1023,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl = Light(WINDOW_BUILDING, r0, a0, inside, 0.55)
                 nl.kind = "window"
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
-                have.append((r0, r1, a0, a1))
+                have[r0:r1 + 1, a0:a1 + 1] = True
         fm = bld == b_id
         t_wall = _wall_direction(ctx, fm) if len(kept) >= 3 else None
         # panes merged across a strip of wall: cut there before the rule drops them as too large
@@ -1018,11 +1037,11 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         merged = {fit[j] for j in merged}
         if cells:
             kept = [f for i, f in enumerate(kept) if i not in merged]
-            have = [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
-                    for f in kept]
+            have = _paint_boxes((H, W), [(f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0,
+                                          f[3].x0 + f[3].mask.shape[1] - 1) for f in kept])
             for ya, xa, m in cells:
                 yb, xb = ya + m.shape[0] - 1, xa + m.shape[1] - 1
-                if any(min(yb, q[1]) >= max(ya, q[0]) and min(xb, q[3]) >= max(xa, q[2]) for q in have):
+                if have[max(ya, 0):max(yb + 1, 0), max(xa, 0):max(xb + 1, 0)].any():
                     continue
                 nl = Light(WINDOW_BUILDING, ya, xa, m, 0.55)
                 nl.kind = "window"
@@ -1434,6 +1453,9 @@ def propose(ctx: Context) -> list[Group]:
         for k, f in enumerate(found, 1):
             li = f[3]
             taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = k
+        # a window's own pixels count as free too, but _extend_ends reads only rows above and below
+        # its box: one map for all (a full-image map per window took seconds on a textured wall)
+        free = B & (taken == 0)
         for k, f in enumerate(found, 1):
             li = f[3]
             z = _median_depth(ctx, li)
@@ -1441,7 +1463,7 @@ def propose(ctx: Context) -> list[Group]:
             # tall is not a pane): a vertical crease or downpipe departs from the wall all along
             cap_m = p.window_tall_keep_m if p.window_tall_keep_m > 0 else p.window_height_m[1]
             max_h = max(li.mask.shape[0], int(cap_m * fy / z)) if z else 2 * li.mask.shape[0]
-            _extend_ends(li, dev, B & ((taken == 0) | (taken == k)), max_h, p)
+            _extend_ends(li, dev, free, max_h, p)
     found = _join_across_occluders(ctx, found, p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
