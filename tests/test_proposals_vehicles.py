@@ -135,6 +135,22 @@ def test_a_far_cars_lamps_of_two_pixels_are_laid_out_under_its_body_top_by_pixel
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5
 
 
+def test_a_far_lamp_pair_seen_one_row_apart_is_laid_out_on_the_pixel_centres_of_its_mean_rows():
+    """A far car (40 m, body top 0.9 m; each red lamp 4 x 2 px) whose right lamp shows only its lower row
+    (its upper row in the paint's colour): the two snapped lamps agree, and their mean rows (a half pixel
+    at the top) cover the centres of both rows -- each lamp is proposed on its own pixels (IoU >= 0.7). The
+    old code rounded the mean's ends (round half to even: a row lost) and proposed both lamps one row tall
+    (IoU 0.5)."""
+    img, lab, depth, inst, intr = _frame()
+    truth = _far_car(img, lab, depth, inst, 40.0, 0.9, (40, 60, 140), (200, 20, 20))
+    ys, xs = np.nonzero(truth[1])
+    assert ys.max() - ys.min() == 1
+    img[ys.min(), xs] = (40, 60, 140)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7
+
+
 def test_a_far_red_lamp_is_its_own_pixels_not_the_colour_bled_around_it():
     """A far car's red rear lamps (4 x 2 px at 40 m, body top 0.9 m) with their colour bled a pixel
     around them (half red, as the day render's antialiasing and edge blur leave it): the proposed lamp

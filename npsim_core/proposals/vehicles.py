@@ -530,7 +530,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     either side of the face's axis: plates are never lamps). The pair is then made symmetric about
     the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre);
     two snapped lamps that agree (rows and columns overlapping by half) take their mean rows and
-    distances from the axis, two that disagree stay as found (their pixels), and a lamp that does
+    distances from the axis (a lamp under ``SMALL_LAMP_PX`` tall: the pixel centres its mean rows span), two that disagree stay as found (their pixels), and a lamp that does
     not stand out mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
     silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
     are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
@@ -636,7 +636,10 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             lamps.append(blobs[side])
             n_snapped += 1
             continue
-        rr0, rr1 = int(round(own[side][0])), int(round(own[side][1]))
+        if small:  # the pair's mean rows (half-pixel ends) as the pixel centres they span, not each end rounded
+            rr0, rr1 = _centres_in(own[side][0] - 0.5, own[side][1] + 0.5)
+        else:
+            rr0, rr1 = int(round(own[side][0])), int(round(own[side][1]))
         d_out, d_in = own[side][2], max(own[side][3], 0.5)
         lo_c = int(round(axis - d_out)) if side == 0 else int(round(axis + d_in))
         hi_c = int(round(axis - d_in)) if side == 0 else int(round(axis + d_out))
