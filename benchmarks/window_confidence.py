@@ -112,15 +112,12 @@ def window_records(scene) -> list[dict]:
 
 
 def design(recs: list[dict]) -> np.ndarray:
-    """The terms of ``window_confidence.window_confidence`` (without the bias), one row per record
-    (kept in step with it by tests/test_window_confidence.py)."""
-    rows = []
-    for x in recs:
-        h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
-        rows.append([x["conf0"], min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5),
-                     np.log(max(x["area_px"], 1.0)), np.log1p(x["row_mates"]), np.log1p(x["col_mates"]),
-                     float(x["adjacent"] > 0)])
-    return np.asarray(rows, float).reshape(-1, 8)
+    """The terms of ``window_confidence.window_confidence`` (without the bias), one row per record:
+    ``window_confidence.score_terms``, so the fit and the rule read the same terms."""
+    from npsim_core.proposals.window_confidence import score_terms
+
+    rows = [score_terms(x["conf0"], x) for x in recs]
+    return np.asarray(rows, float).reshape(len(rows), -1) if rows else np.zeros((0, 13))
 
 
 def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = 1e-3, iters: int = 30) -> np.ndarray:

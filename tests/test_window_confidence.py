@@ -40,7 +40,7 @@ from dataclasses import replace  # noqa: E402
 
 from benchmarks.window_confidence import design, fit_logistic, window_records  # noqa: E402
 from npsim_core.proposals.params import ProposalParams  # noqa: E402
-from npsim_core.proposals.window_confidence import grid_mates, window_confidence  # noqa: E402
+from npsim_core.proposals.window_confidence import front_shares, grid_mates, window_confidence  # noqa: E402
 
 
 def _lattice(rows=3, cols=4, y=10.0, x=10.0, h=8.0, w=5.0, dy=20.0, dx=12.0):
@@ -76,7 +76,7 @@ def test_grid_mates_of_no_windows_are_empty():
 
 def _x(**kw):
     x = {"ring_lum": 1.5, "ring_chroma": 1.0, "area_px": 12.0, "h_m": 1.2, "row_mates": 0, "col_mates": 0,
-         "adjacent": 0}
+         "adjacent": 0, "fill": 1.0, "bottom_m": 7.0, "front_near": 0.0, "front_touch": 0.0}
     x.update(kw)
     return x
 
@@ -91,6 +91,39 @@ def test_a_window_the_grid_backs_is_more_confident_than_the_same_window_alone():
     assert grid >= 0.9 > alone > touched >= 0.5
     old = replace(p, window_conf_bias=-7.85, window_conf_weights=(6.4, 0.35, 1.4, 0.65, 0.27))
     assert window_confidence(old, 0.7, _x(row_mates=3, col_mates=2)) == window_confidence(old, 0.7, _x())
+
+
+def test_where_a_pane_is_moves_its_confidence_across_the_slider():
+    """Eleventh pass: the same well-backed pane (contrast, size, mates) passes the slider on an upper floor
+    with a rectangular mask; on the ground floor, over 2 m tall, as a ragged blob (fill 0.6) or with a trunk
+    touching its box it does not (the tenth pass's rule scored all five alike). With trees all around it
+    (its mates hidden) the same pane without mates gains."""
+    p = ProposalParams()
+    x = dict(ring_lum=1.5, ring_chroma=1.0, row_mates=1, col_mates=0, area_px=150.0)
+    up = window_confidence(p, 0.8, _x(**x))
+    assert up >= 0.9
+    for kw in (dict(bottom_m=1.0), dict(h_m=3.0), dict(fill=0.6), dict(front_touch=0.8)):
+        assert window_confidence(p, 0.8, _x(**{**x, **kw})) < 0.9, kw
+    alone = dict(x, row_mates=0, col_mates=0)
+    assert window_confidence(p, 0.8, _x(**alone, front_near=0.6)) > window_confidence(p, 0.8, _x(**alone)) + 0.02
+    tenth = replace(p, window_conf_bias=-4.85, window_conf_weights=(3.67, 0.42, 1.30, 0.56, 0.03, 0.74, 0.90, -0.82))
+    assert len({window_confidence(tenth, 0.8, _x(**{**x, **kw})) for kw in
+                (dict(), dict(bottom_m=1.0), dict(fill=0.6), dict(front_touch=0.8), dict(front_near=0.6))}) == 1
+
+
+def test_front_shares_read_what_stands_in_front_around_and_on_a_pane():
+    """A 4 x 6 pane on open wall has nothing in front around it; a trunk along its left side fills its
+    ring's left column (8 of the ring's 24 pixels, corners included) and a share of its neighbourhood; the image border
+    clips both."""
+    front = np.zeros((40, 60), bool)
+    boxes = np.array([[10.0, 10.0, 6.0, 4.0], [10.0, 40.0, 6.0, 4.0], [0.0, 0.0, 6.0, 4.0]])
+    front[:, 39] = True  # a trunk along the second pane's left edge
+    near, touch = front_shares(front, boxes)
+    assert near[0] == 0.0 and touch[0] == 0.0 and touch[2] == 0.0
+    assert touch[1] == 8 / 24
+    # neighbourhood rows 10-9-1=0 .. 10+6+9+1=26, columns 40-12-2=26 .. 40+4+12+2=58: the trunk's 26 pixels
+    assert near[1] == 26 / (26 * 32)
+    assert front_shares(front, np.zeros((0, 4)))[0].size == 0
 
 
 def test_the_set_kept_at_half_does_not_change():

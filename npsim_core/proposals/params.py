@@ -283,17 +283,20 @@ class ProposalParams:
     #: from the wall over a column (row) dips below this fraction of the peaks either side (0: never).
     window_oversized_gap_contrast: float = 0.6
     #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
-    #: (first confidence, log-luminance and chroma contrast to the wall in a ring around it over the
-    #: window thresholds, clipped at 3, height in m clipped at 2.5, ln of its pixels, ln(1 + row-mates),
-    #: ln(1 + column-mates), another window touching its box)), for windows at least 0.5 confident (the
-    #: set kept at 0.5 is unchanged). A logistic fit on the synthetic streets' windows (seeds 0-2,
-    #: default / hard / lights, 512x256 and 2048x1024; target: matched at mask IoU >= 0.7, no
-    #: touch-up; ``python -m benchmarks.window_confidence --fit``), the bias raised by 1.0 for the
-    #: editor's default slider (0.9): a false window costs two actions, a true one saves one
-    #: (docs/proposals.md "Seventh pass", "Tenth pass: window confidence from the façade grid"). Five
-    #: weights: the seventh pass's rule without the grid terms. All weights 0: the first confidence as it is.
-    window_conf_bias: float = -4.85
-    window_conf_weights: tuple[float, ...] = (3.67, 0.42, 1.30, 0.56, 0.03, 0.74, 0.90, -0.82)
+    #: window_confidence.score_terms: first confidence, log-luminance and chroma contrast to the wall in a
+    #: ring around it over the window thresholds, clipped at 3, height in m clipped at 2.5, ln of its
+    #: pixels, ln(1 + row-mates), ln(1 + column-mates), another window touching its box; fill of its box,
+    #: m over 2 m tall, ground floor, share of things in front around it and touching its box), for
+    #: windows at least 0.5 confident (the set kept at 0.5 is unchanged). A logistic fit on the synthetic
+    #: streets' windows (seeds 0-2, default / hard / lights, 512x256 and 2048x1024; target: matched at
+    #: mask IoU >= 0.7, no touch-up; ``python -m benchmarks.window_confidence --fit``), the bias raised
+    #: by 1.0 for the editor's default slider (0.9): a false window costs two actions, a true one saves
+    #: one (docs/proposals.md "Seventh pass", "Tenth pass: window confidence from the façade grid",
+    #: "Eleventh pass: the slider"). Five weights: the seventh pass's rule; eight: the tenth pass's.
+    #: All weights 0: the first confidence as it is.
+    window_conf_bias: float = -6.97
+    window_conf_weights: tuple[float, ...] = (3.15, 0.48, 1.25, 0.47, 0.14, 0.69, 0.85, -0.72,
+                                              2.77, -2.60, -1.24, 1.58, -0.99)
 
     # --- advertisements
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.

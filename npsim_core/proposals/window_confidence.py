@@ -1,6 +1,6 @@
 """A proposed window's confidence: how sure the proposer is that it is a window the annotator
 keeps (docs/proposals.md, "Seventh pass: confidence", "Tenth pass: window confidence from the
-façade grid").
+façade grid", "Eleventh pass: the slider").
 
 Kept apart from :mod:`.windows` (which finds the panes) so the score can be refitted without
 touching the detection: :func:`rescore_windows` runs on the final window groups.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .core import Context, Group, Light
-from .windows import _median_depth, _ring_contrast
+from .windows import BUILDING, SKY, _median_depth, _ring_contrast
 
 #: Row-mates (:func:`grid_mates`): like size -- height within this ratio, width within ``ROW_WIDTH_RATIO``
 #: (a receding wall foreshortens widths more than heights) --, top and bottom edges each within
@@ -27,6 +27,59 @@ COL_MIN_OVERLAP = 0.5
 COL_SPAN = (0.8, 5.0)
 #: Mates lie on one wall: median depths within this share of the window's own (no test without depth).
 MATE_DEPTH_TOL = 0.15
+#: The neighbourhood whose share of things in front of the wall is ``front_near`` (:func:`front_shares`):
+#: the pane's box grown by this many pane widths to each side and pane heights up and down (where its
+#: row- and column-mates would be), + 1 px.
+NEAR_WIDTHS = 3.0
+NEAR_HEIGHTS = 1.5
+#: A pane whose bottom is lower than this (m above the ground) is on the ground floor (``ground_floor``).
+GROUND_FLOOR_M = 3.0
+#: Panes taller than this (m) lose confidence per metre over it (``tall_m``, clipped at 2 m over).
+TALL_M = 2.0
+
+
+def front_shares(front: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per window, how much of its surroundings is something in front of the wall (docs/proposals.md
+    "Eleventh pass: the slider").
+
+    Parameters
+    ----------
+    front : (H, W) bool
+        Pixels labelled in front of the wall: neither building nor sky (a tree, a pole, a car, a person).
+    boxes : (n, 4) float
+        Each window's box ``y0, x0, height, width`` in pixels.
+
+    Returns
+    -------
+    near, touch : (n,) float
+        The share of ``front`` pixels in the pane's neighbourhood (its box grown by ``NEAR_WIDTHS`` widths
+        left and right and ``NEAR_HEIGHTS`` heights up and down, + 1 px; clipped at the image) -- where
+        its mates would be: a pane without mates among trees is not an isolated fleck --, and on the
+        one-pixel ring around its box (something in front touches it: the pane may be one piece of a
+        light cut in two). 0 where the region is empty. Summed-area table: O(H W + n).
+    """
+    H, W = front.shape
+    b = np.asarray(boxes, float).reshape(-1, 4)
+    if b.shape[0] == 0:
+        return np.zeros(0), np.zeros(0)
+    S = np.zeros((H + 1, W + 1))
+    S[1:, 1:] = np.cumsum(np.cumsum(front, 0, dtype=np.float64), 1)
+
+    def total(ya, yb, xa, xb):
+        ya, yb = np.clip(ya, 0, H).astype(int), np.clip(yb, 0, H).astype(int)
+        xa, xb = np.clip(xa, 0, W).astype(int), np.clip(xb, 0, W).astype(int)
+        yb, xb = np.maximum(yb, ya), np.maximum(xb, xa)
+        return S[yb, xb] - S[ya, xb] - S[yb, xa] + S[ya, xa], (yb - ya) * (xb - xa)
+
+    y0, x0, h, w = (np.round(b[:, k]) for k in range(4))
+    s, n = total(y0 - np.floor(NEAR_HEIGHTS * h) - 1, y0 + h + np.floor(NEAR_HEIGHTS * h) + 1,
+                 x0 - np.floor(NEAR_WIDTHS * w) - 2, x0 + w + np.floor(NEAR_WIDTHS * w) + 2)
+    near = np.where(n > 0, s / np.maximum(n, 1), 0.0)
+    s_out, n_out = total(y0 - 1, y0 + h + 1, x0 - 1, x0 + w + 1)
+    s_in, n_in = total(y0, y0 + h, x0, x0 + w)
+    ring = n_out - n_in
+    touch = np.where(ring > 0, (s_out - s_in) / np.maximum(ring, 1), 0.0)
+    return near, touch
 
 
 def grid_mates(boxes: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,6 +145,9 @@ def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light
             "h_px": float(h), "w_px": float(w),
             "h_m": h * z / float(ctx.intrinsics.fy) if z is not None else float("nan"),
             "z_m": float(z) if z is not None else float("nan"),
+            # the pane's bottom edge (the row below its last), m above the ground
+            "bottom_m": float(ctx.height_above_ground(li.y0 + h, z)) if z is not None else float("nan"),
+            "fill": float(li.mask.sum()) / float(h * w),
             "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
             "y0": li.y0, "x0": li.x0}
 
@@ -104,36 +160,53 @@ def window_features(ctx: Context, groups: list[Group], feat: np.ndarray, B: np.n
     flat = [x for xs in out for x in xs]
     boxes = np.array([[x["y0"], x["x0"], x["h_px"], x["w_px"]] for x in flat], float).reshape(-1, 4)
     row, col, adj = grid_mates(boxes, np.array([x["z_m"] for x in flat], float))
-    for x, r, c, a in zip(flat, row, col, adj):
-        x.update(row_mates=int(r), col_mates=int(c), adjacent=int(a))
+    near, touch = front_shares(~np.isin(ctx.labels, (BUILDING, SKY)), boxes)
+    for x, r, c, a, fn, ft in zip(flat, row, col, adj, near, touch):
+        x.update(row_mates=int(r), col_mates=int(c), adjacent=int(a), front_near=float(fn), front_touch=float(ft))
     return out
+
+
+def score_terms(conf: float, x: dict) -> list[float]:
+    """The terms of :func:`window_confidence`'s logistic score, in ``window_conf_weights`` order (the
+    fit tool, ``benchmarks.window_confidence.design``, reads the same): the first confidence, ring
+    log-luminance and chroma contrasts (clipped at 3), height (m, clipped at 2.5; 1 without depth),
+    ln pixels; the façade grid (tenth pass): ln(1 + row-mates), ln(1 + column-mates), touched by another
+    window; the eleventh pass: fill of its box (clipped at 0.9), metres over ``TALL_M`` (clipped at 2),
+    ground floor (bottom under ``GROUND_FLOOR_M``; 0 without depth), the share of things in front around
+    it and on the ring of its box (:func:`front_shares`)."""
+    h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
+    hm = x["h_m"] if np.isfinite(x["h_m"]) else 0.0
+    return [conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5),
+            float(np.log(max(x["area_px"], 1.0))),
+            float(np.log1p(x["row_mates"])), float(np.log1p(x["col_mates"])), float(x["adjacent"] > 0),
+            min(x["fill"], 0.9), min(max(hm - TALL_M, 0.0), 2.0),
+            float(np.isfinite(x["bottom_m"]) and x["bottom_m"] < GROUND_FLOOR_M), x["front_near"], x["front_touch"]]
 
 
 def window_confidence(p, conf: float, x: dict) -> float:
     """A window's final confidence from its first one ``conf`` and its features ``x``
-    (:func:`window_features`; docs/proposals.md "Seventh pass", "Tenth pass").
+    (:func:`window_features`; docs/proposals.md "Seventh pass", "Tenth pass", "Eleventh pass: the slider").
 
     The first confidence (fill, contrast to the wall reference, a floor of three) hardly told a
     true window from a false one (most false windows cover no true light at all: flecks of wall,
     balcony slabs, edges between wall colours). What does is how much the window differs from the
     wall right around it, how tall it is, and whether the façade grid backs it: like windows beside
     it on its floor (row-mates) and above or below it in its bay (column-mates), and no other window
-    touching its box (a fragment). A logistic score ``window_conf_bias + w . (conf, ring
-    log-luminance contrast, ring chroma contrast, height m, ln pixels, ln(1 + row-mates),
-    ln(1 + column-mates), touched)`` (``window_conf_weights``; contrasts over the window thresholds,
-    clipped at 3; height clipped at 2.5 m, 1 m without depth) mapped to 0.5 + 0.5 sigmoid(score).
-    Only windows at least 0.5 confident are rescored, into [0.5, 1): the set kept at 0.5 does not
-    change, only its order. A window of fewer than ``window_tiny_px`` pixels stays at most
-    ``window_tiny_max_confidence``. Weights shorter than 8 leave the grid terms out (the seventh
-    pass's five).
+    touching its box (a fragment). And where it is (eleventh pass): a mask that fills its box (a pane
+    is a rectangle; a ragged blob is traced off), not over 2 m tall (a shop front, two panes run
+    together), not on the ground floor (cars, people, signs and doors in front of and around its
+    panes), among things in front of the wall (a tree hiding its mates: no mates is then no evidence
+    against it) but not touched by one (a pane cut by a trunk or a post: one piece of a light). A
+    logistic score ``window_conf_bias + window_conf_weights . score_terms(conf, x)``
+    (:func:`score_terms`) mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5 confident are
+    rescored, into [0.5, 1): the set kept at 0.5 does not change, only its order. A window of fewer
+    than ``window_tiny_px`` pixels stays at most ``window_tiny_max_confidence``. Fewer weights leave the
+    later terms out (5: the seventh pass's rule, 8: the tenth pass's).
     """
     wts = tuple(p.window_conf_weights)
     if conf < 0.5 or not any(wts):
         return conf
-    h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
-    v = [conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5), np.log(max(x["area_px"], 1.0))]
-    if len(wts) > 5:
-        v += [np.log1p(x["row_mates"]), np.log1p(x["col_mates"]), float(x["adjacent"] > 0)]
+    v = score_terms(conf, x)
     z = p.window_conf_bias + float(np.dot(wts, v[:len(wts)]))
     out = 0.5 + 0.5 / (1.0 + np.exp(-z))
     if x["area_px"] < p.window_tiny_px:
