@@ -8,8 +8,9 @@ textured facade the window proposer then finds hundreds to thousands of candidat
 stages that compare candidates pairwise set the time (docs/proposals.md "Eleventh pass: one pass
 over the occluder joins"). The frame: the default fixture street, its walls textured twice by
 tests/test_proposals_fuzz.py's ``_expose(..., "texture")`` (rng = seed). Per size, seed and depth:
-the time of ``propose_lights`` (the scene's intrinsics; no instance ids), the part of it in the
-windows' occluder joins, the window candidates entering the joins and the windows proposed. Target:
+the time of ``propose_lights`` (the scene's intrinsics; no instance ids), the parts of it in the
+windows' occluder joins and in the window groups and confidences (``regroup_windows``,
+``rescore_windows``), the window candidates entering the joins and the windows proposed. Target:
 <= 2 s at 2048x1024 (README). Prints the 1-min load average with each row (2 cores shared).
 """
 
@@ -43,11 +44,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--depth", default="none,scene", help="none (a bare image) and/or scene")
     a = ap.parse_args(argv)
+    import npsim_core.proposals.window_confidence as cmod
+    import npsim_core.proposals.window_groups as gmod
     import npsim_core.proposals.windows as wmod
     from npsim_core.proposals import propose_lights
 
-    join = wmod._join_across_occluders
-    spent = {"join": 0.0, "n": 0}
+    join, regroup, rescore = wmod._join_across_occluders, gmod.regroup_windows, cmod.rescore_windows
+    spent = {"join": 0.0, "n": 0, "after": 0.0}
+
+    def after(fn):
+        def run(*args, **kw):
+            t = time.perf_counter()
+            out = fn(*args, **kw)
+            spent["after"] += time.perf_counter() - t
+            return out
+        return run
 
     def timed(ctx, found, p):
         spent["n"] = len(found)
@@ -57,23 +68,26 @@ def main(argv: list[str] | None = None) -> int:
         return out
 
     wmod._join_across_occluders = timed
-    print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'joins s':>8} {'cands':>6} {'windows':>7} {'load':>5}")
+    gmod.regroup_windows, cmod.rescore_windows = after(regroup), after(rescore)
+    print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'joins s':>8} {'groups+conf s':>13} {'cands':>6} "
+          f"{'windows':>7} {'load':>5}")
     try:
         for size in a.sizes.split(","):
             W, H = (int(v) for v in size.split("x"))
             for seed in (int(v) for v in a.seeds.split(",")):
                 s, img = textured(W, H, seed)
                 for dmode in a.depth.split(","):
-                    spent.update(join=0.0, n=0)
+                    spent.update(join=0.0, n=0, after=0.0)
                     depth = None if dmode == "none" else s.depth
                     t = time.perf_counter()
                     props = propose_lights(img, s.labels, depth, s.intrinsics, None)
                     total = time.perf_counter() - t
                     nwin = len(props.category_ids("windows"))
-                    print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {spent['join']:8.2f} {spent['n']:6d} "
+                    print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {spent['join']:8.2f} {spent['after']:13.2f} {spent['n']:6d} "
                           f"{nwin:7d} {os.getloadavg()[0]:5.2f}", flush=True)
     finally:
         wmod._join_across_occluders = join
+        gmod.regroup_windows, cmod.rescore_windows = regroup, rescore
     return 0
 
 
