@@ -117,6 +117,7 @@ def propose(ctx: Context) -> list[Light]:
         hull = cv2.fillConvexPoly(np.zeros((h, w), np.uint8), cv2.convexHull(pts), 1)
         if a / float(max(int(hull.sum()), 1)) < p.ad_min_hull_fill:
             continue
+        relaxed = False
         if ctx.depth is not None:
             d = ctx.depth[y0:y0 + h, x0:x0 + w][m]
             d = d[np.isfinite(d)]
@@ -127,15 +128,19 @@ def propose(ctx: Context) -> list[Light]:
                 # only part of its height too: it is held to half the height, and is less sure.
                 cut = x0 == 0 or y0 == 0 or x0 + w == ctx.shape[1] or y0 + h == ctx.shape[0]
                 hidden = _hidden_edge(ctx.labels, y0, x0, m)
-                min_h = p.ad_min_height_m * (0.5 if hidden else 1.0)
-                if h * z / fy < min_h or (not (cut or hidden)
-                                          and (h * z / fy) * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2):
+                height_m = h * z / fy
+                small = height_m < p.ad_min_height_m or (
+                    not cut and height_m * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2)
+                if small and not (hidden and height_m >= 0.5 * p.ad_min_height_m):
                     continue
+                # Kept only because something in front may hide the rest of it: less sure. A panel that
+                # meets the full rules anyway is as sure as any (its mask is what shows, as an annotator's).
+                relaxed = small
         # The hue of the saturated core: the rim's pixels mix in the wall's.
         hue = hsv[cy:cy + core.shape[0], cx:cx + core.shape[1], 0][core].astype(np.float32) * (2 * np.pi / 256.0)
         spread = 1.0 - float(np.hypot(np.cos(hue).mean(), np.sin(hue).mean()))  # circular variance
         conf = 0.7 + 0.25 * float(np.clip(1.0 - spread / 0.1, 0.0, 1.0))
-        if ctx.depth is not None and _hidden_edge(ctx.labels, y0, x0, m):
+        if relaxed:
             conf -= 0.2
         out.append(Light(ADVERTISEMENT, y0, x0, m, conf))
     return out

@@ -56,6 +56,13 @@ class ProposalParams:
     #: away the arm is under a pixel and the labels lose it).
     lamp_max_arm_m: float = 2.6
     lamp_speck_min_px: int = 2
+    #: A trunk whose top the labels lost takes as its arm a speck of pole starting at its column up to
+    #: this far (m) above its top (street_lamps._lost_top).
+    lamp_lost_top_m: float = 2.5
+    #: Confidence of an arm's head (and of a far head that is a speck beside its pole's top): an arm
+    #: reaching out from a pole taller than ``lamp_min_height_m`` holds a luminaire (docs/proposals.md,
+    #: eleventh pass: 88-95 % of them match their lamp at IoU >= 0.5).
+    lamp_arm_conf: float = 0.9
 
     # --- vehicles
     #: Smallest vehicle instance (pixels) that gets lamps and panes.

@@ -9,6 +9,7 @@ from .params import ProposalParams
 
 POLE = 17
 STREET_LIGHT_HT, STREET_LIGHT_LT = 8, 9
+TRAFFIC_LIGHT, TRAFFIC_SIGN = 19, 20
 
 
 def _pole_depth(ctx: Context, y0: int, x0: int, mask: np.ndarray) -> float | None:
@@ -37,15 +38,48 @@ def _speck_head(specks: list[tuple[int, int, np.ndarray]], taken: set[int], top:
     return best
 
 
+def _lost_top(specks: list[tuple[int, int, np.ndarray]], taken: set[int], top: int, trunk: int, mpp: float,
+              p: ProposalParams) -> int | None:
+    """Index in ``specks`` of the arm and head of a trunk whose top the labels lost (global row ``top``,
+    column ``trunk``): a speck whose bottom row lies 2 px to ``lamp_lost_top_m`` above the top, that
+    starts within a pixel of the trunk's column and reaches ``lamp_min_arm_m`` to ``lamp_max_arm_m``
+    sideways from it; the lowest one not ``taken``, else None.
+
+    A far pole under a pixel wide shows in the labels only where it covers a pixel's centre, so its
+    top stretch can drop out while its arm (longer than wide) stays."""
+    best, best_bot = None, -1
+    gap = max(3, int(np.ceil(p.lamp_lost_top_m / mpp)))
+    for k, (sy, sx, m) in enumerate(specks):
+        bot = sy + m.shape[0] - 1
+        if k in taken or not top - gap <= bot <= top - 2:
+            continue
+        near = min(abs(sx - trunk), abs(sx + m.shape[1] - 1 - trunk))
+        far = max(abs(sx - trunk), abs(sx + m.shape[1] - 1 - trunk))
+        if near <= 1 and p.lamp_min_arm_m <= far * mpp <= p.lamp_max_arm_m and bot > best_bot:
+            best, best_bot = k, bot
+    return best
+
+
+def _carries_signal(labels: np.ndarray, r0: int, r1: int, c0: int, c1: int) -> bool:
+    """True when a traffic light or traffic sign touches the head box (rows ``r0:r1``, columns
+    ``c0..c1``, global) or lies within 2 px of it: the arm is a signal mast or a sign gantry."""
+    H, W = labels.shape
+    box = labels[max(0, r0 - 2):min(H, r1 + 2), max(0, min(c0, c1) - 2):min(W, max(c0, c1) + 3)]
+    return bool(np.isin(box, (TRAFFIC_LIGHT, TRAFFIC_SIGN)).any())
+
+
 def propose(ctx: Context) -> list[Light]:
     """One street_light_HT/LT per pole component carrying a head.
 
-    The trunk is the component's fullest column; the top band (``lamp_head_band_m`` below the
-    component's top) is searched for an arm. An arm reaching ``lamp_min_arm_m`` or more puts the
-    head at its far end (the lamp: the head's pixels below the arm), confidence 0.75; without an arm,
-    a top band ``lamp_lantern_min_widening`` times wider than the trunk (and >= 0.2 m) is a post-top
-    lantern (the band is the lamp, 0.65), a plain top gives the band at 0.3. Heads brighter
-    than the trunk (diffusers) add up to 0.2. With depth, poles whose top is lower than
+    The trunk is the component's fullest column (with the arm above it where the labels lost the
+    trunk's top, :func:`_lost_top`); the top band (``lamp_head_band_m`` below the component's top) is
+    searched for an arm. An arm reaching ``lamp_min_arm_m`` or more puts the head at its far end (the
+    lamp: the head's pixels below the arm), confidence ``lamp_arm_conf`` (0.9), 0.5 when a traffic
+    light or sign hangs there (a signal mast or a sign gantry, :func:`_carries_signal`); a speck of pole
+    beside a trunk's top is the head itself (``lamp_arm_conf``); without an arm, a top band
+    ``lamp_lantern_min_widening`` times wider than the trunk (and >= 0.2 m) is a post-top lantern (the
+    band is the lamp, 0.65), a plain top gives the band at 0.3. Heads brighter than the trunk
+    (diffusers) add up to 0.2. With depth, poles whose top is lower than
     ``lamp_min_height_m`` above the ground (bollards, sign and traffic-light posts) get none,
     and the top's height picks HT (>= ``lamp_high_min_m``) or LT; without depth, the pixel height
     relative to the image decides and confidences drop by 0.15.
@@ -79,6 +113,20 @@ def propose(ctx: Context) -> list[Light]:
                 continue
             mpp = 8.0 / max(h, 1)
             high = True
+        if (k := _lost_top(specks, taken, y0 + top, x0 + trunk, mpp, p)) is not None:
+            # The labels lost the trunk's top: the pole is the trunk, the gap and the arm above it.
+            taken.add(k)
+            sy, sx, sm = specks[k]
+            ny0, nx0 = min(y0, sy), min(x0, sx)
+            ny1, nx1 = max(y0 + h, sy + sm.shape[0]), max(x0 + w, sx + sm.shape[1])
+            merged = np.zeros((ny1 - ny0, nx1 - nx0), bool)
+            merged[y0 - ny0:y0 - ny0 + h, x0 - nx0:x0 - nx0 + w] |= mask
+            merged[sy - ny0:sy - ny0 + sm.shape[0], sx - nx0:sx - nx0 + sm.shape[1]] |= sm
+            merged[sy - ny0 + sm.shape[0]:y0 + top - ny0, x0 + trunk - nx0] = True
+            y0, x0, mask = ny0, nx0, merged
+            h, w = mask.shape
+            trunk = int(np.argmax(mask.sum(0)))
+            top = int(np.nonzero(mask)[0].min())
         band = max(2, int(round(p.lamp_head_band_m / mpp)))
         in_band = mask & (np.arange(h)[:, None] < top + band)
         by, bx = np.nonzero(in_band)
@@ -95,12 +143,14 @@ def propose(ctx: Context) -> list[Light]:
             head = in_band & (np.arange(w)[None, :] >= lo) & (np.arange(w)[None, :] <= hi)
             below_arm = head & (np.arange(h)[:, None] >= top + arm_h)
             lamp = below_arm if below_arm.sum() >= max(1, head.sum() // 3) else head
-            conf = 0.75
+            # A signal or a sign hanging at the arm's end makes it a mast or a gantry, not a luminaire.
+            mast = _carries_signal(ctx.labels, y0 + top, y0 + top + band, x0 + lo, x0 + hi)
+            conf = 0.5 if mast else p.lamp_arm_conf
         elif (k := _speck_head(specks, taken, y0 + top, x0 + trunk, band, mpp, p)) is not None:
             sy, sx, lamp = specks[k]
             taken.add(k)
             out.append(Light(STREET_LIGHT_HT if high else STREET_LIGHT_LT, sy, sx, lamp,
-                             float(np.clip(0.75 - (0.15 if z is None else 0.0), 0, 1))))
+                             float(np.clip(p.lamp_arm_conf - (0.15 if z is None else 0.0), 0, 1))))
             continue
         else:
             # No arm: a lantern on a post top is wider than the post; a bare pole top is not.
