@@ -151,6 +151,20 @@ def test_a_far_lamp_pair_seen_one_row_apart_is_laid_out_on_the_pixel_centres_of_
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7
 
 
+def test_a_car_of_fifty_pixels_gets_its_rear_window():
+    """A car 90 m away is 54 px (1.8 m = 10 px wide); its dark rear window (0.07 m above a 0.85 m body
+    top) is 16 px: it is proposed (IoU >= 0.3, the benchmark's match). The old code skipped vehicles
+    under 60 px and proposed nothing on it."""
+    img, lab, depth, inst, intr = _frame()
+    _far_car(img, lab, depth, inst, 90.0, 0.85, (150, 150, 155), (150, 150, 155))
+    pane = _centres((0.92, 1.28), (-0.72, 0.72), 90.0, lab.shape)
+    img[pane] = (25, 25, 30)
+    assert 40 <= (lab == CAR).sum() < 60
+    ann = propose_lights(img, lab, depth, intr, inst, params=FLAT).annotation
+    panes = [i for i in ann.instance_ids() if class_of(i) == 2]
+    assert max((_iou(ann.mask(i), pane) for i in panes), default=0.0) >= 0.3
+
+
 def test_a_far_red_lamp_is_its_own_pixels_not_the_colour_bled_around_it():
     """A far car's red rear lamps (4 x 2 px at 40 m, body top 0.9 m) with their colour bled a pixel
     around them (half red, as the day render's antialiasing and edge blur leave it): the proposed lamp

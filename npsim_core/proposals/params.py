@@ -65,8 +65,9 @@ class ProposalParams:
     lamp_arm_conf: float = 0.9
 
     # --- vehicles
-    #: Smallest vehicle instance (pixels) that gets lamps and panes.
-    vehicle_min_area_px: int = 60
+    #: Smallest vehicle instance (pixels) that gets lamps and panes: a car of 40 px (8 x 5) still shows a
+    #: rear window of a few pixels (docs/proposals.md, "Eleventh pass: vehicle lamps").
+    vehicle_min_area_px: int = 40
     #: Without instance ids, a vehicle component is split where depth jumps by more than this
     #: fraction of the nearer depth across ~W/256 pixels (cars in a row touch in the image, not in depth).
     vehicle_split_jump: float = 0.15
