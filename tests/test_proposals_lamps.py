@@ -11,7 +11,7 @@ from npsim_core.annotation import class_of
 from npsim_core.camera import Intrinsics
 from npsim_core.proposals import ProposalParams, propose_lights
 
-from proposal_helpers import FLAT, canvas
+from proposal_helpers import FLAT, canvas, iou
 
 ROAD, BUILDING, POLE, TRAFFIC_LIGHT, VEGETATION = 7, 11, 17, 19, 21
 GREY = (80, 80, 85)
@@ -105,3 +105,26 @@ def test_a_full_size_sign_whose_top_a_tree_touches_passes_the_slider():
     ads = sorted((i for i in ann.instance_ids() if class_of(i) == 10), key=lambda i: np.nonzero(ann.mask(i))[0].min())
     assert len(ads) == 2
     assert props.confidence[ads[0]] >= 0.9 and 0.5 <= props.confidence[ads[1]] < 0.9
+
+
+def test_a_sign_a_pole_in_front_cuts_in_two_is_one_sign():
+    """A red sign 4 x 0.8 m with a 0.3 m pole in front of its middle: its two parts are one light (its
+    visible pixels, as an annotator draws it); the proposer before made two signs of it (one a
+    removal and the other a touch-up in the editor). A second red sign beside it across open wall
+    stays its own."""
+    img, lab = canvas()
+    lab[:, :] = BUILDING
+    img[:, :] = (150, 140, 130)
+    depth = np.full(lab.shape, 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=59.5, width=200, height=120)   # 10 px per metre
+    img[40:48, 30:70] = (200, 30, 25)
+    img[40:48, 76:100] = (200, 30, 25)                          # another sign, 6 px of wall between
+    lab[:, 48:51], img[:, 48:51] = POLE, GREY                    # the pole in front
+    sign = np.zeros(lab.shape, bool)
+    sign[40:48, 30:70] = True
+    sign[:, 48:51] = False
+    props = propose_lights(img, lab, depth, intr, params=ProposalParams(categories=("ads",)))
+    ann = props.above(0.5)
+    ads = sorted((i for i in ann.instance_ids() if class_of(i) == 10), key=lambda i: np.nonzero(ann.mask(i))[1].min())
+    assert len(ads) == 2
+    assert iou(ann.mask(ads[0]), sign) >= 0.95
