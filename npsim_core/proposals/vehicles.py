@@ -526,7 +526,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
 
     A lamp box sits ``vehicle_lamp_rows_m`` below the body top and ``vehicle_lamp_cols_m`` in from
     each side of the face (fractions without depth). Each box is snapped to the pixels within a
-    window around it that differ from the paint, never in the plate zone (``vehicle_plate_half_m``
+    window around it (half its rows, at least two, above and below) that differ from the paint, never in the plate zone (``vehicle_plate_half_m``
     either side of the face's axis: plates are never lamps). The pair is then made symmetric about
     the vehicle's vertical axis: the point between the two snapped lamps (else the face's centre);
     two snapped lamps that agree (rows and columns overlapping by half) take their mean rows and
