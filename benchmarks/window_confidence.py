@@ -117,7 +117,7 @@ def design(recs: list[dict]) -> np.ndarray:
     from npsim_core.proposals.window_confidence import score_terms
 
     rows = [score_terms(x["conf0"], x) for x in recs]
-    return np.asarray(rows, float).reshape(len(rows), -1) if rows else np.zeros((0, 13))
+    return np.asarray(rows, float).reshape(len(rows), -1) if rows else np.zeros((0, 14))
 
 
 def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = 1e-3, iters: int = 30) -> np.ndarray:

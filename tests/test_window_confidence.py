@@ -76,7 +76,7 @@ def test_grid_mates_of_no_windows_are_empty():
 
 def _x(**kw):
     x = {"ring_lum": 1.5, "ring_chroma": 1.0, "area_px": 12.0, "h_m": 1.2, "row_mates": 0, "col_mates": 0,
-         "adjacent": 0, "fill": 1.0, "bottom_m": 7.0, "front_near": 0.0, "front_touch": 0.0}
+         "adjacent": 0, "fill": 1.0, "bottom_m": 7.0, "front_near": 0.0, "front_touch": 0.0, "edge": 1.5}
     x.update(kw)
     return x
 
@@ -95,14 +95,15 @@ def test_a_window_the_grid_backs_is_more_confident_than_the_same_window_alone():
 
 def test_where_a_pane_is_moves_its_confidence_across_the_slider():
     """Eleventh pass: the same well-backed pane (contrast, size, mates) passes the slider on an upper floor
-    with a rectangular mask; on the ground floor, over 2 m tall, as a ragged blob (fill 0.6) or with a trunk
-    touching its box it does not (the tenth pass's rule scored all five alike). With trees all around it
+    with a rectangular mask standing out on all four sides; on the ground floor, over 2 m tall, as a ragged
+    blob (fill 0.6), with a trunk touching its box or with one side in glass or wall of its own colour it
+    does not (the tenth pass's rule scored all five alike). With trees all around it
     (its mates hidden) the same pane without mates gains."""
     p = ProposalParams()
-    x = dict(ring_lum=1.5, ring_chroma=1.0, row_mates=1, col_mates=0, area_px=150.0)
+    x = dict(ring_lum=1.5, ring_chroma=0.5, row_mates=1, col_mates=0, area_px=150.0, edge=1.0)
     up = window_confidence(p, 0.8, _x(**x))
     assert up >= 0.9
-    for kw in (dict(bottom_m=1.0), dict(h_m=3.0), dict(fill=0.6), dict(front_touch=0.8)):
+    for kw in (dict(bottom_m=1.0), dict(h_m=3.0), dict(fill=0.6), dict(front_touch=0.8), dict(edge=0.1)):
         assert window_confidence(p, 0.8, _x(**{**x, **kw})) < 0.9, kw
     alone = dict(x, row_mates=0, col_mates=0)
     assert window_confidence(p, 0.8, _x(**alone, front_near=0.6)) > window_confidence(p, 0.8, _x(**alone)) + 0.02
@@ -169,3 +170,20 @@ def test_on_a_facade_the_lattice_s_panes_are_more_confident_than_a_lone_row_of_t
     conf = [props.confidence.get(int(props.annotation.instance_map[y + 6, x + 4]), 0.0) for y, x in lattice + row]
     assert len(props.annotation.instance_ids()) == 12 and min(conf) >= 0.5
     assert min(conf[:9]) > max(conf[9:]) + 0.02
+
+
+def test_edge_contrast_finds_the_side_of_a_pane_traced_short():
+    """A dark 6 x 8 pane on a light wall: its box stands out on all four sides; the box of its left half
+    has its right side inside the glass (no contrast there); a box at the image border reads only the
+    sides inside the image."""
+    from npsim_core.proposals.window_confidence import edge_contrast
+
+    p = ProposalParams()
+    feat = np.zeros((30, 40, 3), np.float32)
+    feat[..., 0] = np.log(0.5)
+    feat[10:16, 10:18, 0] = np.log(0.1)  # ln 5 darker: 4.9 window thresholds
+    t = -np.log(p.window_dark_ratio)
+    assert abs(edge_contrast(feat, 10, 10, 6, 8, p) - np.log(5) / t) < 1e-5
+    assert edge_contrast(feat, 10, 10, 6, 4, p) == 0.0
+    feat[0:6, 0:8, 0] = np.log(0.1)
+    assert abs(edge_contrast(feat, 0, 0, 6, 8, p) - np.log(5) / t) < 1e-5

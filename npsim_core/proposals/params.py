@@ -294,17 +294,18 @@ class ProposalParams:
     #: window_confidence.score_terms: first confidence, log-luminance and chroma contrast to the wall in a
     #: ring around it over the window thresholds, clipped at 3, height in m clipped at 2.5, ln of its
     #: pixels, ln(1 + row-mates), ln(1 + column-mates), another window touching its box; fill of its box,
-    #: m over 2 m tall, ground floor, share of things in front around it and touching its box), for
-    #: windows at least 0.5 confident (the set kept at 0.5 is unchanged). A logistic fit on the synthetic
-    #: streets' windows (seeds 0-2, default / hard / lights, 512x256 and 2048x1024; target: matched at
-    #: mask IoU >= 0.7, no touch-up; ``python -m benchmarks.window_confidence --fit``), the bias raised
-    #: by 1.0 for the editor's default slider (0.9): a false window costs two actions, a true one saves
-    #: one (docs/proposals.md "Seventh pass", "Tenth pass: window confidence from the façade grid",
-    #: "Eleventh pass: the slider"). Five weights: the seventh pass's rule; eight: the tenth pass's.
-    #: All weights 0: the first confidence as it is.
-    window_conf_bias: float = -6.97
-    window_conf_weights: tuple[float, ...] = (3.15, 0.48, 1.25, 0.47, 0.14, 0.69, 0.85, -0.72,
-                                              2.77, -2.60, -1.24, 1.58, -0.99)
+    #: m over 2 m tall, ground floor, share of things in front around it and touching its box, contrast
+    #: of its box's weakest side), for windows at least 0.5 confident (the set kept at 0.5 is
+    #: unchanged). A logistic fit on the synthetic streets' windows (seeds 0-2, default / hard /
+    #: lights, 512x256 and 2048x1024; target: matched at mask IoU >= 0.7, no touch-up; ``python -m
+    #: benchmarks.window_confidence --fit``), the bias raised by 1.0 for the editor's default slider
+    #: (0.9): a false window costs two actions, a true one saves one (docs/proposals.md "Seventh pass",
+    #: "Tenth pass: window confidence from the façade grid", "Eleventh pass: the slider"). Five
+    #: weights: the seventh pass's rule; eight: the tenth pass's; 13: without the weakest side. All
+    #: weights 0: the first confidence as it is.
+    window_conf_bias: float = -5.98
+    window_conf_weights: tuple[float, ...] = (2.21, 0.22, 1.20, 0.52, 0.31, 0.63, 0.87, -0.73,
+                                              1.51, -2.64, -1.38, 1.41, -0.99, 0.92)
 
     # --- advertisements
     #: Saturation (HSV, 0..1) and minimum area (m^2) of a bright, saturated panel on a facade.

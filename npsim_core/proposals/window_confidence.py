@@ -131,6 +131,37 @@ def grid_mates(boxes: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.nda
     return ((row & ~eye).sum(1), (col & ~eye).sum(1), (adj & ~eye).sum(1))
 
 
+def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> float:
+    """How well the weakest side of a window's box stands out (docs/proposals.md "Eleventh pass: the
+    slider"): per side of the box ``y0, x0, h, w`` (px) inside the image, the medians of the proposer's
+    features (``feat``: log luminance, Lab a, b) along its outermost row (column) inside and the one just
+    outside, their log-luminance difference over the window threshold (-ln ``window_dark_ratio``) or
+    their chroma distance over ``window_chroma_delta``, whichever is larger; the smallest over the sides,
+    0 when no side lies inside the image. A pane traced whole stands out on all four sides; one traced
+    short (half a pane, its glass continuing past the cut) or long (its frame and a strip of wall) has a
+    side inside glass or wall of its own colour."""
+    H, W = feat.shape[:2]
+    y1, x1 = y0 + h, x0 + w
+    pairs = []
+    if y0 >= 1:
+        pairs.append((feat[y0, x0:x1], feat[y0 - 1, x0:x1]))
+    if y1 < H:
+        pairs.append((feat[y1 - 1, x0:x1], feat[y1, x0:x1]))
+    if x0 >= 1:
+        pairs.append((feat[y0:y1, x0], feat[y0:y1, x0 - 1]))
+    if x1 < W:
+        pairs.append((feat[y0:y1, x1 - 1], feat[y0:y1, x1]))
+    t = -np.log(p.window_dark_ratio)
+    out = []
+    for a, b in pairs:
+        if a.size == 0 or b.size == 0:
+            continue
+        ma, mb = np.median(a, axis=0), np.median(b, axis=0)
+        out.append(max(abs(float(ma[0] - mb[0])) / t,
+                       float(np.hypot(ma[1] - mb[1], ma[2] - mb[2])) / p.window_chroma_delta))
+    return float(min(out)) if out else 0.0
+
+
 def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light, n_group: int) -> dict:
     """What a window's final confidence is judged on (:func:`window_confidence`): the contrast to
     the building pixels in a ring around it (:func:`windows._ring_contrast`, 0 without a ring), its area and
@@ -148,6 +179,7 @@ def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light
             # the pane's bottom edge (the row below its last), m above the ground
             "bottom_m": float(ctx.height_above_ground(li.y0 + h, z)) if z is not None else float("nan"),
             "fill": float(li.mask.sum()) / float(h * w),
+            "edge": edge_contrast(feat, li.y0, li.x0, h, w, ctx.params),
             "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
             "y0": li.y0, "x0": li.x0}
 
@@ -173,14 +205,16 @@ def score_terms(conf: float, x: dict) -> list[float]:
     ln pixels; the façade grid (tenth pass): ln(1 + row-mates), ln(1 + column-mates), touched by another
     window; the eleventh pass: fill of its box (clipped at 0.9), metres over ``TALL_M`` (clipped at 2),
     ground floor (bottom under ``GROUND_FLOOR_M``; 0 without depth), the share of things in front around
-    it and on the ring of its box (:func:`front_shares`)."""
+    it and on the ring of its box (:func:`front_shares`), the contrast of its box's weakest side
+    (:func:`edge_contrast`, clipped at 3)."""
     h = x["h_m"] if np.isfinite(x["h_m"]) else 1.0
     hm = x["h_m"] if np.isfinite(x["h_m"]) else 0.0
     return [conf, min(x["ring_lum"], 3.0), min(x["ring_chroma"], 3.0), min(h, 2.5),
             float(np.log(max(x["area_px"], 1.0))),
             float(np.log1p(x["row_mates"])), float(np.log1p(x["col_mates"])), float(x["adjacent"] > 0),
             min(x["fill"], 0.9), min(max(hm - TALL_M, 0.0), 2.0),
-            float(np.isfinite(x["bottom_m"]) and x["bottom_m"] < GROUND_FLOOR_M), x["front_near"], x["front_touch"]]
+            float(np.isfinite(x["bottom_m"]) and x["bottom_m"] < GROUND_FLOOR_M), x["front_near"], x["front_touch"],
+            min(x.get("edge", 0.0), 3.0)]
 
 
 def window_confidence(p, conf: float, x: dict) -> float:
