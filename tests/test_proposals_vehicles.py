@@ -165,18 +165,18 @@ def test_a_car_of_fifty_pixels_gets_its_rear_window():
     assert max((_iou(ann.mask(i), pane) for i in panes), default=0.0) >= 0.3
 
 
-def test_a_far_cars_lamp_two_rows_below_where_its_lid_puts_the_body_top_is_snapped_to():
-    """A car 34 m away (red lamps 4 x 2 px on blue paint) whose bonnet, seen from above, shows as two more
-    full-width rows over its body: the body top is taken two rows high and the lamp boxes with it, and
-    each lamp is snapped to its own pixels (IoU >= 0.7). The old code looked for them only a row beyond
-    the box and kept the one row it caught (IoU 0.5)."""
+def test_a_far_cars_lamp_two_rows_below_where_its_face_top_is_taken_is_snapped_to():
+    """A car 34 m away (red lamps 4 x 2 px on blue paint) whose cabin's lowest two rows show at the body's
+    full width (its 0.1 m inset is under two pixels there, and the car in front can hide it): the body top
+    is taken two rows high and the lamp boxes with it, and each lamp is snapped to its own pixels (IoU >=
+    0.7). The old code looked for them only a row beyond the box and kept the one row it caught (IoU 0.5)."""
     img, lab, depth, inst, intr = _frame()
     truth = _far_car(img, lab, depth, inst, 34.0, 0.9, (40, 60, 140), (200, 20, 20))
     body = _centres((0.3, 0.9), (-0.9, 0.9), 34.0, lab.shape)
     top = int(np.nonzero(body.any(1))[0].min())
-    lid = np.zeros_like(body)
-    lid[top - 2:top] = body[top]
-    lab[lid], img[lid], depth[lid], inst[lid] = CAR, (40, 60, 140), 34.5, CAR * 1000 + 1
+    cab = np.zeros_like(body)
+    cab[top - 2:top] = body[top]
+    lab[cab], img[cab], depth[cab], inst[cab] = CAR, (40, 60, 140), 34.1, CAR * 1000 + 1
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     for t in truth:
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7

@@ -585,8 +585,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         bc0, bc1 = (c0 + a, c0 + b) if side == 0 else (c1 - b, c1 - a)
         br0, br1 = lr0, lr1
         win = np.zeros_like(m)
-        # Faces are placed to a lamp's width; their top to a row or two (a far car's lid seen from above
-        # passes for body): the window reaches at least two rows beyond the box.
+        # Faces are placed to a lamp's width; their top to a row or two (the cabin's 0.1 m inset is a pixel
+        # or two on a far car, and hidden where the car in front cuts the face): the window reaches at
+        # least two rows beyond the box.
         pad_r, pad_c = max(2, (br1 - br0 + 1) // 2), max(1, bc1 - bc0 + 1)
         wr0, wr1 = max(r0, br0 - pad_r, 0), min(r1, br1 + pad_r, h - 1)
         wc0, wc1 = max(cc0, bc0 - pad_c, 0), min(cc1, bc1 + pad_c, w - 1)
