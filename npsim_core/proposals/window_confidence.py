@@ -8,6 +8,7 @@ touching the detection: :func:`rescore_windows` runs on the final window groups.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .core import Context, Group, Light
@@ -56,14 +57,13 @@ def front_shares(front: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.n
         left and right and ``NEAR_HEIGHTS`` heights up and down, + 1 px; clipped at the image) -- where
         its mates would be: a pane without mates among trees is not an isolated fleck --, and on the
         one-pixel ring around its box (something in front touches it: the pane may be one piece of a
-        light cut in two). 0 where the region is empty. Summed-area table: O(H W + n).
+        light cut in two). 0 where the region is empty. One summed-area table: O(H W + n).
     """
     H, W = front.shape
     b = np.asarray(boxes, float).reshape(-1, 4)
     if b.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
-    S = np.zeros((H + 1, W + 1))
-    S[1:, 1:] = np.cumsum(np.cumsum(front, 0, dtype=np.float64), 1)
+    S = cv2.integral(front.view(np.uint8) if front.dtype == bool else front.astype(np.uint8))  # (H+1, W+1)
 
     def total(ya, yb, xa, xb):
         ya, yb = np.clip(ya, 0, H).astype(int), np.clip(yb, 0, H).astype(int)
@@ -192,7 +192,7 @@ def window_features(ctx: Context, groups: list[Group], feat: np.ndarray, B: np.n
     flat = [x for xs in out for x in xs]
     boxes = np.array([[x["y0"], x["x0"], x["h_px"], x["w_px"]] for x in flat], float).reshape(-1, 4)
     row, col, adj = grid_mates(boxes, np.array([x["z_m"] for x in flat], float))
-    near, touch = front_shares(~np.isin(ctx.labels, (BUILDING, SKY)), boxes)
+    near, touch = front_shares((ctx.labels != BUILDING) & (ctx.labels != SKY), boxes)
     for x, r, c, a, fn, ft in zip(flat, row, col, adj, near, touch):
         x.update(row_mates=int(r), col_mates=int(c), adjacent=int(a), front_near=float(fn), front_touch=float(ft))
     return out
