@@ -125,7 +125,9 @@ def propose(ctx: Context) -> list[Light]:
     and, unless the frame cuts it, ``ad_min_area_m2`` large (its box's height times its width along
     the wall, :func:`_width_on_wall`: a sign on a facade receding along the street is foreshortened);
     one whose top or bottom runs along an object in front (:func:`_hidden_edge`) is held to half the
-    height alone. Two blobs that something in front cuts apart are one panel (:func:`_across_occluder`).
+    height alone; one under these rules is proposed at 0.4, under the render's and the editor's
+    thresholds, so that the windows proposer does not take a small sign for a window. Two blobs that
+    something in front cuts apart are one panel (:func:`_across_occluder`).
     Confidence 0.7, +0.25 x how uniform the hue of its saturated core is, -0.2 when it is kept only by
     the half height (seeds 0-5 of the synthetic streets, 512x256: all 44 proposed at >= 0.9 match their
     sign at IoU >= 0.7; docs/proposals.md, eleventh pass).
@@ -165,7 +167,7 @@ def propose(ctx: Context) -> list[Light]:
         del blobs[j]
     for (y0, x0, m), (cy, cx, core) in blobs:
         h, w = m.shape
-        relaxed = False
+        relaxed = under = False
         if ctx.depth is not None:
             d = ctx.depth[y0:y0 + h, x0:x0 + w][m]
             d = d[np.isfinite(d)]
@@ -179,8 +181,9 @@ def propose(ctx: Context) -> list[Light]:
                 height_m = h * z / fy
                 small = height_m < p.ad_min_height_m or (
                     not cut and height_m * _width_on_wall(ctx, y0, x0, m, z) < p.ad_min_area_m2)
-                if small and not (hidden and height_m >= 0.5 * p.ad_min_height_m):
-                    continue
+                # A panel under the size rules is still a panel, not a window: proposed under the render's
+                # and the editor's thresholds, it keeps its pixels from the windows proposer.
+                under = small and not (hidden and height_m >= 0.5 * p.ad_min_height_m)
                 # Kept only because something in front may hide the rest of it: less sure. A panel that
                 # meets the full rules anyway is as sure as any (its mask is what shows, as an annotator's).
                 relaxed = small
@@ -190,5 +193,7 @@ def propose(ctx: Context) -> list[Light]:
         conf = 0.7 + 0.25 * float(np.clip(1.0 - spread / 0.1, 0.0, 1.0))
         if relaxed:
             conf -= 0.2
+        if under:
+            conf = 0.4
         out.append(Light(ADVERTISEMENT, y0, x0, m, conf))
     return out
