@@ -206,3 +206,75 @@ def test_floor_joined_across_a_tree_where_a_stripe_runs_along_its_windows():
     per_floor, _ = _groups_per_floor(img, labels, depth, panes)
     assert all(len(g) == 1 for g in per_floor.values()), per_floor
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
+
+
+def _regroup_both_ways(W_: int, H_: int, seed: int, variant: str, depth: bool):
+    """The windows proposer's groups on a fixture street whose walls are textured twice (as
+    tests/test_proposals_fuzz.py does, rng ``seed``; with or without depth), and their regrouping by the
+    sweep and by the n x n pair table (``pairwise=True``): (groups before, sweep, pairwise)."""
+    from test_proposals_fuzz import _expose
+
+    import npsim_core.proposals.window_groups as gmod
+    from npsim_core.synthetic import street_scene
+
+    s = street_scene(W_, H_, seed, variant)
+    rng = np.random.default_rng(seed)
+    img = _expose(_expose(s.image, s.labels, "texture", rng), s.labels, "texture", rng)
+    seen = []
+    regroup = gmod.regroup_windows
+
+    def spy(ctx, groups, feat=None):
+        seen.append((ctx, groups, feat))
+        return regroup(ctx, groups, feat)
+
+    gmod.regroup_windows = spy
+    try:
+        propose_lights(img, s.labels, s.depth if depth else None, s.intrinsics, None,
+                       ProposalParams(categories=("windows",)))
+    finally:
+        gmod.regroup_windows = regroup
+    ctx, groups, feat = seen[0]
+
+    def key(out):
+        return [(g.class_id, g.confidence, [(li.y0, li.x0, li.mask.shape, li.mask.tobytes()) for li in g.members])
+                for g in out]
+
+    return groups, key(regroup(ctx, groups, feat)), key(regroup(ctx, groups, feat, pairwise=True))
+
+
+def test_window_groups_on_a_textured_wall_are_those_of_the_pairwise_table():
+    """A brick-textured wall without depth (the editor on a bare image) gives thousands of windows at
+    2048x1024; the groups were joined over an n x n table of pairs, each tested in Python (24 s). Now the
+    pairs come from a sweep along the floor levels and cheap tests reject most pairs at once: the groups,
+    their members and their order must be exactly those of the pair table (docs/proposals.md "Eleventh
+    pass: window groups in near-linear time"), here at 256x128 without depth and with it."""
+    # seed 0 hard with depth: a pair the cheap tests reject as split is joined after one side's first join
+    for seed, variant, depth, joins in ((0, "default", False, 4), (0, "hard", True, 3)):
+        before, sweep, table = _regroup_both_ways(256, 128, seed, variant, depth)
+        src = {(li.y0, li.x0): k for k, g in enumerate(before) for li in g.members}
+        joined = sum(len({src[m[:2]] for m in g[2]}) > 1 for g in sweep)
+        assert len(before) >= 50 and len(sweep) != len(before) and joined >= joins   # the case: splits and joins
+        assert sweep == table
+
+
+def test_candidate_pairs_are_those_of_the_pair_table_in_its_order():
+    """The sweep's pairs of parts (levels within the gate, columns apart) and their order (nearest
+    first, ties in the table's row order) are those of sorting the n x n table, with ties in levels, gaps
+    and pane heights, with depth (a metric floor tolerance) and without (half the lower pane's rows)."""
+    from npsim_core.proposals.window_groups import LEVEL_GATE, _candidate_pairs
+
+    rng = np.random.default_rng(3)
+    n = 300
+    level = rng.integers(0, 40, n).astype(float) * 0.5
+    pane_h = rng.integers(2, 9, n).astype(float)
+    x0 = rng.integers(0, 200, n).astype(float)
+    x1 = x0 + rng.integers(1, 12, n)
+    for floor_tol in (None, 0.4):
+        a, b, gap = _candidate_pairs(level, pane_h, x0, x1, floor_tol)
+        tol = floor_tol if floor_tol is not None else 0.5 * np.minimum.outer(pane_h, pane_h)
+        g = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
+        cand = np.triu((np.abs(level[:, None] - level[None]) <= LEVEL_GATE * tol) & (g >= 0), 1)
+        want = sorted(zip(*np.nonzero(cand)), key=lambda ab: g[ab])
+        assert len(want) > 1000
+        assert list(zip(a.tolist(), b.tolist())) == [(int(i), int(j)) for i, j in want]
+        assert np.array_equal(gap, np.array([g[ab] for ab in want]))

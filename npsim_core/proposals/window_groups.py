@@ -245,7 +245,73 @@ def _bay_of_wall(step: np.ndarray, colour: np.ndarray, x0: np.ndarray, x1: np.nd
     return float(np.median(step[ok])) if ok.any() else float("nan")
 
 
-def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None = None) -> list[Group]:
+def _candidate_pairs(level: np.ndarray, pane_h: np.ndarray, x0: np.ndarray, x1: np.ndarray,
+                     floor_tol: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs of parts (a < b) :func:`regroup_windows` tries to join, nearest first: floor levels within
+    ``LEVEL_GATE`` floor tolerances (``floor_tol``; without depth half the lower pane height) and columns
+    apart (gap >= 0 px). A sweep over the parts sorted by level, so O(n log n + pairs) rather than n x n
+    tables; the same pairs in the same order (gap, then a, then b) as sorting the n x n table's pairs.
+    Returns a, b and their gaps (px)."""
+    n = level.size
+    o = np.argsort(level, kind="stable")
+    ls = level[o]
+    # a window of levels wide enough for every partner of a (the exact gate below picks them)
+    half = LEVEL_GATE * (floor_tol if floor_tol is not None else 0.5 * pane_h)
+    half = np.broadcast_to(np.asarray(half, float), (n,)) * (1.0 + 1e-9) + 1e-9
+    lo = np.searchsorted(ls, level - half, "left")
+    hi = np.searchsorted(ls, level + half, "right")
+    cnt = np.maximum(hi - lo, 0)
+    a = np.repeat(np.arange(n), cnt)
+    start = np.repeat(lo - np.concatenate([[0], np.cumsum(cnt)[:-1]]), cnt)
+    b = o[start + np.arange(a.size)] if a.size else a
+    keep = a < b
+    a, b = a[keep], b[keep]
+    tol_ab = floor_tol if floor_tol is not None else 0.5 * np.minimum(pane_h[a], pane_h[b])
+    gap = np.maximum(x0[b] - x1[a], x0[a] - x1[b])
+    keep = (np.abs(level[a] - level[b]) <= LEVEL_GATE * tol_ab) & (gap >= 0)
+    a, b, gap = a[keep], b[keep], gap[keep]
+    order = np.lexsort((b, a, gap))
+    return a[order], b[order], gap[order]
+
+
+def _ends(t: dict, idx: np.ndarray) -> tuple[int, float, int, float, float]:
+    """A cluster's ends along its floor: its rightmost pane and the median level of its ``END_PANES``
+    rightmost, its leftmost pane and that of its ``END_PANES`` leftmost, and half its median pane height
+    (rows; the floor tolerance without depth)."""
+    r = idx[np.argsort(t["x1"][idx])[-END_PANES:]]
+    q = idx[np.argsort(t["x0"][idx])[:END_PANES]]
+    return (int(idx[np.argmax(t["x1"][idx])]), float(np.median(t["level"][r])),
+            int(idx[np.argmin(t["x0"][idx])]), float(np.median(t["level"][q])),
+            0.5 * float(np.median(t["y1"][idx] - t["y0"][idx])))
+
+
+def _fails_as_split(ends: np.ndarray, pos: np.ndarray, a: np.ndarray, b: np.ndarray, x0: np.ndarray,
+                    x1: np.ndarray, colour: np.ndarray, step: np.ndarray, floor_tol: float | None, lum: float,
+                    chroma: float) -> np.ndarray:
+    """Per pair of parts (``a``, ``b``) as :func:`_split_at_blanks` left them: whether one of
+    :func:`regroup_windows`' cheap tests rejects it (levels at the gap, wall colour, the step against the
+    parts' own bays), all pairs at once. ``ends``: (n, 5) :func:`_ends` per part; ``colour``, ``step``:
+    the parts' wall colours and steps. A small margin keeps a pair on the edge for the exact test."""
+    eps = 1e-9
+    left = np.where(x1[a] <= x0[b], a, b)
+    right = np.where(x1[a] <= x0[b], b, a)
+    thr = floor_tol if floor_tol is not None else ends[a, 4]
+    fail = np.abs(ends[left, 1] - ends[right, 3]) > thr * (1.0 + eps) + eps
+    ok = np.all(np.isfinite(colour), axis=1)
+    dc = colour[a] - colour[b]
+    fail |= ~(ok[a] & ok[b])
+    fail |= np.abs(dc[:, 0]) > lum + eps
+    fail |= np.hypot(dc[:, 1], dc[:, 2]) > chroma + eps
+    i, j = ends[left, 0].astype(int), ends[right, 2].astype(int)
+    d = np.hypot(pos[i, 0] - pos[j, 0], pos[i, 1] - pos[j, 1])
+    st = np.fmax(step[a], step[b])  # NaN for two single panes: their bay is found pair by pair
+    with np.errstate(invalid="ignore"):
+        fail |= np.isfinite(st) & (d > max(BLANK_STEPS, HIDDEN_STEPS) * st * (1.0 + eps) + eps)
+    return fail
+
+
+def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None = None,
+                    pairwise: bool = False) -> list[Group]:
     """Regroup the proposed windows into one windows_group per floor of each building.
 
     Parameters
@@ -274,6 +340,12 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         (of the groups; for two without a step of their own, single panes, the bay of the building's
         other floors over those columns, :func:`_bay_of_wall`; else 2.5 pane widths). Group confidence: the mean of its
         members'.
+
+        The pairs are found by a sweep along the floor levels and cheap tests (level, colour, step)
+        run before the costly ones (plane, the gap's pixels), for every pair at once while both of its
+        parts are as the split left them: near-linear in the windows (a textured facade without depth
+        gives thousands). ``pairwise``: the n x n pair table and the tests in their first order (the
+        same groups, slowly; for tests).
     """
     if not groups:
         return groups
@@ -290,8 +362,10 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     gof0 = np.repeat(np.arange(len(groups)), [len(g.members) for g in groups])
     parts: list[np.ndarray] = []
     cls: list[int] = []
+    first = np.concatenate([[0], np.cumsum([len(g.members) for g in groups])])
     for g in range(len(groups)):
-        for part in _split_at_blanks(ctx, feat, t, pos, np.nonzero(gof0 == g)[0], lum, chroma, tol):
+        members = np.nonzero(gof0 == g)[0] if pairwise else np.arange(first[g], first[g + 1])
+        for part in _split_at_blanks(ctx, feat, t, pos, members, lum, chroma, tol):
             parts.append(part)
             cls.append(groups[g].class_id)
     n = len(parts)
@@ -316,13 +390,25 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         return int(a)
 
     floor_tol = p.window_floor_tol_m if has_depth else None
-    la, lb = np.meshgrid(level, level, indexing="ij")
-    tol_ab = floor_tol if floor_tol is not None else 0.5 * np.minimum.outer(pane_h, pane_h)
     x0 = np.array([span_of[k][0] for k in range(n)])
     x1 = np.array([span_of[k][1] for k in range(n)])
-    gap = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
-    cand = np.triu((np.abs(la - lb) <= LEVEL_GATE * tol_ab) & (gap >= 0), 1)
-    for a, b in sorted(zip(*np.nonzero(cand)), key=lambda ab: gap[ab]):
+    if pairwise:
+        la, lb = np.meshgrid(level, level, indexing="ij")
+        tol_ab = floor_tol if floor_tol is not None else 0.5 * np.minimum.outer(pane_h, pane_h)
+        gap = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
+        cand = np.triu((np.abs(la - lb) <= LEVEL_GATE * tol_ab) & (gap >= 0), 1)
+        pairs = sorted(zip(*np.nonzero(cand)), key=lambda ab: gap[ab])
+        skip = [False] * len(pairs)
+    else:
+        pa, pb, _ = _candidate_pairs(level, pane_h, x0, x1, floor_tol)
+        pairs = list(zip(pa.tolist(), pb.tolist()))
+        ends_of = {k: _ends(t, parts[k]) for k in range(n)}
+        skip = _fails_as_split(np.array([ends_of[k] for k in range(n)], float).reshape(n, 5), pos, pa, pb, x0, x1,
+                               part_col, part_step, floor_tol, lum, chroma).tolist()
+    pristine = [True] * n  # the part as the split left it: its own root, nothing joined to it
+    for (a, b), sk in zip(pairs, skip):
+        if sk and pristine[a] and pristine[b]:
+            continue  # fails a cheap test on the parts as split (_fails_as_split): as the slow path would
         ra, rb = root(int(a)), root(int(b))
         if ra == rb:
             continue
@@ -332,22 +418,19 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
             continue  # overlapping along the floor: two walls one behind the other, or two floors
         left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
         # the floor at the gap: its level read from depth drifts along a long wall (docs/proposals.md)
-        lev_l = float(np.median(t["level"][left[np.argsort(t["x1"][left])[-END_PANES:]]]))
-        lev_r = float(np.median(t["level"][right[np.argsort(t["x0"][right])[:END_PANES]]]))
-        if abs(lev_l - lev_r) > (floor_tol if floor_tol is not None else
-                                 0.5 * float(np.median(t["y1"][ia] - t["y0"][ia]))):
+        if pairwise:
+            i, lev_l = _ends(t, left)[:2]
+            j, lev_r = _ends(t, right)[2:4]
+            half_pane = _ends(t, ia)[4]
+        else:
+            (i, lev_l), (j, lev_r) = ends_of[ra if left is ia else rb][:2], ends_of[rb if left is ia else ra][2:4]
+            half_pane = ends_of[ra][4]
+        if abs(lev_l - lev_r) > (floor_tol if floor_tol is not None else half_pane):
             continue
         ca, cb = col_of[ra], col_of[rb]
         if not _same_colour(ca, cb, lum, chroma):
             continue
         both = np.concatenate([ia, ib])
-        if has_depth and not _on_one_plane(t, both, tol):
-            continue
-        i = int(left[np.argmax(t["x1"][left])])
-        j = int(right[np.argmin(t["x0"][right])])
-        wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
-        if not wall:
-            continue
         steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
         if steps:
             step = max(steps)
@@ -357,6 +440,13 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
             if not np.isfinite(step):
                 step = 2.5 * float(np.median(width_m[both]))
         d = float(np.hypot(*(pos[i] - pos[j])))
+        if not pairwise and d > max(BLANK_STEPS, HIDDEN_STEPS) * step:
+            continue  # too far whatever the gap shows: the costly tests below are not needed
+        if has_depth and not _on_one_plane(t, both, tol):
+            continue
+        wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
+        if not wall:
+            continue
         if d > (BLANK_STEPS if shown >= VISIBLE_SHARE else HIDDEN_STEPS) * step:
             continue
         parent[rb] = ra
@@ -364,6 +454,9 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         col_of[ra] = _median_colour(t["wall"][both])
         span_of[ra] = (min(xa0, xb0), max(xa1, xb1))
         step_of[ra] = max(steps) if steps else float("nan")  # the step across the join is a gap, not a bay
+        pristine[ra] = pristine[rb] = False
+        if not pairwise:
+            ends_of[ra] = _ends(t, both)
     clusters: dict[int, list[int]] = {}
     for k in range(n):
         clusters.setdefault(root(k), []).append(k)
