@@ -74,6 +74,54 @@ def test_grid_mates_of_no_windows_are_empty():
     assert row.size == col.size == adj.size == 0
 
 
+def _dense_grid_mates(boxes, depth):
+    """The definition of ``grid_mates`` written out over all n x n pairs (what it computed before it
+    compared each window only with those near enough)."""
+    from npsim_core.proposals import window_confidence as wc
+    b, z = np.asarray(boxes, float), np.asarray(depth, float)
+    y0, x0, h, w = b.T
+    y1, x1 = y0 + h, x0 + w
+    hr, wr = h[None, :] / h[:, None], w[None, :] / w[:, None]
+    th = np.maximum(h[:, None], h[None, :])
+    h_ov = (np.minimum(x1[:, None], x1[None, :]) - np.maximum(x0[:, None], x0[None, :])) / np.minimum(w[:, None], w[None, :])
+    with np.errstate(invalid="ignore"):
+        same = ~np.isfinite(z[:, None]) | ~np.isfinite(z[None, :]) | (np.abs(z[None, :] - z[:, None]) <= wc.MATE_DEPTH_TOL * z[:, None])
+    tol = wc.ROW_EDGE_TOL * th + 0.5
+    row = ((hr >= 1 / wc.ROW_HEIGHT_RATIO) & (hr <= wc.ROW_HEIGHT_RATIO) & (wr >= 1 / wc.ROW_WIDTH_RATIO)
+           & (wr <= wc.ROW_WIDTH_RATIO) & (np.abs(y0[:, None] - y0[None, :]) <= tol) & (np.abs(y1[:, None] - y1[None, :]) <= tol)
+           & (h_ov <= 0) & (np.abs((x0 + x1)[:, None] - (x0 + x1)[None, :]) / 2 <= wc.ROW_REACH * np.maximum(w[:, None], w[None, :]) + 2)
+           & same)
+    dy = np.abs((y0 + y1)[:, None] - (y0 + y1)[None, :]) / 2
+    col = ((wr >= 1 / wc.ROW_HEIGHT_RATIO) & (wr <= wc.ROW_HEIGHT_RATIO) & (hr >= 1 / wc.ROW_WIDTH_RATIO) & (hr <= wc.ROW_WIDTH_RATIO)
+           & (h_ov >= wc.COL_MIN_OVERLAP) & (dy >= wc.COL_SPAN[0] * th) & (dy <= wc.COL_SPAN[1] * th) & same)
+    gap = np.maximum(np.maximum(y0[None, :] - y1[:, None], y0[:, None] - y1[None, :]),
+                     np.maximum(x0[None, :] - x1[:, None], x0[:, None] - x1[None, :]))
+    eye = np.eye(len(b), dtype=bool)
+    return (row & ~eye).sum(1), (col & ~eye).sum(1), ((gap <= 1) & ~eye).sum(1)
+
+
+def test_grid_mates_counts_every_pair_the_dense_definition_counts():
+    """``grid_mates`` compares a window only with those near enough for each test (a textured wall
+    without depth gives ten thousand windows); on lattices, jittered and random boxes of mixed sizes, more
+    than one block of them, with and without depth, its counts are those of all n x n pairs."""
+    rng = np.random.default_rng(7)
+    for trial in range(12):
+        n_lat = int(rng.integers(0, 300))
+        lat = np.array(_lattice(rows=20, cols=15, h=float(rng.uniform(2, 12)), w=float(rng.uniform(1, 8)),
+                                dy=float(rng.uniform(8, 25)), dx=float(rng.uniform(4, 15))))[:n_lat]
+        lat = lat + rng.normal(0, 0.7, lat.shape) * [1, 1, 0.3, 0.3]
+        n_rand = int(rng.integers(1, 400))
+        rand = np.c_[rng.uniform(0, 400, (n_rand, 2)), rng.uniform(1, 30, (n_rand, 2))]
+        boxes = np.round(np.vstack([lat, rand]).clip(0.5, None)) if trial % 2 else np.vstack([lat, rand]).clip(0.5, None)
+        z = rng.uniform(5, 60, len(boxes))
+        if trial % 3 == 0:
+            z[rng.random(len(boxes)) < 0.3] = np.nan
+        got = grid_mates(boxes, z)
+        want = _dense_grid_mates(boxes, z)
+        for g, wnt in zip(got, want):
+            np.testing.assert_array_equal(g, wnt)
+
+
 def _x(**kw):
     x = {"ring_lum": 1.5, "ring_chroma": 1.0, "area_px": 12.0, "h_m": 1.2, "row_mates": 0, "col_mates": 0,
          "adjacent": 0, "fill": 1.0, "bottom_m": 7.0, "front_near": 0.0, "front_touch": 0.0, "edge": 1.5}
