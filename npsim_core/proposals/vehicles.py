@@ -37,6 +37,11 @@ OPEN_LAMP_PX = 10
 #: A lamp's confidence grows with its pixels up to this many (a lamp of 1-8 px is a pixel or two off as
 #: often as not; beyond, size adds nothing: docs/proposals.md, "Ninth pass: vehicle confidence").
 LAMP_SURE_PX = 9
+#: ... and a lamp under this many pixels across (its narrower side) counts at most this many pixels per pixel
+#: across: a mask one or two pixels thin loses half its IoU to a pixel's offset, whatever its length (a
+#: sliver beside the car in front, bounded by the occluder's blurred edge; docs/proposals.md, "Eleventh pass:
+#: vehicle confidence at 2048x1024").
+LAMP_THIN_PX = 3
 #: Off-paint pixels taller than this many times the lamp box's rows (+2 px of blur) are not its lamp (the
 #: darker end face or an edge running through the snap window: docs/proposals.md, "Tenth pass: vehicle
 #: lamps").
@@ -69,6 +74,19 @@ def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
         return 0.0
     sub = img[sl]
     return float(np.abs(sub[li].mean(0) - np.median(sub[ring], axis=0)).max())
+
+
+def _lamp_size_px(lamp: np.ndarray) -> int:
+    """The pixels a lamp's confidence counts (local bool mask): its pixels, at most ``LAMP_SURE_PX``, and on a
+    lamp under ``LAMP_THIN_PX`` pixels across (rows or columns of its box) at most ``LAMP_THIN_PX`` per pixel
+    across -- a lamp 1-2 px thin is a pixel off as often as not (2048x1024 seeds 0-5: of the lamps 1-2 px
+    thin scored >= 0.9, 1 tight, 3 needing a touch-up, 5 false)."""
+    ys, xs = np.nonzero(lamp)
+    if ys.size == 0:
+        return 1
+    thin = min(int(ys.max() - ys.min() + 1), int(xs.max() - xs.min() + 1))
+    cap = LAMP_SURE_PX if thin >= LAMP_THIN_PX else LAMP_THIN_PX * thin
+    return max(1, min(int(ys.size), cap))
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -911,7 +929,7 @@ def propose(ctx: Context) -> list[Group]:
             members = [Light(lamp_cls, y0, x0, b, _rescore(
                 conf, p.vehicle_lamp_conf_bias, p.vehicle_lamp_conf_weights,
                 (min(_ring_contrast(img, m, b) / SLIVER_DIFF, 3.0), pair, float(i >= n_pair),
-                 float(np.log(min(max(1, int(b.sum())), LAMP_SURE_PX)))))) for i, b in enumerate(lamps)]
+                 float(np.log(_lamp_size_px(b)))))) for i, b in enumerate(lamps)]
         # Window panes: the cabin band above the body face.
         # On a narrow face r0 is the typical body height's row; the panes, as its lamps, sit on the
         # silhouette's own body top when near (512x256 seeds 0-2: panes matched at IoU >= 0.7 64 -> 67).
