@@ -333,7 +333,7 @@ def test_a_side_window_standing_out_of_its_paint_is_taken_at_the_slider_one_bare
 
     def pane(contrast_levels: float) -> float:
         return _rescore(0.6, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
-                        (contrast_levels / 40.0, 0.0, float(np.log(100)), 2.0))
+                        (contrast_levels / 40.0, 0.0, float(np.log(100)), 2.0, 0.0))
 
     assert pane(40.0) >= 0.9
     assert 0.5 <= pane(10.0) < 0.9
@@ -415,3 +415,45 @@ def test_a_lamp_sliver_one_pixel_wide_is_proposed_below_the_slider_one_three_pix
         confs[cut] = props.confidence[on_car[0]]
     assert 0.5 <= confs[140] < 0.9
     assert confs[138] >= 0.9
+
+
+def _side_on_car(start: int):
+    """A blue car at 8 m whose end face (columns 70-181, red lamps) faces the camera and whose side recedes
+    to the left from column 70 to ``start`` (0: out of the frame), its side glass 40 levels darker than the
+    paint. Returns the scene and the side glass's mask."""
+    z, corner = 8.0, 70
+    img, lab, depth, inst, intr = _frame()
+    body, cab = slice(_row(0.9, z), _row(0.3, z)), slice(_row(1.4, z), _row(0.9, z))
+    side = slice(start, corner)
+    for rows in (body, cab):
+        lab[rows, side], img[rows, side], inst[rows, side] = CAR, (40, 60, 140), CAR * 1000 + 1
+        depth[rows, side] = np.linspace(8.0 + 0.06 * (corner - start), 8.0, corner - start)[None, :]
+    glass = np.zeros(lab.shape, bool)
+    glass[_row(1.33, z):_row(0.97, z), start:corner - 4] = True
+    img[glass] = (0, 20, 100)
+    end, end_cab = slice(corner, corner + 112), slice(corner + 6, corner + 106)
+    lab[body, end], img[body, end], inst[body, end], depth[body, end] = CAR, (40, 60, 140), CAR * 1000 + 1, z
+    lab[cab, end_cab], img[cab, end_cab], inst[cab, end_cab], depth[cab, end_cab] = \
+        CAR, (40, 60, 140), CAR * 1000 + 1, z
+    img[_row(1.33, z):_row(0.97, z), corner + 10:corner + 102] = (20, 22, 25)
+    for a in (corner + 5, corner + 88):
+        img[_row(0.83, z):_row(0.68, z), a:a + 19] = (200, 20, 20)
+    return img, lab, depth, inst, intr, glass
+
+
+def test_a_side_window_running_out_of_the_frame_is_proposed_below_the_slider():
+    """A near car's side glass that runs out of the frame is one band over its door windows and pillars, of
+    which the annotator's pane is a part: such side panes scored >= 0.9 were tight (IoU >= 0.7) once in 15
+    (2048x1024 and 512x256, seeds 0-5). The side window of a car whose side leaves the frame at the left
+    border is proposed (kept at 0.5) under the slider (0.9); the same window ending 12 px inside the frame
+    stays at it. The old code scored both 0.94."""
+    confs = {}
+    for start in (0, 12):
+        img, lab, depth, inst, intr, glass = _side_on_car(start)
+        props = propose_lights(img, lab, depth, intr, inst, params=FLAT)
+        ann = props.annotation
+        side = [i for i in ann.instance_ids() if class_of(i) == 2 and _iou(ann.mask(i), glass) >= 0.7]
+        assert len(side) == 1
+        confs[start] = props.confidence[side[0]]
+    assert 0.5 <= confs[0] < 0.9
+    assert confs[12] >= 0.9

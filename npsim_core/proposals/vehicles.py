@@ -89,6 +89,13 @@ def _lamp_size_px(lamp: np.ndarray) -> int:
     return max(1, min(int(ys.size), cap))
 
 
+def _out_of_frame(light: np.ndarray, x0: int, width: int) -> bool:
+    """Whether a light (local bool mask at image column ``x0``) reaches the image's left or right border: a
+    near car's side glass running out of the frame is one band over its door windows and pillars, of which
+    the annotator's pane is a part (docs/proposals.md, "Eleventh pass: vehicle confidence at 2048x1024")."""
+    return bool((x0 == 0 and light[:, 0].any()) or (x0 + light.shape[1] == width and light[:, -1].any()))
+
+
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
     """A light's confidence from its rule confidence and features (docs/proposals.md, "Ninth pass: vehicle
     confidence"): at least 0.5 -> 0.5 + 0.5 sigmoid(bias + weights . feats), below 0.5 unchanged -- so the
@@ -953,7 +960,8 @@ def propose(ctx: Context) -> list[Group]:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, _rescore(
                     pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
                     (min(_ring_contrast(img, m, part) / SLIVER_DIFF, 3.0), is_end,
-                     float(np.log(int(part.sum()))), float(len(lamps))))))
+                     float(np.log(int(part.sum()))), float(len(lamps)),
+                     float(not is_end and _out_of_frame(part, x0, ctx.image.shape[1]))))))
         if members:
             out.append(Group(VEHICLE_GROUP[cls], members, conf if lamps else pane_conf))
     return out
