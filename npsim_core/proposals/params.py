@@ -123,8 +123,9 @@ class ProposalParams:
     #: (``vehicles._rescore``; docs/proposals.md, "Ninth pass: vehicle confidence"). Lamps: ring contrast
     #: (levels / 40, at most 3), both lamps of the pair stand out, a sliver beside the cut, ln pixels (at
     #: most ln 9; under 3 px across, at most 3 px per pixel across). Panes: ring contrast, the end pane (not
-    #: the side one), ln pixels, lamps on the vehicle, a side pane running out of the frame (eleventh pass:
-    #: vehicle confidence at 2048x1024 -- 1 tight of 15 such panes at >= 0.9, seeds 0-5, both sizes).
+    #: the side one), ln pixels, lamps on the vehicle, a side pane of a vehicle the image border cuts
+    #: (eleventh pass: vehicle confidence at 2048x1024 -- 1 tight of 15 such panes at >= 0.9, seeds 0-5,
+    #: both sizes).
     #: A logistic fit for "IoU >= 0.7, right class" on seeds 0-2 at 512x256 and 2048x1024, bias then
     #: raised by 1.5 (lamps 2.0: the editor benchmark on seeds 0-2); the panes' by 0.5 more in the tenth
     #: pass (panes at 0.85-0.9 were right at IoU >= 0.7 as often as those at 0.9-0.95 on held-out seeds).

@@ -89,11 +89,12 @@ def _lamp_size_px(lamp: np.ndarray) -> int:
     return max(1, min(int(ys.size), cap))
 
 
-def _out_of_frame(light: np.ndarray, x0: int, width: int) -> bool:
-    """Whether a light (local bool mask at image column ``x0``) reaches the image's left or right border: a
-    near car's side glass running out of the frame is one band over its door windows and pillars, of which
-    the annotator's pane is a part (docs/proposals.md, "Eleventh pass: vehicle confidence at 2048x1024")."""
-    return bool((x0 == 0 and light[:, 0].any()) or (x0 + light.shape[1] == width and light[:, -1].any()))
+def _cut_by_border(m: np.ndarray, x0: int, width: int) -> bool:
+    """Whether a vehicle's silhouette (local bool mask at image column ``x0``) reaches the image's left or
+    right border. Such a car is near, its side seen at a steep angle, and where its end face ends and its
+    side begins is laid out from what the border leaves: its side pane takes in the cabin's pillars and part
+    of the end pane (docs/proposals.md, "Eleventh pass: vehicle confidence at 2048x1024")."""
+    return bool((x0 == 0 and m[:, 0].any()) or (x0 + m.shape[1] == width and m[:, -1].any()))
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -955,13 +956,14 @@ def propose(ctx: Context) -> list[Group]:
         panes, pane_conf = cab, 0.6
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
+        cut_by_border = _cut_by_border(m, x0, ctx.image.shape[1])
         for is_end, part in ((1.0, panes & end), (0.0, panes & ~end)):
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, _rescore(
                     pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
                     (min(_ring_contrast(img, m, part) / SLIVER_DIFF, 3.0), is_end,
                      float(np.log(int(part.sum()))), float(len(lamps)),
-                     float(not is_end and _out_of_frame(part, x0, ctx.image.shape[1]))))))
+                     float(not is_end and cut_by_border)))))
         if members:
             out.append(Group(VEHICLE_GROUP[cls], members, conf if lamps else pane_conf))
     return out
