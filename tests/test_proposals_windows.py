@@ -769,6 +769,39 @@ def test_a_panes_upper_sash_and_its_lower_part_touching_are_one_window():
     assert len([f for f in out if f[3].x0 == 160]) == 2
 
 
+def test_a_panes_parts_either_side_of_a_post_join_though_the_depth_bleeds_from_the_post():
+    """A depth map (estimated, or filtered like the synthetic street's) bleeds a post's depth into the
+    glass either side of it over several pixels, so a narrow part of a pane next to the post reads
+    much nearer than a wide one (2048x1024: a pane behind a pole, its parts at 91 and 99 m, the wall at
+    113 m): the median depths differed by over 5 % and the two parts, each a window of its own, stayed
+    apart. The wall on the parts' far sides is at one depth: they are one window now. Two parts
+    whose walls beyond lie at different depths (a near wall and a far one behind a post) stay two."""
+    from npsim_core.proposals.core import Context, Light
+    from npsim_core.proposals.windows import _join_across_occluders
+
+    labels = np.full((H, W), 11, np.uint8)
+    u = np.arange(W, dtype=np.float32)
+
+    def run(z_left, z_right):
+        # the wall, the post (columns 104-109, 8 m) and the bleed: depth pulled linearly towards the
+        # post's over 6 columns either side of it
+        dist = np.maximum(np.maximum(104 - u, u - 109), 0.0)
+        depth = np.where(u < 107, z_left, z_right) + (8.0 - np.where(u < 107, z_left, z_right)) \
+            * np.clip(1.0 - dist / 6.0, 0.0, 1.0)
+        depth = np.broadcast_to(depth.astype(np.float32), (H, W)).copy()
+        lab = labels.copy()
+        lab[:, 104:110] = 17
+        ctx = Context(np.zeros((H, W, 3), np.uint8), lab, depth, K, None, PARAMS)
+        left = [0, 5.0, 0.6, Light(1, 40, 100, np.ones((16, 4), bool), 0.95)]    # in the bleed
+        right = [1, 5.0, 0.6, Light(1, 40, 110, np.ones((16, 10), bool), 0.95)]  # partly in it
+        return [f[3] for f in _join_across_occluders(ctx, [left, right], PARAMS)]
+
+    one = run(20.0, 20.0)
+    assert len(one) == 1 and (one[0].x0, one[0].mask.shape) == (100, (16, 20))
+    assert not one[0].mask[:, 4:10].any()                       # the post's columns stay out
+    assert len(run(20.0, 26.0)) == 2
+
+
 def test_a_wide_lens_on_the_hard_street_gives_no_empty_slice_warning():
     """The hard street (seed 1, 512x256) through a lens of 0.4x the focal length (a ~100 degree wide
     angle): a wall piece's smoothed luminance mode falls between two colours with no pixel near it;

@@ -260,6 +260,10 @@ class ProposalParams:
     #: shorter, masks apart), left and right edges in line within a pixel: a pane's upper sash and its
     #: lower part (the same height caps).
     window_join_sash: bool = True
+    #: ... with depth, two parts side by side or one above the other whose median depths differ by over
+    #: 5 % still join when the wall just beyond their far sides does not: a post's depth bleeds into the
+    #: glass beside it (docs/proposals.md "Eleventh pass: parts of a pane either side of a post").
+    window_join_facing: bool = True
     #: Windows cover at most this share of their building region (the least confident beyond it are dropped).
     window_max_lit_share: float = 0.4
     #: A floor's windows belong to another facade (another windows_group) where the wall around them

@@ -440,8 +440,15 @@ def _join_pass(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                 # the joined pane no taller than a pane without floors (window_tall_keep_m), no wider
                 # than a window
                 cap = p.window_height_m[1] if ax == 1 or p.window_tall_keep_m <= 0 else p.window_tall_keep_m
-                if abs(z[i] - z[j]) > 0.05 * zm or span * zm / fy > cap:
+                if span * zm / fy > cap:
                     continue
+                if abs(z[i] - z[j]) > 0.05 * zm:
+                    # a post between them pulls the glass next to it towards its own depth: compare
+                    # the wall on the parts' far sides
+                    zi = _wall_beyond(ctx, found[i][3], ax, False) if p.window_join_facing and not sash else None
+                    zj = _wall_beyond(ctx, found[j][3], ax, True) if zi is not None else None
+                    if zj is None or abs(zi - zj) > 0.05 * max(zi, zj):
+                        continue
                 if ax == 1 or sash:
                     # two whole panes with a post over the wall between them: the joined box would be
                     # wider than its wall's other panes on the floor near that depth
@@ -1257,6 +1264,29 @@ def fl_level(ctx: Context, li: Light) -> float:
     z = _median_depth(ctx, li)
     cy = li.y0 + li.mask.shape[0] / 2.0
     return float(ctx.height_above_ground(cy, z)) if z is not None else float(cy)
+
+
+def _wall_beyond(ctx: Context, li: Light, ax: int, end: bool, r: int = 6) -> float | None:
+    """Median depth (m) of the wall (building pixels) just beyond window ``li`` along image axis ``ax``
+    (1: the ``r`` columns right of it if ``end``, else left; 0: the rows below / above), over its rows
+    (columns); None without depth or wall there. A post or a trunk in front of a pane pulls the depth
+    of the glass either side of it towards its own (a depth map, estimated or filtered, bleeds across
+    the occluder's edges over several pixels), so two parts of one pane differ in median depth by how
+    much of each lies in that bleed; the wall on their far sides does not (docs/proposals.md "Eleventh
+    pass: parts of a pane either side of a post")."""
+    if ctx.depth is None:
+        return None
+    h, w = li.mask.shape
+    H, Wd = ctx.depth.shape
+    if ax == 1:
+        c0, c1 = (li.x0 + w, li.x0 + w + r) if end else (li.x0 - r, li.x0)
+        sl = (slice(max(li.y0, 0), min(li.y0 + h, H)), slice(max(c0, 0), min(c1, Wd)))
+    else:
+        r0, r1 = (li.y0 + h, li.y0 + h + r) if end else (li.y0 - r, li.y0)
+        sl = (slice(max(r0, 0), min(r1, H)), slice(max(li.x0, 0), min(li.x0 + w, Wd)))
+    d = ctx.depth[sl][ctx.labels[sl] == BUILDING]
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if d.size >= 4 else None
 
 
 def _median_depth(ctx: Context, li: Light) -> float | None:
