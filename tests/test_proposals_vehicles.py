@@ -401,7 +401,7 @@ def _sliver_scene(cut: int):
 def test_a_lamp_sliver_one_pixel_wide_is_proposed_below_the_slider_one_three_pixels_wide_at_it():
     """A lamp one pixel thin loses half its IoU to a pixel's offset -- on a photo the column beside the car
     in front is the occluder's blurred edge as often as the lamp (2048x1024 seeds 0-5: of the lamps 1-2 px
-    thin scored >= 0.9, 1 tight, 3 needing a touch-up, 5 false). The sliver of a lamp showing one column
+    thin scored >= 0.9, 1 tight, 1 needing a touch-up, 5 false). The sliver of a lamp showing one column
     beside the car in front is proposed (kept at 0.5) but under the slider (0.9); the same lamp showing three
     columns is at the slider. The old code counted the thin sliver's 7 pixels as a lamp of 7 px: 0.95."""
     confs = {}

@@ -80,7 +80,7 @@ def _lamp_size_px(lamp: np.ndarray) -> int:
     """The pixels a lamp's confidence counts (local bool mask): its pixels, at most ``LAMP_SURE_PX``, and on a
     lamp under ``LAMP_THIN_PX`` pixels across (rows or columns of its box) at most ``LAMP_THIN_PX`` per pixel
     across -- a lamp 1-2 px thin is a pixel off as often as not (2048x1024 seeds 0-5: of the lamps 1-2 px
-    thin scored >= 0.9, 1 tight, 3 needing a touch-up, 5 false)."""
+    thin scored >= 0.9, 1 tight, 1 needing a touch-up, 5 false)."""
     ys, xs = np.nonzero(lamp)
     if ys.size == 0:
         return 1
