@@ -48,6 +48,16 @@ def _arm_pole(px_per_m: float = 10.0, depth_m: float = 20.0):
     return img, lab, depth, intr, lens
 
 
+def _wall():
+    """A 200 x 120 frame of plain wall 20 m away, 10 px per metre."""
+    img, lab = canvas()
+    lab[:, :] = BUILDING
+    img[:, :] = (150, 140, 130)
+    depth = np.full(lab.shape, 20.0, np.float32)
+    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=59.5, width=200, height=120)
+    return img, lab, depth, intr
+
+
 def test_an_arm_head_on_a_tall_pole_passes_the_editors_default_slider():
     """An arm reaching 2 m from an 8 m pole holds a luminaire: accepted at the editor's default 0.9 (it
     was 0.75 plus up to 0.2 for a head brighter than the trunk, so a head in shade was drawn again)."""
@@ -91,11 +101,7 @@ def test_a_full_size_sign_whose_top_a_tree_touches_passes_the_slider():
     the tree's allowance, so it is as sure as a sign on open wall (before, any sign along something in
     front lost 0.2 and was drawn again in the editor); a 0.2 m strip under the tree, kept only by that
     allowance, stays under the slider."""
-    img, lab = canvas()
-    lab[:, :] = BUILDING
-    img[:, :] = (150, 140, 130)
-    depth = np.full(lab.shape, 20.0, np.float32)
-    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=59.5, width=200, height=120)   # 10 px per metre
+    img, lab, depth, intr = _wall()
     lab[30:40, 40:80], img[30:40, 40:80] = VEGETATION, (40, 70, 30)
     img[40:48, 45:75] = (200, 30, 25)                            # under the tree, full size
     lab[70:80, 120:150], img[70:80, 120:150] = VEGETATION, (40, 70, 30)
@@ -112,11 +118,7 @@ def test_a_sign_a_pole_in_front_cuts_in_two_is_one_sign():
     visible pixels, as an annotator draws it); the proposer before made two signs of it (one a
     removal and the other a touch-up in the editor). A second red sign beside it across open wall
     stays its own."""
-    img, lab = canvas()
-    lab[:, :] = BUILDING
-    img[:, :] = (150, 140, 130)
-    depth = np.full(lab.shape, 20.0, np.float32)
-    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=59.5, width=200, height=120)   # 10 px per metre
+    img, lab, depth, intr = _wall()
     img[40:48, 30:70] = (200, 30, 25)
     img[40:48, 76:100] = (200, 30, 25)                          # another sign, 6 px of wall between
     lab[:, 48:51], img[:, 48:51] = POLE, GREY                    # the pole in front
@@ -135,11 +137,7 @@ def test_a_sign_under_the_size_rules_is_a_low_sign_not_a_window():
     as a sign under the render's and the editor's thresholds (0.4), which keeps its pixels from the
     windows proposer (before, nothing proposed it as a sign, and a window taken there cost a class fix
     in the editor)."""
-    img, lab = canvas()
-    lab[:, :] = BUILDING
-    img[:, :] = (150, 140, 130)
-    depth = np.full(lab.shape, 20.0, np.float32)
-    intr = Intrinsics(fx=200.0, fy=200.0, cx=99.5, cy=59.5, width=200, height=120)   # 10 px per metre
+    img, lab, depth, intr = _wall()
     img[40:49, 60:63] = (40, 60, 200)
     sign = np.zeros(lab.shape, bool)
     sign[40:49, 60:63] = True
