@@ -119,6 +119,9 @@ class ProposalParams:
     vehicle_lid_max_m: float = 0.3
     #: End faces narrower than this (pixels) take the typical body top.
     vehicle_small_face_px: int = 24
+    #: A column of a vehicle's cabin band most of whose pixels lie within this many levels of the
+    #: paint is a pillar: the band's panes part there (0: at the end face's edge only).
+    vehicle_pillar_paint_diff: float = 20.0
     #: A vehicle light at least 0.5 confident gets 0.5 + 0.5 sigmoid(bias + weights . features)
     #: (``vehicles._rescore``; docs/proposals.md, "Ninth pass: vehicle confidence"). Lamps: ring contrast
     #: (levels / 40, at most 3), both lamps of the pair stand out, a sliver beside the cut, ln pixels (at

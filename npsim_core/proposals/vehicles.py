@@ -52,6 +52,9 @@ LAMP_TALL_RATIO = 1.5
 LAMP_MIN_CHROMA = 15.0
 #: Heights (m above the ground) where a red lamp is looked for by colour alone (:func:`_red_lamps`).
 RED_LAMP_H_M = (0.5, 1.1)
+# A run of glass columns between pillars narrower than this is the blur of a pillar's or the
+# silhouette's edge, not a pane (2048x1024 hard seeds 0-2: most 1-column runs matched no pane).
+PANE_MIN_COLS = 2
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -95,6 +98,39 @@ def _cut_by_border(m: np.ndarray, x0: int, width: int) -> bool:
     side begins is laid out from what the border leaves: its side pane takes in the cabin's pillars and part
     of the end pane (docs/proposals.md, "Eleventh pass: vehicle confidence at 2048x1024")."""
     return bool((x0 == 0 and m[:, 0].any()) or (x0 + m.shape[1] == width and m[:, -1].any()))
+
+
+def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.ndarray,
+                diff: float) -> list[tuple[float, np.ndarray]]:
+    """The cabin band split into panes: ``(is_end, mask)`` per pane, ``is_end`` 1.0 for the end pane.
+
+    A column of the band most of whose pixels lie within ``diff`` levels of the paint (every channel)
+    is a pillar, painted as the body: the band's runs of other columns are the panes, and each is the
+    end pane when most of it lies in the end face's columns (``end``). Without a pillar inside the band
+    (glass the paint's colour, a far car's pillar blurred away) the band is split at the end face's
+    edge, as before. Far cars in a parked row show their end face's edge only where the car in front
+    leaves the body visible; the pillar between the windscreen and the side window is where the panes
+    part (docs/proposals.md, eleventh pass: vehicle panes in parked rows).
+    """
+    from scipy import ndimage
+
+    old = [(1.0, band & end), (0.0, band & ~end)]
+    if diff <= 0 or not band.any():
+        return old
+    near = (np.abs(img - paint).max(-1) <= diff) & band
+    n = band.sum(0)
+    cols = n > 0
+    pillar = cols & (near.sum(0) * 2 > n)
+    glass = cols & ~pillar
+    lab, k = ndimage.label(glass)
+    runs = [i for i in range(1, k + 1) if (lab == i).sum() >= PANE_MIN_COLS]
+    if len(runs) < 2:  # no pillar between two runs of glass
+        return old
+    out = []
+    for i in runs:
+        part = band & (lab == i)[None, :]
+        out.append((float((part & end).sum() * 2 > part.sum()), part))
+    return out
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -957,7 +993,8 @@ def propose(ctx: Context) -> list[Group]:
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
         cut_by_border = _cut_by_border(m, x0, ctx.image.shape[1])
-        for is_end, part in ((1.0, panes & end), (0.0, panes & ~end)):
+        parts = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff)
+        for is_end, part in parts:
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, _rescore(
                     pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
