@@ -641,6 +641,49 @@ def test_a_pane_found_by_its_dark_top_gets_its_faint_lower_part():
         assert sum((g & w).any() for g in gt.values()) == 1, f"window {i} spans panes"
 
 
+def test_a_pane_found_by_its_frames_side_gets_the_rest_of_its_width():
+    """On a receding wall a pane a few pixels wide is often found by one column-wise part alone -- its
+    frame's near side or a sky-reflecting strip -- while the rest of its glass departs from the wall by
+    under the thresholds: 3 of 7 columns proposed, mask IoU 0.4, a removal and a draw over the slider
+    (at 2048x1024 the commonest part of a pane accepted at >= 0.9; docs/proposals.md "Eleventh pass: a
+    receding pane found as its strip"). A window under half as wide as its row-mates and as tall gets
+    the columns beside it that depart from the wall at 0.6 of the thresholds, up to their width; the
+    blur of a strip into the wall beside it (one column) and a whole pane are left as they are.
+    ``windows._extend_sides`` on a departure map (in window thresholds) like the street's."""
+    from npsim_core.proposals.core import Light
+    from npsim_core.proposals.windows import _extend_sides
+
+    rng = np.random.default_rng(0)
+    dev = rng.uniform(0.1, 0.35, (60, 120))          # wall
+    free = np.ones(dev.shape, bool)
+    found, panes = [], []
+    for k, x in enumerate(range(5, 115, 14)):        # one floor of eight 7-px panes, rows 10-39
+        pane = np.zeros(dev.shape, bool)
+        pane[10:40, x:x + 7] = True
+        panes.append(pane)
+        if k in (2, 5):                               # found as its 3-px frame side; the rest faint glass
+            dev[10:40, x + 4:x + 7] = 5.5
+            dev[10:40, x:x + 4] = rng.uniform(0.55, 0.85, (30, 4))
+            li = Light(1, 10, x + 4, np.ones((30, 3), bool), 0.9)
+        elif k == 6:                                  # a whole pane of 3 px, blurred into one wall column
+            dev[10:40, x:x + 3] = 5.5
+            dev[10:40, x + 3] = 1.8
+            pane[:, x + 3:] = False
+            li = Light(1, 10, x, np.ones((30, 3), bool), 0.9)
+        else:
+            dev[pane] = 5.5
+            li = Light(1, 10, x, np.ones((30, 7), bool), 0.9)
+        free[li.y0:li.y0 + 30, li.x0:li.x0 + li.mask.shape[1]] = False
+        found.append([1, 5.0, 0.6, li])
+    params = ProposalParams()
+    _extend_sides(found, dev, free, params)
+    for k, (f, pane) in enumerate(zip(found, panes)):
+        li = f[3]
+        m = np.zeros(dev.shape, bool)
+        m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
+        assert _iou(m, pane) >= 0.85, f"pane {k}: IoU {_iou(m, pane):.2f}"
+    assert found[6][3].mask.shape[1] == 3      # the blur column stays out
+
 def test_a_whole_pane_taller_than_a_few_small_ones_of_its_wall_is_kept():
     """A wall with three small windows (0.8 m) and a whole pane twice their height (1.7 m), one
     floor: the pane is taller than 1.5x the wall's median height and has no floors to be cut along,

@@ -220,6 +220,19 @@ class ProposalParams:
     #: glass below a curtain band or a reflection that departs from the wall less; 0: off).
     window_extend_dev: float = 0.6
     window_extend_side_ratio: float = 1.5
+    #: A window at most ``window_side_thin`` x the median width of its nearest mates (same wall; same
+    #: floor with rows overlapping by ``window_side_overlap``, or same column) and at least
+    #: ``window_side_tall`` x their height grows sideways by the columns of its pane that depart from
+    #: the wall by ``window_extend_dev`` (mean, and on half its rows), up to ``window_side_cap`` x the
+    #: mates' width: a receding pane found as its frame's side or a reflection strip (0: off).
+    window_side_thin: float = 0.5
+    window_side_tall: float = 0.8
+    window_side_overlap: float = 0.6
+    window_side_cap: float = 1.2
+    #: ... each column taken departing at least this share of the last one (glass is even, a blur fades).
+    window_side_flat: float = 0.7
+    #: ... for a window at least this wide (px; a 1-px pane's blur beside it looks like faint glass).
+    window_side_min_px: int = 2
     #: Blob pixels nearer than the wall in their image column (read 2 px above and below the blob) by
     #: this (m; 0: no test) and this share of the depth jut out of it: awnings, balcony slabs, their
     #: undersides -- not glass (windows._ledge_split). A blob mostly nearer and lower than

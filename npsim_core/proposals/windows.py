@@ -325,6 +325,94 @@ def _extend_ends(li: Light, dev: np.ndarray, free: np.ndarray, max_h: int, p) ->
     li.mask = m
 
 
+def _extend_sides(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
+    """Give a thin window the columns of its pane that its sides left out, in place: on a wall that
+    recedes, a pane a few pixels wide is often found by one column-wise part alone -- its frame's near
+    or far side, or a sky-reflecting strip -- the rest of its glass departing from the wall by less than
+    the thresholds (docs/proposals.md "Eleventh pass: a receding pane found as its strip"). Judged
+    against its mates, the windows of the same wall (``found`` rows [wall id, level, tolerance, Light])
+    on its floor (rows overlapping its own by ``window_side_overlap``) or in its column (sharing its
+    left or right edge within a pixel): a window at most ``window_side_thin`` x the median width of its (up to four) nearest
+    mates and at least ``window_side_tall`` x their median height (or twice their width) grows column by column, the stronger
+    side first, while the next column departs from the wall (``dev``, HxW, in window thresholds) by a
+    mean of ``window_extend_dev`` over the window's rows, by that much on half of them and under the
+    thresholds, evenly (each column ``window_side_flat`` x the last taken, the first one the next
+    beyond it: not the fading blur of a narrow pane into the wall), all on
+    ``free`` pixels (building, no other window; updated), up to ``window_side_cap`` x the mates'
+    median width; a window at least ``window_side_min_px`` wide. The new columns copy the rows of
+    the end column."""
+    thin, tall, ov = float(p.window_side_thin), float(p.window_side_tall), float(p.window_side_overlap)
+    a, cap, flat = float(p.window_extend_dev), float(p.window_side_cap), float(p.window_side_flat)
+    if thin <= 0 or a <= 0 or len(found) < 2:
+        return
+    H, W = dev.shape
+    box = np.array([[f[3].y0, f[3].x0, f[3].mask.shape[0], f[3].mask.shape[1]] for f in found], float)
+    bid = np.array([f[0] for f in found])
+    lev = np.array([f[1] for f in found], float)
+    idx = np.arange(len(found))
+    for i, f in enumerate(found):
+        li = f[3]
+        y0, x0, h, w = (int(v) for v in box[i])
+        if w < p.window_side_min_px:
+            continue  # a 1-px pane is at the blur's scale: its own blur beside it looks like faint glass
+        rows = np.minimum(box[:, 0] + box[:, 2], y0 + h) - np.maximum(box[:, 0], y0)
+        cols = np.minimum(box[:, 1] + box[:, 3], x0 + w) - np.maximum(box[:, 1], x0)
+        floor = (np.abs(lev - f[1]) <= f[2]) & (rows >= ov * np.minimum(box[:, 2], h))
+        # a pane above or below counts when it shares the window's near or far edge: a strip is one side
+        # of its pane, and the panes of a column of a facade line up
+        edge = (np.abs(box[:, 1] - x0) <= 1) | (np.abs(box[:, 1] + box[:, 3] - (x0 + w)) <= 1)
+        mate = (bid == f[0]) & (idx != i) & (floor | ((cols > 0) & edge))
+        if not mate.any():
+            continue
+        j = np.nonzero(mate)[0]
+        j = j[np.argsort(np.hypot(box[j, 1] + box[j, 3] / 2 - (x0 + w / 2), box[j, 0] + box[j, 2] / 2 - (y0 + h / 2)))[:4]]
+        mw, mh = float(np.median(box[j, 3])), float(np.median(box[j, 2]))
+        # as tall as its pane: as its mates, or at least twice their width (a column mate may be a
+        # taller pane of another floor)
+        if w > thin * mw or h < min(tall * mh, 2.0 * mw):
+            continue
+
+        def score(x: int) -> float:
+            """Mean departure of column ``x`` over the window's rows when it is faint glass: at least
+            ``a`` on half of them, under the thresholds on mean (a column over them would be in the
+            window's blob already: it is a neighbour's edge or the blur of a pane's own); else -1."""
+            if x < 0 or x >= W or not free[y0:y0 + h, x].all():
+                return -1.0
+            col = dev[y0:y0 + h, x]
+            s_ = float(col.mean())
+            return s_ if (col >= a).mean() >= 0.5 and s_ < 1.0 else -1.0
+
+        def step(x: int, dx: int, prev: float | None) -> float:
+            """Column ``x``'s score when it joins: glass departs from the wall evenly across the pane,
+            while the blur of a narrow pane into the wall fades from one column to the next -- so the
+            column beyond (the first step) or the last one taken keeps ``flat`` of it."""
+            s_ = score(x)
+            if s_ < a:
+                return -1.0
+            if prev is None:
+                s2 = score(x + dx)
+                return s_ if s2 >= flat * s_ else -1.0
+            return s_ if s_ >= flat * prev else -1.0
+
+        left = right = 0
+        pl = pr_ = None
+        while w + left + right + 1 <= cap * mw:
+            sl, sr = step(x0 - left - 1, -1, pl), step(x0 + w + right, 1, pr_)
+            if max(sl, sr) < a:
+                break
+            if sl >= sr:
+                left, pl = left + 1, sl
+            else:
+                right, pr_ = right + 1, sr
+        if not (left or right):
+            continue
+        m = np.concatenate([np.repeat(li.mask[:, :1], left, 1), li.mask, np.repeat(li.mask[:, -1:], right, 1)], 1)
+        li.x0 -= left
+        li.mask = m
+        free[li.y0:li.y0 + h, li.x0:li.x0 + m.shape[1]] &= ~m
+        box[i, 1], box[i, 3] = li.x0, m.shape[1]
+
+
 def _join_across_occluders(ctx: Context, found: list, p, rescan: bool = False) -> list:
     """Join the two parts of a pane that something in front cuts in two, side by side: a pole, a sign's
     post, a trunk or a person across a pane leaves its glass either side, each part a blob and a window
@@ -1494,6 +1582,7 @@ def propose(ctx: Context) -> list[Group]:
             cap_m = p.window_tall_keep_m if p.window_tall_keep_m > 0 else p.window_height_m[1]
             max_h = max(li.mask.shape[0], int(cap_m * fy / z)) if z else 2 * li.mask.shape[0]
             _extend_ends(li, dev, free, max_h, p)
+        _extend_sides(found, dev, free, p)
     found = _join_across_occluders(ctx, found, p)
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
