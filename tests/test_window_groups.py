@@ -212,28 +212,11 @@ def _regroup_both_ways(W_: int, H_: int, seed: int, variant: str, depth: bool):
     """The windows proposer's groups on a fixture street whose walls are textured twice (as
     tests/test_proposals_fuzz.py does, rng ``seed``; with or without depth), and their regrouping by the
     sweep and by the n x n pair table (``pairwise=True``): (groups before, sweep, pairwise)."""
-    from test_proposals_fuzz import _expose
-
     import npsim_core.proposals.window_groups as gmod
-    from npsim_core.synthetic import street_scene
+    from proposal_helpers import first_call_of
 
-    s = street_scene(W_, H_, seed, variant)
-    rng = np.random.default_rng(seed)
-    img = _expose(_expose(s.image, s.labels, "texture", rng), s.labels, "texture", rng)
-    seen = []
+    ctx, groups, feat = first_call_of(gmod, "regroup_windows", W_, H_, seed, variant, depth)
     regroup = gmod.regroup_windows
-
-    def spy(ctx, groups, feat=None):
-        seen.append((ctx, groups, feat))
-        return regroup(ctx, groups, feat)
-
-    gmod.regroup_windows = spy
-    try:
-        propose_lights(img, s.labels, s.depth if depth else None, s.intrinsics, None,
-                       ProposalParams(categories=("windows",)))
-    finally:
-        gmod.regroup_windows = regroup
-    ctx, groups, feat = seen[0]
 
     def key(out):
         return [(g.class_id, g.confidence, [(li.y0, li.x0, li.mask.shape, li.mask.tobytes()) for li in g.members])
