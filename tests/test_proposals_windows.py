@@ -871,30 +871,12 @@ def _joins_both_ways(W_: int, H_: int, seed: int, variant: str, depth: bool, tex
     one-pass scan and by rescanning every window after each join: (before, one pass, rescanned)."""
     import copy
 
-    from test_proposals_fuzz import _expose
-
     import npsim_core.proposals.windows as wmod
-    from npsim_core.synthetic import street_scene
+    from proposal_helpers import first_call_of
 
-    s = street_scene(W_, H_, seed, variant)
-    img = s.image
-    if texture:
-        rng = np.random.default_rng(seed)
-        img = _expose(_expose(img, s.labels, "texture", rng), s.labels, "texture", rng)
-    seen = []
+    ctx, found, _ = first_call_of(wmod, "_join_across_occluders", W_, H_, seed, variant, depth, texture,
+                                  copy_args=True)
     join = wmod._join_across_occluders
-
-    def spy(ctx, found, p):
-        seen.append((ctx, copy.deepcopy(found)))
-        return join(ctx, found, p)
-
-    wmod._join_across_occluders = spy
-    try:
-        propose_lights(img, s.labels, s.depth if depth else None, s.intrinsics, None,
-                       ProposalParams(categories=("windows",)))
-    finally:
-        wmod._join_across_occluders = join
-    ctx, found = seen[0]
 
     def key(out):
         return [(f[0], f[1], f[2], f[3].y0, f[3].x0, f[3].mask.tobytes(), f[3].mask.shape, f[3].confidence,
