@@ -55,6 +55,11 @@ RED_LAMP_H_M = (0.5, 1.1)
 # A run of glass columns between pillars narrower than this is the blur of a pillar's or the
 # silhouette's edge, not a pane (2048x1024 hard seeds 0-2: most 1-column runs matched no pane).
 PANE_MIN_COLS = 2
+#: A run of glass between pillars narrower than this share of its band's widest run is a reflection's
+#: edge or a pillar's blurred edge far more often than a pane (2048x1024 seeds 0-2: all 6 such runs
+#: matched no pane): it keeps its rule confidence, not raised by the rescoring, so the slider's default
+#: leaves it (docs/proposals.md, "Eleventh pass: pane slivers at the slider").
+PANE_SLIVER_SHARE = 0.05
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -101,8 +106,10 @@ def _cut_by_border(m: np.ndarray, x0: int, width: int) -> bool:
 
 
 def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.ndarray,
-                diff: float) -> list[tuple[float, np.ndarray]]:
-    """The cabin band split into panes: ``(is_end, mask)`` per pane, ``is_end`` 1.0 for the end pane.
+                diff: float) -> list[tuple[float, np.ndarray, bool]]:
+    """The cabin band split into panes: ``(is_end, mask, sliver)`` per pane, ``is_end`` 1.0 for the end
+    pane, ``sliver`` True for a run of glass narrower than ``PANE_SLIVER_SHARE`` of the band's widest run
+    (a reflection's or a pillar's edge as a rule, rarely a pane).
 
     A column of the band most of whose pixels lie within ``diff`` levels of the paint (every channel)
     is a pillar, painted as the body: the band's runs of other columns are the panes, and each is the
@@ -114,7 +121,7 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     """
     from scipy import ndimage
 
-    old = [(1.0, band & end), (0.0, band & ~end)]
+    old = [(1.0, band & end, False), (0.0, band & ~end, False)]
     if diff <= 0 or not band.any():
         return old
     near = (np.abs(img - paint).max(-1) <= diff) & band
@@ -126,10 +133,12 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     runs = [i for i in range(1, k + 1) if (lab == i).sum() >= PANE_MIN_COLS]
     if len(runs) < 2:  # no pillar between two runs of glass
         return old
+    widths = {i: int((lab == i).sum()) for i in runs}
+    widest = max(widths.values())
     out = []
     for i in runs:
         part = band & (lab == i)[None, :]
-        out.append((float((part & end).sum() * 2 > part.sum()), part))
+        out.append((float((part & end).sum() * 2 > part.sum()), part, widths[i] < PANE_SLIVER_SHARE * widest))
     return out
 
 
@@ -994,9 +1003,10 @@ def propose(ctx: Context) -> list[Group]:
         end[:, cc0:cc1 + 1] = True
         cut_by_border = _cut_by_border(m, x0, ctx.image.shape[1])
         parts = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff)
-        for is_end, part in parts:
+        for is_end, part, sliver in parts:
             if part.sum() >= 2:
-                members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, _rescore(
+                members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf
+                                     if sliver else _rescore(
                     pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
                     (min(_ring_contrast(img, m, part) / SLIVER_DIFF, 3.0), is_end,
                      float(np.log(int(part.sum()))), float(len(lamps)),
