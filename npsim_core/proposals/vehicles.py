@@ -60,6 +60,11 @@ PANE_MIN_COLS = 2
 #: matched no pane): it keeps its rule confidence, not raised by the rescoring, so the slider's default
 #: leaves it (docs/proposals.md, "Eleventh pass: pane slivers at the slider").
 PANE_SLIVER_SHARE = 0.05
+#: A car's narrowest pillar (m) and the pixels it must span for its middle column to be clear of the photo's
+#: edge blur (3x3): on a face at that scale or nearer a pillar column is one whose pixels lie within half of
+#: ``vehicle_pillar_paint_diff`` of the paint, its core in the paint's own colour -- glass departing 10-20
+#: levels from the paint is glass there (docs/proposals.md, "Twelfth pass: whole cars at the slider").
+PILLAR_CORE_M, PILLAR_CORE_PX = 0.1, 3.0
 
 
 def _ring_contrast(img: np.ndarray, m: np.ndarray, light: np.ndarray) -> float:
@@ -106,7 +111,7 @@ def _cut_by_border(m: np.ndarray, x0: int, width: int) -> bool:
 
 
 def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.ndarray,
-                diff: float) -> list[tuple[float, np.ndarray, bool]]:
+                diff: float, ppm: float | None = None) -> list[tuple[float, np.ndarray, bool]]:
     """The cabin band split into panes: ``(is_end, mask, sliver)`` per pane, ``is_end`` 1.0 for the end
     pane, ``sliver`` True for a run of glass narrower than ``PANE_SLIVER_SHARE`` of the band's widest run
     (a reflection's or a pillar's edge as a rule, rarely a pane).
@@ -117,13 +122,18 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     (glass the paint's colour, a far car's pillar blurred away) the band is split at the end face's
     edge, as before. Far cars in a parked row show their end face's edge only where the car in front
     leaves the body visible; the pillar between the windscreen and the side window is where the panes
-    part (docs/proposals.md, eleventh pass: vehicle panes in parked rows).
+    part (docs/proposals.md, eleventh pass: vehicle panes in parked rows). On a face of ``ppm`` pixels per
+    metre where a pillar's core is clear of the blur (``PILLAR_CORE_M`` spans ``PILLAR_CORE_PX``), the
+    pillar's pixels lie within half of ``diff``: glass a little off the paint's colour is not taken for
+    pillar there (docs/proposals.md, "Twelfth pass: whole cars at the slider").
     """
     from scipy import ndimage
 
     old = [(1.0, band & end, False), (0.0, band & ~end, False)]
     if diff <= 0 or not band.any():
         return old
+    if ppm is not None and ppm * PILLAR_CORE_M >= PILLAR_CORE_PX:
+        diff = diff / 2.0
     near = (np.abs(img - paint).max(-1) <= diff) & band
     n = band.sum(0)
     cols = n > 0
@@ -1002,7 +1012,8 @@ def propose(ctx: Context) -> list[Group]:
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
         cut_by_border = _cut_by_border(m, x0, ctx.image.shape[1])
-        parts = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff)
+        parts = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff,
+                            fy / z if z is not None else None)
         for is_end, part, sliver in parts:
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf
