@@ -20,8 +20,12 @@ BUILDING = 11
 
 def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[str, np.ndarray]:
     """Per window: box (rows, columns), centre, median depth (m, NaN without), floor level (m above the
-    ground with depth, else centre row) and the wall colour around it (median of ``feat`` over the
-    building pixels of the box grown by half its height, other windows left out)."""
+    ground with depth, else centre row), the wall colour around it (median of ``feat`` over the
+    building pixels of the box grown by half its height, other windows left out) and the median depth of
+    those wall pixels (``wz``, m; NaN without): a depth network reads glass off its wall (on the synthetic
+    streets' simulated prediction the panes' median depth lies 3-10 % in front of the wall around them),
+    so whether the wall between two panes is one wall is judged on the wall's depth beside them
+    (:func:`_gap_is_wall`; docs/proposals.md "Twelfth pass: window groups")."""
     H, W = ctx.shape
     n = len(lights)
     occ = np.zeros((H, W), bool)
@@ -30,17 +34,19 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
         occ[li.y0:li.y0 + h, li.x0:li.x0 + w] |= li.mask
     wall = (ctx.labels == BUILDING) & ~occ
     t = {k: np.zeros(n) for k in ("y0", "y1", "x0", "x1", "cu", "cv", "z", "level")}
+    t["wz"] = np.full(n, np.nan)
     t["wall"] = np.full((n, 3), np.nan)
+
+    def median_depth(d: np.ndarray) -> float:
+        d = d[np.isfinite(d)]
+        return float(np.median(d)) if d.size else np.nan
+
     for i, li in enumerate(lights):
         h, w = li.mask.shape
         ys, xs = np.nonzero(li.mask)
         t["y0"][i], t["y1"][i], t["x0"][i], t["x1"][i] = li.y0, li.y0 + h, li.x0, li.x0 + w
         t["cu"][i], t["cv"][i] = li.x0 + xs.mean(), li.y0 + ys.mean()
-        z = np.nan
-        if ctx.depth is not None:
-            d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
-            d = d[np.isfinite(d)]
-            z = float(np.median(d)) if d.size else np.nan
+        z = median_depth(ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]) if ctx.depth is not None else np.nan
         t["z"][i] = z
         t["level"][i] = float(ctx.height_above_ground(t["cv"][i], z)) if np.isfinite(z) else t["cv"][i]
         r = max(2, h // 2)
@@ -48,6 +54,8 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
         sel = wall[ya:yb, xa:xb]
         if sel.any():
             t["wall"][i] = np.median(feat[ya:yb, xa:xb][sel], axis=0)
+            if ctx.depth is not None:
+                t["wz"][i] = median_depth(ctx.depth[ya:yb, xa:xb][sel])
     return t
 
 
@@ -121,8 +129,12 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
     off = (np.abs(fv[:, 0] - colour[0]) > lum) | (np.hypot(fv[:, 1] - colour[1], fv[:, 2] - colour[2]) > chroma)
     if off.mean() > 0.5:  # another wall between, or panes nobody proposed (whole band)
         return False, shown
-    if ctx.depth is not None and np.isfinite(t["z"][i]) and np.isfinite(t["z"][j]):
-        iz = 1.0 / t["z"][i] + (1.0 / t["z"][j] - 1.0 / t["z"][i]) * f
+    zi, zj = (float(t["wz"][k]) if np.isfinite(t["wz"][k]) else float(t["z"][k]) for k in (i, j))
+    if ctx.depth is not None and np.isfinite(zi) and np.isfinite(zj):
+        # on the line of inverse depth between the walls beside the two panes (the panes' own where no
+        # wall shows around one), at their centres
+        fc = (cols - t["cu"][i]) / max(t["cu"][j] - t["cu"][i], 1.0)
+        iz = 1.0 / zi + (1.0 / zj - 1.0 / zi) * fc
         d = ctx.depth[ya:yb, xa:xb]
         want = np.broadcast_to(1.0 / iz[None], d.shape)[bld]
         got = d[bld]
@@ -174,7 +186,7 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
                                  and _side_colour_step(t, o, k) >= BLANK_WALL_LUM):
                 continue  # narrow panes: a step too quantised to tell alone (docs/proposals.md, tenth pass)
             _, shown = _gap_is_wall(ctx, feat, t, i, j, c[k], lum, chroma, tol)
-            cut[k] |= shown >= VISIBLE_SHARE
+            cut[k] |= shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, idx, tol)
     ends = np.nonzero(cut)[0] + 1
     return np.split(o, ends)
 
@@ -201,6 +213,26 @@ def _blank_column(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
     near_j = other & (np.abs(cu - b) <= max(q, 1.0))
     inside = other & (cu > a + q) & (cu < b - q)
     return bool(near_i.any() and near_j.any() and not inside.any())
+
+
+def _bay_in_gap(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
+    """Whether the wall between neighbouring panes ``i`` (left) and ``j`` of one floor holds a bay of the
+    building's other floors: a pane not in ``idx``, on the wall's plane (as :func:`_blank_column`), whose
+    centre column lies in the middle half of the gap. Bays repeat from floor to floor, so a wide step there
+    is a pane the proposer missed (or a tree's shadow), not the blank wall of a building's end
+    (docs/proposals.md "Twelfth pass: window groups")."""
+    cu, z = t["cu"], t["z"]
+    a, b = cu[i], cu[j]
+    q = 0.25 * (b - a)
+    if q <= 0:
+        return False
+    other = np.ones(cu.size, bool)
+    other[idx] = False
+    if np.isfinite(z[i]) and np.isfinite(z[j]):
+        f = np.clip((cu - a) / (b - a), -1.0, 2.0)
+        want = 1.0 / (1.0 / z[i] + (1.0 / z[j] - 1.0 / z[i]) * f)
+        other &= ~(np.abs(z - want) > 2.0 * tol * want)  # NaN depth: kept
+    return bool((other & (cu > a + q) & (cu < b - q)).any())
 
 
 def _side_colour_step(t: dict, o: np.ndarray, k: int) -> float:
@@ -447,7 +479,8 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
         if not wall:
             continue
-        if d > (BLANK_STEPS if shown >= VISIBLE_SHARE else HIDDEN_STEPS) * step:
+        blank = shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, both, tol)
+        if d > (BLANK_STEPS if blank else HIDDEN_STEPS) * step:
             continue
         parent[rb] = ra
         idx_of[ra] = both
