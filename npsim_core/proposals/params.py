@@ -243,6 +243,12 @@ class ProposalParams:
     window_ledge_rel: float = 0.05
     window_ledge_min_share: float = 0.2
     window_ledge_keep_m: float = 0.8
+    #: A final window at most ``window_strip_max_px`` wide and three times as tall that spans less than
+    #: ``window_min_width_m`` of its wall (from the wall's depth either side; 0: no test) is a downpipe, a
+    #: crease or a pilaster's side, not a pane -- unless something in front cuts it at a side
+    #: (windows._strip_width_m).
+    window_min_width_m: float = 0.25
+    window_strip_max_px: int = 3
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).

@@ -771,6 +771,60 @@ def _juts_out(ctx: Context, li: Light) -> bool:
     return sum(int(pm.sum()) for _, _, pm in rest) < 0.5 * li.mask.sum()
 
 
+def _strip_width_m(ctx: Context, li: Light) -> float | None:
+    """Width along its wall (m) of a thin upright window (at most ``window_strip_max_px`` wide and three
+    times as tall): its pixel width times the wall's metres per pixel column there, from the wall's depth
+    over its rows in the 5 columns either side (2 px off its box: its own depth bleeds; a plane's depth
+    is linear in the column, x = (u - cx) z / fx). None for any other window, without depth, when
+    neither side has 3 columns of mostly wall, or when something in front (neither building nor
+    sky) lies within 2 px of either side on half its rows: a pane's visible part beside a pole or a
+    sign is as narrow as what is left of it. Each side's wall gives a width, the larger is returned
+    (at a building's corner the wall beyond the strip is another plane)."""
+    p = ctx.params
+    h, w = li.mask.shape
+    if ctx.depth is None or w > p.window_strip_max_px or h < 3 * w:
+        return None
+    H, W = ctx.shape
+    rows = np.arange(li.y0, li.y0 + h)
+    has = li.mask.any(1)
+    left = li.x0 + np.argmax(li.mask, axis=1)[has]
+    right = li.x0 + w - 1 - np.argmax(li.mask[:, ::-1], axis=1)[has]
+    r = rows[has]
+    for side, step in ((left, -1), (right, 1)):
+        front = np.zeros(r.size, bool)
+        for k in (1, 2):
+            c = side + step * k
+            ok = (c >= 0) & (c < W)
+            front[ok] |= ~np.isin(ctx.labels[r[ok], c[ok]], (BUILDING, SKY))
+            front[~ok] = True  # the frame's edge cuts it too
+        if front.mean() >= 0.5:
+            return None
+    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return None
+    z = float(np.median(d))
+    K = ctx.intrinsics
+    u = li.x0 + (w - 1) / 2.0
+    widths = []
+    for side in (range(li.x0 - 7, li.x0 - 2), range(li.x0 + w + 2, li.x0 + w + 7)):
+        cols, zs = [], []
+        for c in side:
+            if not 0 <= c < W:
+                continue
+            ok = ctx.labels[rows, c] == BUILDING
+            dc = ctx.depth[rows[ok], c]
+            dc = dc[np.isfinite(dc)]
+            if dc.size >= 0.5 * h:
+                cols.append(c)
+                zs.append(float(np.median(dc)))
+        if len(cols) >= 3:
+            slope = float(np.polyfit(np.asarray(cols, float), np.asarray(zs), 1)[0])  # m of depth per column
+            widths.append(w * float(np.hypot(z / K.fx + (u - K.cx) * slope / K.fx, slope)))
+    # each side on its own: at a building's corner the wall beyond the pane is another plane
+    return max(widths) if widths else None
+
+
 def _cut_off(labels: np.ndarray, y: int, x: int, sub: np.ndarray) -> bool:
     """Whether a blob (``sub`` at (y, x)) is cut off at its top or bottom: over at least half its
     columns the pixel just above its top or just below its bottom is the image border or something
@@ -1206,10 +1260,17 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
     med = float(np.nanmedian(ref_a))
     lev = np.array([f[1] for f in wins])
     out = []
-    for f, ai in zip(wins, a):
+    for k, (f, ai) in enumerate(zip(wins, a)):
         # ... and of its floor (a gable's or a dormer row's windows are smaller than the main floors')
-        row = ref_a[(np.abs(lev - f[1]) <= f[2]) & np.isfinite(ref_a)]
-        ref = max(med, float(np.median(row))) if row.size >= 3 else med
+        on_floor = (np.abs(lev - f[1]) <= f[2]) & np.isfinite(ref_a)
+        row = ref_a[on_floor]
+        if row.size >= 3:
+            ref = max(med, float(np.median(row)))
+        else:
+            # one or two whole mates on its floor: judged against them, not itself -- a floor of
+            # larger panes (a top floor's tall ones) has mates of its size, a merged row does not
+            on_floor[k] = False
+            ref = max(med, float(np.median(ref_a[on_floor]))) if on_floor.any() else med
         if not (np.isfinite(ai) and ai > p.window_max_median_ratio * ref):
             out.append(f)
             continue
@@ -1584,6 +1645,10 @@ def propose(ctx: Context) -> list[Group]:
             _extend_ends(li, dev, free, max_h, p)
         _extend_sides(found, dev, free, p)
     found = _join_across_occluders(ctx, found, p)
+    if p.window_min_width_m > 0:
+        # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
+        found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
+                                          and wm < p.window_min_width_m)]
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
