@@ -784,7 +784,7 @@ def _strip_width_m(ctx: Context, li: Light) -> float | None:
     h, w = li.mask.shape
     if ctx.depth is None or w > p.window_strip_max_px or h < 3 * w:
         return None
-    H, W = ctx.shape
+    W = ctx.shape[1]
     rows = np.arange(li.y0, li.y0 + h)
     has = li.mask.any(1)
     left = li.x0 + np.argmax(li.mask, axis=1)[has]
@@ -1239,7 +1239,8 @@ def _wall_areas(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
 def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
     """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
     (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
-    at least): a merged
+    at least; a window with one or two whole mates on its floor is judged against those mates, not
+    itself: a floor of larger panes has mates of its size): a merged
     row, a gable or an awning, never one pane.
     Areas on the wall: :func:`_wall_areas`, the window judged one pixel smaller across and down
     (quantisation), the median over its wall's whole windows at their full pixel area."""
