@@ -426,20 +426,27 @@ def review_pending(session, book, gt, counts: dict[str, int], by_category: dict 
     before takes the rest in) when that saves actions by the module doc's count -- its pending lights that
     match a ground-truth light not yet annotated (mask IoU >= 0.5) each save a draw, less 1 for the key,
     2 for each of its other pending lights (each then removed) and 1 for each match below IoU 0.7 (a
-    touch-up). The judgement is the one an annotator makes by eye from the dashed proposal on the photo;
+    touch-up), plus 1 when the acceptance leaves a ground-truth group whole (:func:`_left_whole`: the
+    group action -- the double-click that activates a group accepted in part, or the Ctrl+G of one drawn
+    from scratch -- it saves; before issue #26's twelfth pass the gain left it out, so the one true pending
+    window of a floor accepted in part was skipped at a gain of 0 and then cost a double-click and a draw).
+    The judgement is the one an annotator makes by eye from the dashed proposal on the photo;
     here it is read from the ground truth. Counted as "review" (1 per Shift+A); what the acceptance costs
     afterwards (removals, touch-ups, grouping) is counted by :func:`finish_by_hand` on what it left."""
     from npsim_core.annotation import class_of
 
     by_category = {} if by_category is None else by_category
     covered = set(match_lights(gt, session.ann))
-    good = {pid: iou for g, (pid, iou) in match_lights(gt, book.proposals.annotation).items() if g not in covered}
+    prop_match = match_lights(gt, book.proposals.annotation)
+    good = {pid: iou for g, (pid, iou) in prop_match.items() if g not in covered}
     units: dict[object, list[int]] = {}
     for p in book.pending(session.existing_ids()):
         units.setdefault(book.group_of.get(p, ("light", p)), []).append(p)
-    for _unit, ps in sorted(units.items(), key=lambda kv: kv[1][0]):
+    for unit, ps in sorted(units.items(), key=lambda kv: kv[1][0]):
         hits = [p for p in ps if p in good]
         gain = len(hits) - 1 - 2 * (len(ps) - len(hits)) - sum(good[p] < TOUCH_UP_IOU for p in hits)
+        if gain == 0 and not isinstance(unit, tuple) and _left_whole(book, gt, prop_match, unit):
+            gain += 1
         if gain <= 0:
             continue
         lights, groups = book.expand(ps[0])  # what Shift+A over it accepts
@@ -447,6 +454,21 @@ def review_pending(session, book, gt, counts: dict[str, int], by_category: dict 
             counts["review"] += 1
             key = ("review", CATEGORY_OF_CLASS.get(class_of(ps[0]), "other"))
             by_category[key] = by_category.get(key, 0) + 1
+
+
+def _left_whole(book, gt, prop_match: dict[int, tuple[int, float]], gid: int) -> bool:
+    """Whether accepting the whole proposal group ``gid`` (Shift+A over it: its accepted and pending
+    lights become one group) gives a ground-truth group exactly: every light of the group matched (IoU
+    >= 0.5, ``prop_match``: ground-truth light -> proposal light) by a light of ``gid``, no other light
+    in ``gid``, the group classes equal."""
+    from npsim_core.annotation import class_of
+
+    lights = {int(m) for m in book.proposals.ids_in_group(gid)} - book.rejected
+    for grp in gt.groups.values():
+        have = {prop_match[m][0] for m in grp.members if m in prop_match}
+        if len(have) == len(grp.members) and have == lights:
+            return grp.class_id == class_of(gid)
+    return False
 
 
 #: The threshold value that stands for the oracle: accept exactly the proposals that match the ground truth.

@@ -215,6 +215,39 @@ def test_action_benchmark_reviews_pending_groups_worth_a_shift_a(qtbot):
     s.shutdown()
 
 
+def test_action_benchmark_reviews_the_one_pending_light_that_completes_a_group(qtbot):
+    """``review_pending`` counts the group action a Shift+A saves: "accept above" took two of a floor's
+    three true windows as a group, the third (true, 0.6) is pending. Shift+A over it (1) leaves the floor
+    whole; without it the floor costs a double-click on its group and a draw (2). Before issue #26's
+    twelfth pass the review's gain (1 draw saved, less 1 for the key) was 0 and it was skipped."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    gt_map = np.zeros((40, 80), np.int32)
+    for k in range(3):
+        gt_map[10:16, 10 + 12 * k:16 + 12 * k] = 1001 + k
+    gt_map[26:32, 10:16] = 1004                                      # a window of no group, not proposed
+    gt = LightAnnotation(gt_map, {13001: GroupInstance(13001, (1001, 1002, 1003))})
+    props = LightProposals(LightAnnotation(np.where(gt_map <= 1003, gt_map, 0),
+                                           {13001: GroupInstance(13001, (1001, 1002, 1003))}),
+                           {1001: 0.95, 1002: 0.95, 1003: 0.6, 13001: 0.95})
+    s = EditorSession()
+    s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+    book = ProposalBook(props)
+    assert len(book.accept_above(s, 0.9)) == 2
+    counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up", "ungroup"), 0)
+    review_pending(s, book, gt, counts)
+    assert counts["review"] == 1
+    assert [len(g.members) for g in s.ann.groups.values()] == [3]
+    finish_by_hand(s, gt, counts)                                    # only the lone window is left to draw
+    check_equal(gt, s.ann)
+    assert (counts["draw"], counts["group"]) == (1, 0)
+    s.shutdown()
+
+
 def test_shift_a_over_the_pending_rest_of_a_group_accepted_in_part_completes_it(editor, qtbot):
     """What the action benchmark's review replays: after "Accept ≥ 0.9" took two of a proposed floor's
     three windows, Shift+A over the third (pending, 0.6) adds it to the group the first two became, in
