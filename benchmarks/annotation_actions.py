@@ -5,9 +5,10 @@
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
                                                       [--no-tool-switches] [--class-order]
+                                                      [--no-hover-delete]
                                                       [--compare [active-group|stroke-select|stroke-group|
                                                                   review|ninth-pass|tool-switches|
-                                                                  class-order|tool-keys]]
+                                                                  class-order|tool-keys|hover-delete]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -45,7 +46,9 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   group that holds k of its n lights completed with 2 + (n - k) (+ 3 when its class is wrong). It
   charged every drawn light of a group twice (draw and Shift+click) although the editor leaves
   drawn lights selected for Ctrl+G, and never used the rubber band;
-* remove a wrong light: 2 (right-click, Delete); fix a light's class: 3 (right-click, class key, C);
+* remove a wrong light: 1 (X with the mouse over it, the editor's "delete the light under the mouse",
+  since issue #26's twelfth pass; ``--no-hover-delete``: the model before, 2 -- right-click, Delete); fix
+  a light's class: 3 (right-click, class key, C);
   touch up a light whose mask IoU with its ground truth is below 0.7: 1 (a right-drag from it grows it,
   Shift+right-drag shrinks it, whatever *one light per region* says: since issue #26's ninth pass; before,
   the count charged one left stroke, which with *one light per region* on makes new lights);
@@ -214,7 +217,7 @@ def _completable(session, gt, match: dict[int, tuple[int, float]]) -> dict[int, 
 def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[str, str], int] | None = None,
                    per_member_grouping: bool = False, active_group: bool = True, stroke_select: bool = True,
                    stroke_group: bool = True, tool_switches: bool = True,
-                   key_log: list | None = None, class_order: bool = False) -> None:
+                   key_log: list | None = None, class_order: bool = False, hover_delete: bool = True) -> None:
     """Edit ``session``'s annotation into the ground truth with the editor's commands, counting the
     actions of the module doc into ``counts`` and, when given, per (kind, category of the light or
     group class: :data:`CATEGORY_OF_CLASS`) into ``by_category``; ``per_member_grouping``: the older
@@ -226,7 +229,8 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     switch to the Select tool and back to drawing (False: the model before, a band with any tool);
     ``key_log``: when given, every class key counted is appended as (class before, class after, where:
     "active group", "group start", "in group" or "no group"); ``class_order``: a group's lights drawn in
-    class order (the model before), not starting with the class in hand."""
+    class order (the model before), not starting with the class in hand; ``hover_delete``: a wrong light
+    is removed with X over it (False: right-click, Delete, the model before)."""
     from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
@@ -247,7 +251,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     matched_p = {b for b, _ in match.values()}
     for pid in [i for i in session.ann.instance_ids() if i not in matched_p]:
         do(delete_instance(session.ann, pid))
-        count("remove", 2, class_of(pid))
+        count("remove", 1 if hover_delete else 2, class_of(pid))
     for g, (p, iou) in list(match.items()):
         if class_of(p) != class_of(g):
             cmd, nid = change_class(session.ann, p, class_of(g))
@@ -419,13 +423,14 @@ def accept_actions(threshold: float) -> int:
     return 2 + int(abs(threshold - DEFAULT_ACCEPT_THRESHOLD) > 1e-9)
 
 
-def review_pending(session, book, gt, counts: dict[str, int], by_category: dict | None = None) -> None:
+def review_pending(session, book, gt, counts: dict[str, int], by_category: dict | None = None,
+                   remove_cost: int = 1) -> None:
     """The annotator's review of the proposals still pending after "accept above the slider": a pending
     proposal group (or ungrouped proposal) is accepted with Shift+A over one of its lights (the editor's
     key: the proposal under the mouse *with its whole group*, one undo step; a group accepted in part
     before takes the rest in) when that saves actions by the module doc's count -- its pending lights that
     match a ground-truth light not yet annotated (mask IoU >= 0.5) each save a draw, less 1 for the key,
-    2 for each of its other pending lights (each then removed) and 1 for each match below IoU 0.7 (a
+    ``remove_cost`` for each of its other pending lights (each then removed: :func:`finish_by_hand`) and 1 for each match below IoU 0.7 (a
     touch-up), plus 1 when the acceptance leaves a ground-truth group whole (:func:`_left_whole`: the
     group action -- the double-click that activates a group accepted in part, or the Ctrl+G of one drawn
     from scratch -- it saves; before issue #26's twelfth pass the gain left it out, so the one true pending
@@ -444,7 +449,7 @@ def review_pending(session, book, gt, counts: dict[str, int], by_category: dict 
         units.setdefault(book.group_of.get(p, ("light", p)), []).append(p)
     for unit, ps in sorted(units.items(), key=lambda kv: kv[1][0]):
         hits = [p for p in ps if p in good]
-        gain = len(hits) - 1 - 2 * (len(ps) - len(hits)) - sum(good[p] < TOUCH_UP_IOU for p in hits)
+        gain = len(hits) - 1 - remove_cost * (len(ps) - len(hits)) - sum(good[p] < TOUCH_UP_IOU for p in hits)
         if gain == 0 and not isinstance(unit, tuple) and _left_whole(book, gt, prop_match, unit):
             gain += 1
         if gain <= 0:
@@ -523,7 +528,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="leave the proposals below the slider pending (no Shift+A review; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
                     choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
-                             "tool-switches", "class-order", "tool-keys"),
+                             "tool-switches", "class-order", "tool-keys", "hover-delete"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
@@ -533,6 +538,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--class-order", action="store_true",
                     help="draw a group's lights in class order, not starting with the class in hand (the model "
                          "before; module doc)")
+    ap.add_argument("--no-hover-delete", action="store_true",
+                    help="remove a wrong light with a right-click and Delete, not X over it (the model before; "
+                         "module doc)")
     ap.add_argument("--no-active-group", action="store_true",
                     help="complete a proposed group missing lights by selecting it and Ctrl+G, not by "
                          "double-clicking it active (the model before; module doc)")
@@ -555,17 +563,15 @@ def main(argv: list[str] | None = None) -> int:
              "ungroup")
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
-    # (active group, stroke select, stroke group, review, tool switches)
-    now = (not args.no_active_group, not args.no_stroke_select, not (args.no_stroke_select or args.no_stroke_group),
-           not args.no_review, not args.no_tool_switches, not args.class_order)
-    models = ([now, (False,) + now[1:]] if args.compare == "active-group" else
-              [now, now[:1] + (False, False) + now[3:]] if args.compare == "stroke-select" else
-              [now, now[:2] + (False,) + now[3:]] if args.compare == "stroke-group" else
-              [now, now[:3] + (False,) + now[4:]] if args.compare == "review" else
-              [now, now[:1] + (False, False, False) + now[4:]] if args.compare == "ninth-pass" else
-              [now, now[:4] + (False,) + now[5:]] if args.compare == "tool-switches" else
-              [now, now[:5] + (False,)] if args.compare == "class-order" else
-              [now, now[:4] + (False, False)] if args.compare == "tool-keys" else [now])
+    # (active group, stroke select, stroke group, review, tool switches, class in hand, hover delete)
+    names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete")
+    now = dict(zip(names, (not args.no_active_group, not args.no_stroke_select,
+                           not (args.no_stroke_select or args.no_stroke_group), not args.no_review,
+                           not args.no_tool_switches, not args.class_order, not args.no_hover_delete)))
+    off = {"active-group": ("active",), "stroke-select": ("stroke", "stroke_group"), "stroke-group": ("stroke_group",),
+           "review": ("review",), "ninth-pass": ("stroke", "stroke_group", "review"), "tool-switches": ("switches",),
+           "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",)}
+    models = [now] + ([{**now, **dict.fromkeys(off[args.compare], False)}] if args.compare else [])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             scene = street_scene(w, h, seed, variant)
@@ -574,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
             props = propose_for_scene(scene)
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
-                for model_k, (active, stroke, stroke_group, review, switches, in_hand) in enumerate(models):
+                for model_k, m in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
                     counts = dict.fromkeys(kinds, 0)
@@ -583,11 +589,12 @@ def main(argv: list[str] | None = None) -> int:
                         book = ProposalBook(oracle(gt, props) if t == ORACLE else props)
                         book.accept_above(s, 0.5 if t == ORACLE else t)
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
-                        if review and t != ORACLE:  # (the oracle accepted every good proposal already)
-                            review_pending(s, book, gt, counts, by_cat)
+                        if m["review"] and t != ORACLE:  # (the oracle accepted every good proposal already)
+                            review_pending(s, book, gt, counts, by_cat, remove_cost=1 if m["hover_delete"] else 2)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
-                                   active_group=active, stroke_select=stroke, stroke_group=stroke_group,
-                                   tool_switches=switches, class_order=not in_hand)
+                                   active_group=m["active"], stroke_select=m["stroke"],
+                                   stroke_group=m["stroke_group"], tool_switches=m["switches"],
+                                   class_order=not m["in_hand"], hover_delete=m["hover_delete"])
                     check_equal(gt, s.ann)
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
@@ -603,6 +610,7 @@ def main(argv: list[str] | None = None) -> int:
         model += ", no review" if args.no_review else ", pending groups reviewed (Shift+A)"
         model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
         model += ", groups drawn in class order" if args.class_order else ", groups start with the class in hand"
+        model += ", removals by right-click + Delete" if args.no_hover_delete else ", removals by X over the light"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -626,7 +634,8 @@ def main(argv: list[str] | None = None) -> int:
                 "ninth-pass": "--no-stroke-select --no-review (the model before issue #26's ninth pass)",
                 "tool-switches": "--no-tool-switches (a rubber band with any tool, no tool keys)",
                 "class-order": "--class-order (a group's lights drawn in class order)",
-                "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)"
+                "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)",
+                "hover-delete": "--no-hover-delete (a wrong light removed by right-click + Delete)"
                 }[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)

@@ -274,3 +274,63 @@ def test_shift_a_over_the_pending_rest_of_a_group_accepted_in_part_completes_it(
     assert len(s.ann.instance_ids()) == 3 and [len(g.members) for g in s.ann.groups.values()] == [3]
     s.undo()
     assert len(s.ann.instance_ids()) == 2 and [len(g.members) for g in s.ann.groups.values()] == [2]
+
+
+def test_x_deletes_the_light_under_the_mouse_with_nothing_selected(editor, qtbot):
+    """Reviewing what "Accept ≥" took: X over a false light deletes it (its group loses it) in one key and
+    one undo step, whatever is selected; over no light it deletes nothing. The action benchmark charges a
+    removal 1 for it (before issue #26's twelfth pass: a right-click and Delete, 2)."""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+
+    p_map = np.zeros((H, W), np.int32)
+    for k in range(3):
+        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
+    editor.set_proposals(LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003))}),
+                                        {1001: 0.95, 1002: 0.95, 1003: 0.95, 13001: 0.95}))
+    s, c = editor.session, editor.canvas
+    assert len(editor.accept_proposals_above()) == 3
+    first = min(s.ann.instance_ids())
+    s.set_selection({first})                                        # a selection elsewhere stays
+
+    def hover(x, y):
+        QTest.mouseMove(c.viewport(), QPoint(c.view_point(x + 0.5, y + 0.5)))
+        qtbot.waitUntil(lambda: editor._hover_xy == (x, y), timeout=2000)
+
+    hover(100, 100)                                                  # over no light: nothing
+    c.setFocus()
+    qtbot.keyClick(c, Qt.Key.Key_X)
+    assert len(s.ann.instance_ids()) == 3
+    hover(47, 23)
+    qtbot.keyClick(c, Qt.Key.Key_X)
+    assert len(s.ann.instance_ids()) == 2 and s.instance_at(47, 23) == 0
+    assert [len(g.members) for g in s.ann.groups.values()] == [2] and s.selection == {first}
+    s.undo()
+    assert len(s.ann.instance_ids()) == 3 and [len(g.members) for g in s.ann.groups.values()] == [3]
+
+
+def test_action_benchmark_charges_a_removal_one_key_with_hover_delete():
+    """``finish_by_hand`` removes a false light with X over it (1 action; ``hover_delete=False``: the model
+    before, right-click + Delete, 2)."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand
+    from npsim_core.annotation import LightAnnotation
+    from npsim_gui.editor.session import EditorSession
+
+    gt_map = np.zeros((40, 80), np.int32)
+    gt_map[10:16, 10:16] = 1001
+    gt = LightAnnotation(gt_map, {})
+    for hover, cost in ((True, 1), (False, 2)):
+        s = EditorSession()
+        s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+        m = gt_map.copy()
+        m[20:26, 40:46] = 1002                                       # a false light
+        s.ann.instance_map[:] = m
+        s.ann.extra_ids = frozenset()
+        counts = dict.fromkeys(("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup"), 0)
+        finish_by_hand(s, gt, counts, hover_delete=hover)
+        check_equal(gt, s.ann)
+        assert (counts["remove"], counts["draw"]) == (cost, 0)
+        s.shutdown()

@@ -105,6 +105,8 @@ KEYMAP: tuple[Shortcut, ...] = (
     _s("ungroup", "Ctrl+Shift+G", "Ungroup the selected groups / the groups of the selected lights", EDIT),
     _s("activate", "A", "Make the selected group active: new lights join it; A again or Esc ends", EDIT),
     _s("delete", ("Delete", "Backspace"), "Delete the selected lights or groups", EDIT),
+    _s("delete_hovered", "X", "Delete the light under the mouse, nothing selected first (a false light "
+       "'Accept ≥' took: one key each)", EDIT),
     _s("escape", "Esc", "Clear the selection, the current light and the active group", EDIT),
     _s("undo", "Ctrl+Z", "Undo", EDIT),
     _s("redo", ("Ctrl+Shift+Z", "Ctrl+Y"), "Redo", EDIT),
