@@ -133,11 +133,14 @@ class ProposalParams:
     #: raised by 1.5 (lamps 2.0: the editor benchmark on seeds 0-2). Panes: refitted in the twelfth pass for
     #: "IoU >= 0.5" (what keeps a car's group whole in the editor), bias as fitted: a pane's pixels count
     #: 4x more than before, its being the end pane next to nothing (docs/proposals.md, "Twelfth pass:
-    #: whole cars at the slider").
+    #: whole cars at the slider"). Panes refitted again with a sixth feature, the band parted at a pillar
+    #: (paint-coloured columns between runs of glass: the pane's place seen, not laid out from the end
+    #: face's edge), after the far panes' bottom row was fixed (docs/proposals.md, "Twelfth pass: far
+    #: cars' panes").
     vehicle_lamp_conf_bias: float = -6.2
     vehicle_lamp_conf_weights: tuple[float, float, float, float] = (2.08, 1.05, -0.69, 2.8)
-    vehicle_pane_conf_bias: float = -3.1
-    vehicle_pane_conf_weights: tuple[float, float, float, float, float] = (1.26, 0.04, 0.59, 0.83, -1.25)
+    vehicle_pane_conf_bias: float = -2.71
+    vehicle_pane_conf_weights: tuple[float, float, float, float, float, float] = (0.93, 0.23, 0.49, 0.72, -2.38, 1.34)
 
     # --- building windows
     #: A pixel is window-like when its luminance is below this fraction of the local wall luminance.

@@ -55,6 +55,8 @@ RED_LAMP_H_M = (0.5, 1.1)
 # A run of glass columns between pillars narrower than this is the blur of a pillar's or the
 # silhouette's edge, not a pane (2048x1024 hard seeds 0-2: most 1-column runs matched no pane).
 PANE_MIN_COLS = 2
+#: A car's glass ends this far (m) below the cabin's top and above the body's top (its frame).
+PANE_INSET_M = 0.07
 #: A run of glass between pillars narrower than this share of its band's widest run is a reflection's
 #: edge or a pillar's blurred edge far more often than a pane (2048x1024 seeds 0-2: all 6 such runs
 #: matched no pane): it keeps its rule confidence, not raised by the rescoring, so the slider's default
@@ -111,10 +113,11 @@ def _cut_by_border(m: np.ndarray, x0: int, width: int) -> bool:
 
 
 def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.ndarray,
-                diff: float, ppm: float | None = None) -> list[tuple[float, np.ndarray, bool]]:
+                diff: float, ppm: float | None = None) -> tuple[list[tuple[float, np.ndarray, bool]], bool]:
     """The cabin band split into panes: ``(is_end, mask, sliver)`` per pane, ``is_end`` 1.0 for the end
     pane, ``sliver`` True for a run of glass narrower than ``PANE_SLIVER_SHARE`` of the band's widest run
-    (a reflection's or a pillar's edge as a rule, rarely a pane).
+    (a reflection's or a pillar's edge as a rule, rarely a pane); and whether the band parted at a pillar
+    (False: split at the end face's edge).
 
     A column of the band most of whose pixels lie within ``diff`` levels of the paint (every channel)
     is a pillar, painted as the body: the band's runs of other columns are the panes, and each is the
@@ -131,7 +134,7 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
 
     old = [(1.0, band & end, False), (0.0, band & ~end, False)]
     if diff <= 0 or not band.any():
-        return old
+        return old, False
     if ppm is not None and ppm * PILLAR_CORE_M >= PILLAR_CORE_PX:
         diff = diff / 2.0
     near = (np.abs(img - paint).max(-1) <= diff) & band
@@ -142,14 +145,14 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     lab, k = ndimage.label(glass)
     runs = [i for i in range(1, k + 1) if (lab == i).sum() >= PANE_MIN_COLS]
     if len(runs) < 2:  # no pillar between two runs of glass
-        return old
+        return old, False
     widths = {i: int((lab == i).sum()) for i in runs}
     widest = max(widths.values())
     out = []
     for i in runs:
         part = band & (lab == i)[None, :]
         out.append((float((part & end).sum() * 2 > part.sum()), part, widths[i] < PANE_SLIVER_SHARE * widest))
-    return out
+    return out, True
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -395,14 +398,39 @@ def _body_rows(ctx: Context, y0: int, m: np.ndarray, c0: int, c1: int, z: float 
         lo_h, hi_h = p.vehicle_body_top_m
         # The cabin's inset is a pixel or less on a narrow face: there the typical height decides.
         if not lo_h <= top_h <= hi_h or c1 - c0 + 1 < p.vehicle_small_face_px:
-            row = ctx.intrinsics.cy + ((p.camera_height_m - p.vehicle_body_top_typical_m) / np.cos(p.camera_pitch_rad)
-                                       - z * np.tan(p.camera_pitch_rad)) * float(ctx.intrinsics.fy) / z
-            r0 = int(np.clip(round(row) - y0, 0, h - 1))
+            r0 = int(np.clip(round(_typical_top_row(ctx, z)) - y0, 0, h - 1))
             r1 = max(r1, r0 + 1)
         if x0 is not None and ctx.depth is not None and p.vehicle_lid_max_m > 0 and \
                 c1 - c0 + 1 >= p.vehicle_small_face_px:  # (the typical height may fall on the lid too)
             r0 = _below_lid(ctx, y0, x0, m, c0, c1, r0, r1, z)
     return r0, r1
+
+
+def _typical_top_row(ctx: Context, z: float) -> float:
+    """The image row (continuous: a pixel's centre at its index) where a body top at the typical height
+    ``vehicle_body_top_typical_m`` projects at depth ``z`` (m), the camera ``camera_height_m`` high and
+    pitched down ``camera_pitch_rad``."""
+    p = ctx.params
+    return float(ctx.intrinsics.cy + ((p.camera_height_m - p.vehicle_body_top_typical_m) / np.cos(p.camera_pitch_rad)
+                                      - z * np.tan(p.camera_pitch_rad)) * float(ctx.intrinsics.fy) / z)
+
+
+def _glass_end(ctx: Context, y0: int, pr0: int, z: float) -> int:
+    """The first row (local, box origin ``y0``) below a vehicle's cabin glass, which ends ``PANE_INSET_M``
+    above the body top at row ``pr0`` (the face's first row, at depth ``z``).
+
+    A body top found on the silhouette (its first full-width row) has its edge between ``pr0 - 1`` and
+    ``pr0``: the glass ends ``PANE_INSET_M`` rows above that edge. A body top put at the typical height
+    (a narrow face: far cars) is a projected line, not a pixel edge: ``pr0`` is that line's row rounded,
+    the line runs through the row's pixels, and the glass holds the rows whose centres lie above it less
+    the inset (docs/proposals.md, "Twelfth pass: far cars' panes"). Taking the rounded row for an edge
+    put the band's bottom half a row to a row and a half too high on every far car (2048x1024 hard seeds
+    0-2, cars beyond 80 m: 49 of 72 matched panes ended 1-3 rows above their true bottom, 16 on it)."""
+    inset = PANE_INSET_M * float(ctx.intrinsics.fy) / z
+    row = _typical_top_row(ctx, z) - y0
+    if round(row) == pr0:
+        return max(0, int(np.ceil(row - inset)))
+    return max(0, pr0 - int(round(inset)))
 
 
 def _cut_top(ctx: Context, y0: int, x0: int, m: np.ndarray, rows_cols: tuple[int, int], c0: int, c1: int,
@@ -1000,11 +1028,11 @@ def propose(ctx: Context) -> list[Group]:
         cab = m.copy()
         cab[pr0:, :] = False
         if z is not None:
-            trim = max(0, int(round(0.07 * fy / z)))
+            trim = max(0, int(round(PANE_INSET_M * fy / z)))
             cab_rows = np.flatnonzero(cab.any(1))
             if cab_rows.size:
                 cab[:cab_rows.min() + trim, :] = False
-                cab[max(0, pr0 - trim):pr0, :] = False
+                cab[_glass_end(ctx, y0, pr0, z):pr0, :] = False
         # The whole band: on the synthetic streets (512x256, seeds 0-2) band panes matched a true pane at
         # IoU >= 0.5 0.78 of the time, against 0.62 for its darker pixels alone (reflections and frames
         # split them), which the older rule preferred whenever 30 % of the band was darker than the paint.
@@ -1012,8 +1040,8 @@ def propose(ctx: Context) -> list[Group]:
         end = np.zeros_like(m)
         end[:, cc0:cc1 + 1] = True
         cut_by_border = _cut_by_border(m, x0, ctx.image.shape[1])
-        parts = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff,
-                            fy / z if z is not None else None)
+        parts, parted = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff,
+                                    fy / z if z is not None else None)
         for is_end, part, sliver in parts:
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf
@@ -1021,7 +1049,7 @@ def propose(ctx: Context) -> list[Group]:
                     pane_conf, p.vehicle_pane_conf_bias, p.vehicle_pane_conf_weights,
                     (min(_ring_contrast(img, m, part) / SLIVER_DIFF, 3.0), is_end,
                      float(np.log(int(part.sum()))), float(len(lamps)),
-                     float(not is_end and cut_by_border)))))
+                     float(not is_end and cut_by_border), float(parted)))))
         if members:
             out.append(Group(VEHICLE_GROUP[cls], members, conf if lamps else pane_conf))
     return out
