@@ -254,6 +254,11 @@ class ProposalParams:
     window_strip_max_px: int = 3
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
+    #: A blob kept as a window of which at least ``window_trim_wall_share`` has the colour of the wall
+    #: around it (windows._wall_coloured) is glass and a piece of that wall: its parts of other colours
+    #: filling ``window_trim_min_fill`` of their box are judged instead (1: no test).
+    window_trim_wall_share: float = 0.2
+    window_trim_min_fill: float = 0.8
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).
     window_shop_max_sill_m: float = 1.0
     window_shop_min_h_m: float = 1.6

@@ -679,6 +679,62 @@ def _ring_contrast(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndar
             float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) / p.window_chroma_delta)
 
 
+def _hull_fill(m: np.ndarray) -> float:
+    """The share of a blob's box (``m``, local bool) that its convex hull fills (a pane's rectangle: 1;
+    its interior may match a reference the glass pulled, the hull fills it as :func:`propose` does)."""
+    if min(m.shape) < 2:
+        return 1.0
+    hull = cv2.convexHull(cv2.findNonZero(m.astype(np.uint8)))
+    filled = np.zeros(m.shape, np.uint8)
+    cv2.fillConvexPoly(filled, hull, 1)
+    return float(filled.mean())
+
+
+def _on_ground_floor(ctx: Context, y: int, x: int, m: np.ndarray) -> bool:
+    """Whether a blob (``m`` at (y, x)) reaches into the ground floor: its bottom row at most
+    ``window_shop_max_top_m`` above the ground at its median depth (False without depth)."""
+    if ctx.depth is None:
+        return False
+    d = ctx.depth[y:y + m.shape[0], x:x + m.shape[1]][m]
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return False
+    return float(ctx.height_above_ground(y + m.shape[0] - 0.5, float(np.median(d)))) <= ctx.params.window_shop_max_top_m
+
+
+def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarray, p,
+                   r: int = 3, like: float = 0.1) -> np.ndarray:
+    """Pixels of a blob (``m``, local bool, at (y, x)) that have the colour of the wall around it: within
+    the window thresholds (log luminance and Lab chroma, :func:`_differs`) of at least ``like`` of the
+    building pixels (``B``) in a ring from 2 to ``r`` px around the blob (the pixel right beside it is
+    its blurred edge). The smooth wall reference (:func:`wall_reference`) averages a wall's colours and
+    its glass; a blob departing from it can hold, besides the glass, a strip of the very wall beside it
+    (an awning or a fascia above a shop front, a pier, a pane's wall-coloured reveal). Local bool mask
+    of ``m``'s shape; none where the ring holds fewer than 8 building pixels."""
+    H, W = B.shape
+    h, w = m.shape
+    ya, yb, xa, xb = max(0, y - r), min(H, y + h + r), max(0, x - r), min(W, x + w + r)
+    from scipy import ndimage
+
+    blob = np.zeros((yb - ya, xb - xa), np.uint8)
+    # around its outline: glass inside it that matches the reference (its holes) is no wall around it
+    blob[y - ya:y - ya + h, x - xa:x - xa + w] = ndimage.binary_fill_holes(m)
+    ring = (cv2.dilate(blob, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) \
+        & ~(cv2.dilate(blob, np.ones((3, 3), np.uint8)) > 0) & B[ya:yb, xa:xb]
+    out = np.zeros(m.shape, bool)
+    if ring.sum() < 8:
+        return out
+    rs = feat[ya:yb, xa:xb][ring]
+    if len(rs) > 256:  # a sample of the ring is enough to say which colours it has
+        rs = rs[np.linspace(0, len(rs) - 1, 256).astype(np.int64)]
+    bf = feat[y:y + h, x:x + w][m]
+    t = -np.log(p.window_dark_ratio)
+    same = (np.abs(bf[:, None, 0] - rs[None, :, 0]) <= t) & \
+        (np.hypot(bf[:, None, 1] - rs[None, :, 1], bf[:, None, 2] - rs[None, :, 2]) <= p.window_chroma_delta)
+    out[m] = same.mean(1) >= like
+    return out
+
+
 def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tuple[int, int, np.ndarray]]:
     """The panes inside a blob (``m`` at (y, x)) that is mostly wall: a wall piece whose colour the
     smooth wall reference missed (a narrow building of its own colour, a shaded face) is one blob
@@ -1588,6 +1644,24 @@ def propose(ctx: Context) -> list[Group]:
                     found.pop()
                     stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in pieces)
                     continue
+        if why is None and p.window_trim_wall_share < 1 and depth_ <= p.window_split_steps \
+                and min(m.shape) >= 8 and _on_ground_floor(ctx, y0, x0, m):
+            # shop glazing and a strip of the wall beside it (an awning or a fascia over it, a pier): the
+            # parts of other colours than the wall around it, each a pane's rectangle, judged instead
+            wall = _wall_coloured(feat, B, y0, x0, m, p)
+            if wall.sum() >= p.window_trim_wall_share * m.sum():
+                parts = [(py, px, pm) for py, px, pm, _ in components(m & ~wall, p.window_min_area_px, connectivity=4)
+                         if _hull_fill(pm) >= p.window_trim_min_fill]
+                if parts:
+                    whole = found.pop()
+                    n = len(found)
+                    for py, px, pm in parts:
+                        accept(y0 + py, x0 + px, pm)
+                    # the glass is most of what is not wall: a fleck of another colour is not
+                    if sum(int(f[3].mask.sum()) for f in found[n:]) >= int((m & ~wall).sum()) / 3.0:
+                        continue
+                    del found[n:]
+                    found.append(whole)
         if why in ("fill", "size"):
             rejects.append((y0, x0, m))
         if why == "size" and depth_ == 0 and p.window_blob_wall_share > 0:
