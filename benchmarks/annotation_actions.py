@@ -5,10 +5,11 @@
                                                       [--oracle] [--per-member-grouping] [--no-active-group]
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
                                                       [--no-tool-switches] [--class-order]
-                                                      [--no-hover-delete]
+                                                      [--no-hover-delete] [--no-vehicle-groups]
                                                       [--compare [active-group|stroke-select|stroke-group|
                                                                   review|ninth-pass|tool-switches|
-                                                                  class-order|tool-keys|hover-delete]]
+                                                                  class-order|tool-keys|hover-delete|
+                                                                  vehicle-groups]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -46,6 +47,11 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   group that holds k of its n lights completed with 2 + (n - k) (+ 3 when its class is wrong). It
   charged every drawn light of a group twice (draw and Shift+click) although the editor leaves
   drawn lights selected for Ctrl+G, and never used the rubber band;
+* **vehicle groups** (since issue #26's twelfth pass; ``--no-vehicle-groups``: the model before): the editor
+  knows the frame's Cityscapes instanceIds (``EditorSession.set_vehicle_instances``) and a vehicle light
+  drawn on a car joins that car's group, or makes it (``annotation_ops.vehicle_grouping``): a car drawn or
+  completed costs its draws and no grouping gesture where that gives its true group; a car group a proposal
+  holds in part is completed by drawing its missing lights, without the double-click;
 * remove a wrong light: 1 (X with the mouse over it, the editor's "delete the light under the mouse",
   since issue #26's twelfth pass; ``--no-hover-delete``: the model before, 2 -- right-click, Delete); fix
   a light's class: 3 (right-click, class key, C);
@@ -231,7 +237,7 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     "active group", "group start", "in group" or "no group"); ``class_order``: a group's lights drawn in
     class order (the model before), not starting with the class in hand; ``hover_delete``: a wrong light
     is removed with X over it (False: right-click, Delete, the model before)."""
-    from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, class_of
+    from npsim_core.annotation import DEFAULT_GROUP_FOR_LIGHT, VEHICLE_GROUP_OF_LABEL, class_of
     from npsim_core.annotation_ops import change_class, delete_instance, group_lights, new_instance, paint, ungroup
 
     if by_category is None:
@@ -280,6 +286,10 @@ def finish_by_hand(session, gt, counts: dict[str, int], by_category: dict[tuple[
     # Groups a proposal holds in part first: double-click one of its lights (it becomes the active
     # group), draw the missing lights (they join it); then the rest, after one Esc when anything follows.
     completed = _completable(session, gt, match) if active_group and not per_member_grouping else {}
+    if session.group_by_vehicle and session.vehicle_instances is not None:
+        # a car's missing lights join its group as they are drawn (EditorSession.lights_created): no double-click
+        vehicle_groups = set(VEHICLE_GROUP_OF_LABEL.values())
+        completed = {gk: gid for gk, gid in completed.items() if class_of(gid) not in vehicle_groups}
     active_drawn: set[int] = set()
     for gk, gid in sorted(completed.items(), key=lambda kv: (len({class_of(m) for m in gt.groups[kv[0]].members
                                                                    if m not in match}), kv[0])):
@@ -528,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="leave the proposals below the slider pending (no Shift+A review; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
                     choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
-                             "tool-switches", "class-order", "tool-keys", "hover-delete"),
+                             "tool-switches", "class-order", "tool-keys", "hover-delete", "vehicle-groups"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
@@ -538,6 +548,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--class-order", action="store_true",
                     help="draw a group's lights in class order, not starting with the class in hand (the model "
                          "before; module doc)")
+    ap.add_argument("--no-vehicle-groups", action="store_true",
+                    help="the editor without the frame's instance ids: every car's lights grouped by hand (the "
+                         "model before; module doc)")
     ap.add_argument("--no-hover-delete", action="store_true",
                     help="remove a wrong light with a right-click and Delete, not X over it (the model before; "
                          "module doc)")
@@ -564,13 +577,14 @@ def main(argv: list[str] | None = None) -> int:
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
     # (active group, stroke select, stroke group, review, tool switches, class in hand, hover delete)
-    names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete")
+    names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete", "vehicle_groups")
     now = dict(zip(names, (not args.no_active_group, not args.no_stroke_select,
                            not (args.no_stroke_select or args.no_stroke_group), not args.no_review,
-                           not args.no_tool_switches, not args.class_order, not args.no_hover_delete)))
+                           not args.no_tool_switches, not args.class_order, not args.no_hover_delete,
+                           not args.no_vehicle_groups)))
     off = {"active-group": ("active",), "stroke-select": ("stroke", "stroke_group"), "stroke-group": ("stroke_group",),
            "review": ("review",), "ninth-pass": ("stroke", "stroke_group", "review"), "tool-switches": ("switches",),
-           "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",)}
+           "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",), "vehicle-groups": ("vehicle_groups",)}
     models = [now] + ([{**now, **dict.fromkeys(off[args.compare], False)}] if args.compare else [])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
@@ -583,6 +597,8 @@ def main(argv: list[str] | None = None) -> int:
                 for model_k, m in enumerate(models):
                     s = EditorSession()
                     s.load(scene.image, scene.labels, None)
+                    if m["vehicle_groups"]:
+                        s.set_vehicle_instances(scene.instances)
                     counts = dict.fromkeys(kinds, 0)
                     by_cat: dict[tuple[str, str], int] = {}
                     if t is not None:
@@ -611,6 +627,7 @@ def main(argv: list[str] | None = None) -> int:
         model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
         model += ", groups drawn in class order" if args.class_order else ", groups start with the class in hand"
         model += ", removals by right-click + Delete" if args.no_hover_delete else ", removals by X over the light"
+        model += ", every car grouped by hand" if args.no_vehicle_groups else ", a car's lights grouped as drawn"
     print(f"# Editor actions to the ground truth, synthetic street {w}x{h}, {model} (load {load:.1f})\n")
     print("| variant | seed | GT lights | GT groups | proposals accepted ≥ | " + " | ".join(kinds) + " | total |")
     print("|---|---|---|---|---|" + "---|" * (len(kinds) + 1))
@@ -635,7 +652,8 @@ def main(argv: list[str] | None = None) -> int:
                 "tool-switches": "--no-tool-switches (a rubber band with any tool, no tool keys)",
                 "class-order": "--class-order (a group's lights drawn in class order)",
                 "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)",
-                "hover-delete": "--no-hover-delete (a wrong light removed by right-click + Delete)"
+                "hover-delete": "--no-hover-delete (a wrong light removed by right-click + Delete)",
+                "vehicle-groups": "--no-vehicle-groups (every car's lights grouped by hand)"
                 }[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)

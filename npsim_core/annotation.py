@@ -81,6 +81,12 @@ def is_group_class(class_id: int) -> bool:
 DEFAULT_GROUP_FOR_LIGHT: dict[int, int | None] = {1: 13, 2: 14, 3: 14, 4: 14, 5: 14, 6: 14, 7: 16,
                                                   8: None, 9: None, 10: None, 11: None, 12: None}
 
+#: Cityscapes label id of a vehicle (its ``instanceIds`` are ``labelId * 1000 + k``) -> the group class of its
+#: lights: car (and caravan) -> car_group, truck (and trailer) -> truck_group, bus, train, motorcycle, bicycle.
+VEHICLE_GROUP_OF_LABEL: dict[int, int] = {26: 14, 29: 14, 27: 15, 30: 15, 28: 16, 31: 19, 32: 18, 33: 17}
+#: Light classes that belong to a vehicle (its windows and lamps).
+VEHICLE_LIGHT_CLASSES = frozenset({2, 3, 4, 5, 6, 7})
+
 
 @dataclass(frozen=True)
 class GroupInstance:
@@ -613,6 +619,13 @@ class AnnotationItem:
         from .io import read_label_image
 
         return read_label_image(self.labels_path) if self.labels_path else None
+
+    def load_instances(self, shape: tuple[int, int]) -> np.ndarray | None:
+        """The frame's Cityscapes instanceIds (``X_instanceIds.png`` beside its labels), None without them."""
+        from .io import instance_ids_path, read_instance_ids
+
+        path = instance_ids_path(self.labels_path) if self.labels_path else None
+        return read_instance_ids(path, shape) if path is not None else None
 
     def has_annotation(self) -> bool:
         return annotation_paths(self.folder, self.stem)["json"].exists()

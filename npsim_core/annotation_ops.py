@@ -37,7 +37,8 @@ from typing import Iterable, Protocol
 import cv2
 import numpy as np
 
-from .annotation import GroupInstance, LightAnnotation, class_of, is_group_class, is_light_class
+from .annotation import (VEHICLE_GROUP_OF_LABEL, VEHICLE_LIGHT_CLASSES, GroupInstance, LightAnnotation, class_of,
+                         is_group_class, is_light_class)
 from .errors import NpsimInputError
 
 
@@ -499,3 +500,45 @@ def snap_to_superpixels(ann: LightAnnotation, instance_id: int, labels: np.ndarr
     idx = np.flatnonzero(grow | shrink).astype(np.int32)
     new = np.where(grow[idx], instance_id, 0).astype(np.int32)
     return _pixel_command(ann, f"snap {instance_id}", _diff(ann, idx, new), {instance_id})
+
+
+def vehicle_of(instance_map: np.ndarray, instances: np.ndarray, light_id: int) -> int:
+    """The vehicle holding light ``light_id``: the Cityscapes instance id (``labelId * 1000 + k``, a label of
+    :data:`~npsim_core.annotation.VEHICLE_GROUP_OF_LABEL`) under at least half of its pixels, else 0."""
+    px = instance_map == int(light_id)
+    if not px.any():
+        return 0
+    ids, counts = np.unique(instances[px], return_counts=True)
+    k = int(np.argmax(counts))
+    inst = int(ids[k])
+    if 2 * counts[k] < px.sum() or inst < 1000 or inst // 1000 not in VEHICLE_GROUP_OF_LABEL:
+        return 0
+    return inst
+
+
+def vehicle_grouping(ann: LightAnnotation, instances: np.ndarray,
+                     light_id: int) -> tuple[int | None, tuple[int, ...], int] | None:
+    """Where a vehicle light just drawn goes: ``(group, members, group_class)`` -- ``members`` (the light and
+    its vehicle's ungrouped lights) join ``group`` (the one group its vehicle's other lights are in), or, when
+    ``group`` is None, are grouped anew as ``group_class`` (the vehicle's: :data:`VEHICLE_GROUP_OF_LABEL`).
+    None when the light is no vehicle light, lies on no vehicle instance (``instances``: Cityscapes
+    instanceIds, HxW), or its vehicle's other lights are split over several groups (the annotator decides).
+
+    Every light of a vehicle belongs to that vehicle's group (one car = one car_group, docs/annotation.md),
+    so the editor can group a light drawn on a car without a gesture: the Ctrl+G per car drawn."""
+    if class_of(light_id) not in VEHICLE_LIGHT_CLASSES or instances is None or instances.shape != ann.shape:
+        return None
+    inst = vehicle_of(ann.instance_map, instances, light_id)
+    if not inst:
+        return None
+    on = ann.instance_map[instances == inst]
+    counts = np.bincount(on[on > 0]) if on.size else np.zeros(1, np.int64)
+    areas = ann.areas()
+    mates = [int(i) for i in np.flatnonzero(counts) if int(i) != int(light_id)
+             and class_of(int(i)) in VEHICLE_LIGHT_CLASSES and 2 * counts[i] >= areas.get(int(i), 0)]
+    groups = {ann.group_of(m) for m in mates}
+    if len(groups - {None}) > 1:
+        return None
+    gid = next(iter(groups - {None}), None)
+    members = tuple(sorted([m for m in mates if ann.group_of(m) is None] + [int(light_id)]))
+    return gid, members, class_of(gid) if gid is not None else VEHICLE_GROUP_OF_LABEL[inst // 1000]

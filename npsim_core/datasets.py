@@ -44,7 +44,7 @@ import numpy as np
 
 from .camera import Intrinsics
 from .errors import NpsimInputError
-from .io import read_depth, read_image, read_json, read_label_image
+from .io import instance_ids_path, read_depth, read_image, read_instance_ids, read_json, read_label_image
 from .scene import DEFAULT_CAMERA_HEIGHT, DEFAULT_CAMERA_PITCH, Scene
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -152,15 +152,9 @@ class SceneSource:
             arrays[field] = depth
             prov["stereo_depth"] = f"{self.disparity_path.name} -> {field}"
         # Instance ids (X_gtFine_instanceIds.png beside X_gtFine_labelIds.png) feed the light proposals.
-        inst_path = self.label_path.with_name(
-            self.label_path.name.replace("_labelTrainIds.png", "_instanceIds.png").replace("_labelIds.png",
-                                                                                          "_instanceIds.png"))
-        if inst_path != self.label_path and inst_path.exists():
-            inst = read_image(inst_path, color=False)
-            if inst.ndim != 2 or inst.shape != (H, W):
-                raise NpsimInputError(f"{inst_path}: instanceIds must be a single-channel {W}x{H} PNG like the "
-                                      f"labels, got shape {inst.shape}")
-            arrays["instances"] = inst.astype(np.int32)
+        inst_path = instance_ids_path(self.label_path)
+        if inst_path is not None:
+            arrays["instances"] = read_instance_ids(inst_path, (H, W))
             prov["instances"] = str(inst_path)
         return Scene(name=self.name, image=image, labels=labels, intrinsics=intr, camera_height=cam_height,
                      camera_pitch=pitch, provenance=prov, **arrays)

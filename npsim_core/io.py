@@ -224,6 +224,27 @@ def read_image(path: PathLike, *, color: bool = True) -> np.ndarray:
     return img
 
 
+def instance_ids_path(label_path: PathLike) -> Path | None:
+    """Where a frame's Cityscapes instanceIds are: ``X_instanceIds.png`` beside ``X_labelIds.png`` (or
+    ``X_labelTrainIds.png``; a scene folder's ``<name>_labelIds.png`` alike); None when the label file's name has
+    neither ending or that file does not exist."""
+    label_path = Path(label_path)
+    name = label_path.name.replace("_labelTrainIds.png", "_instanceIds.png").replace("_labelIds.png",
+                                                                                    "_instanceIds.png")
+    path = label_path.with_name(name)
+    return path if path != label_path and path.exists() else None
+
+
+def read_instance_ids(path: PathLike, shape: tuple[int, int]) -> np.ndarray:
+    """Read a Cityscapes instanceIds PNG (``labelId * 1000 + k`` on things, the labelId elsewhere) as HxW int32,
+    checked against the image's ``shape`` (H, W)."""
+    inst = read_image(path, color=False)
+    if inst.ndim != 2 or inst.shape != tuple(shape):
+        raise NpsimInputError(f"{path}: instanceIds must be a single-channel {shape[1]}x{shape[0]} PNG like the "
+                              f"labels, got shape {inst.shape}")
+    return inst.astype(np.int32)
+
+
 def read_label_image(path: PathLike, *, trainids: bool = False) -> np.ndarray:
     """Read a labelIds PNG as HxW uint8 (trainIds mapped to labelIds when asked)."""
     from .labels import cityscapes

@@ -362,7 +362,8 @@ class MainWindow(QMainWindow):
             self.on_error(f"{rec}: the recovered annotation is {ann.shape[1]}x{ann.shape[0]}, the frame "
                           f"{scene.width}x{scene.height}; not used", "")
             ann, dirty = scene.lights, False
-        self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=stem, dirty=dirty)
+        self.editor.load(scene.image, scene.labels, ann, folder=folder, stem=stem, dirty=dirty,
+                         instances=scene.instances)
         self._rule_had_lights = bool(self.editor.session.existing_ids())
         self._show_night_rule()
         if ann is not scene.lights:

@@ -7,10 +7,11 @@ import warnings
 
 import numpy as np
 
+from ..annotation import VEHICLE_GROUP_OF_LABEL
 from .core import Context, Group, Light, components
 
-#: Cityscapes vehicle labelId -> group class (car_group, truck_group, bus_group).
-VEHICLE_GROUP = {26: 14, 27: 15, 28: 16}
+#: The vehicles looked at, Cityscapes labelId (car, truck, bus) -> their lights' group class.
+VEHICLE_GROUP = {label: VEHICLE_GROUP_OF_LABEL[label] for label in (26, 27, 28)}
 WINDOW_PARKED, PARKED_FRONT, PARKED_REAR, MOVING_FRONT, MOVING_REAR, WINDOW_TRANSPORT = 2, 3, 4, 5, 6, 7
 #: Labels beside a parked vehicle's kerb side: sidewalk, parking, terrain, building, wall, fence, vegetation.
 KERBSIDE = (8, 9, 22, 11, 12, 13, 21)

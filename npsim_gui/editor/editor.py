@@ -155,6 +155,11 @@ class AnnotationEditor(QWidget):
         self.overwrite_box.toggled.connect(lambda v: setattr(self.options, "overwrite", v))
         self.fine_box = QCheckBox("Fine superpixel scale (D; Alt inverts)")
         self.fine_box.toggled.connect(self._on_fine_toggled)
+        self.vehicle_box = QCheckBox("Group a vehicle's lights as drawn")
+        self.vehicle_box.setChecked(True)
+        self.vehicle_box.setToolTip("A window or lamp drawn on a car, truck or bus joins that vehicle's group (or "
+                                    "makes it): needs the frame's instanceIds (X_instanceIds.png beside its labels)")
+        self.vehicle_box.toggled.connect(lambda v: setattr(self.session, "group_by_vehicle", v))
         opts.addRow(self.split_box)
         sim = QHBoxLayout()
         sim.addWidget(self.similar_box)
@@ -162,6 +167,7 @@ class AnnotationEditor(QWidget):
         opts.addRow(sim)
         opts.addRow(self.overwrite_box)
         opts.addRow(self.fine_box)
+        opts.addRow(self.vehicle_box)
         tl.addLayout(opts, 2, 0, 1, 3)
         pl.addWidget(tools)
 
@@ -383,9 +389,13 @@ class AnnotationEditor(QWidget):
                                          lambda: self.accept_proposals_above())
 
     # ----------------------------------------------------------------- public API
-    def load(self, image, labels=None, ann=None, folder=None, stem="annotation", *, dirty=False) -> None:
-        """Edit ``image`` (HxWx3 uint8) with optional labelIds and annotation."""
+    def load(self, image, labels=None, ann=None, folder=None, stem="annotation", *, dirty=False,
+             instances=None) -> None:
+        """Edit ``image`` (HxWx3 uint8) with optional labelIds, annotation and Cityscapes instanceIds (HxW
+        integers: a vehicle light drawn on a vehicle joins its group)."""
         self.session.load(image, labels, ann, folder, stem, dirty=dirty)
+        self.session.set_vehicle_instances(instances)
+        self.vehicle_box.setEnabled(instances is not None)
 
     def show_image(self, rgb: np.ndarray) -> None:
         """Show ``rgb`` fitted in the canvas before its annotation is loaded (e.g. while a question about

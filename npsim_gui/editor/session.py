@@ -24,7 +24,8 @@ from PySide6.QtCore import QCoreApplication, QObject, QRunnable, QThreadPool, Si
 from npsim_core.annotation import (DEFAULT_GROUP_FOR_LIGHT, GroupInstance, LightAnnotation, annotation_paths,
                                    check_image, class_of, discard_recovery, image_checksum, is_group_class,
                                    is_light_class, save_annotation, write_recovery)
-from npsim_core.annotation_ops import Change, EditCommand, MacroCommand, Structure, UndoStack, group_lights
+from npsim_core.annotation_ops import (Change, EditCommand, MacroCommand, Structure, UndoStack, group_lights,
+                                      vehicle_grouping)
 from npsim_core.errors import NpsimInputError
 from npsim_core.labels import light_class
 from npsim_core.superpixels import SuperpixelParams, cached_superpixels, default_region_size, superpixel_means
@@ -137,6 +138,9 @@ class EditorSession(QObject):
         self.sp_means: np.ndarray | None = None
         self._sp_fine_means: np.ndarray | None = None
         self.sp_auto_size = True  # region size follows the image width until the user sets one
+        self.vehicle_instances: np.ndarray | None = None
+        #: a vehicle light drawn on a vehicle joins that vehicle's group (needs :attr:`vehicle_instances`)
+        self.group_by_vehicle = True
         self._sp_generation = 0
         self._bridge = _Bridge()
         self._bridge.done.connect(self._on_superpixels)
@@ -191,6 +195,7 @@ class EditorSession(QObject):
         self.current_id = None
         self.selection = set()
         self.active_group = None
+        self.vehicle_instances = None
         self._created_run = set()
         self._meta_dirty = dirty
         self._was_dirty = dirty
@@ -417,10 +422,32 @@ class EditorSession(QObject):
             self.currentChanged.emit()
             self.selectionChanged.emit()  # the group boxes show which group is active
 
+    def set_vehicle_instances(self, instances: np.ndarray | None) -> None:
+        """The image's Cityscapes instanceIds (HxW integers; None: none): a vehicle light drawn on a vehicle
+        joins that vehicle's group (:meth:`lights_created`). :meth:`load` clears them."""
+        if instances is not None:
+            instances = np.asarray(instances)
+            if instances.shape != self.ann.shape or not np.issubdtype(instances.dtype, np.integer):
+                raise NpsimInputError(f"instance ids must be an integer map of the image's size {self.ann.shape}, "
+                                      f"got {instances.dtype} {instances.shape}")
+        self.vehicle_instances = instances
+
     def lights_created(self, ids) -> None:
-        """Call after creating lights (inside the same stroke): they join the active group, if any."""
+        """Call after creating lights (inside the same stroke): they join the active group, if any; else,
+        with :attr:`group_by_vehicle` on and the image's instance ids known, a vehicle light joins its
+        vehicle's group (or makes it: ``annotation_ops.vehicle_grouping``)."""
         if self.active_group is not None and self.active_group in self.ann.groups and ids:
             self.apply(join_group(self.ann, self.active_group, ids))
+        elif self.group_by_vehicle and self.vehicle_instances is not None:
+            for i in ids:
+                plan = vehicle_grouping(self.ann, self.vehicle_instances, int(i))
+                if plan is None:
+                    continue
+                gid, members, cls = plan
+                if gid is not None:
+                    self.apply(join_group(self.ann, gid, members))
+                else:
+                    self.apply(group_lights(self.ann, members, cls)[0])
 
     def select_created(self, ids, current: int | None = None) -> None:
         """Select lights made by a split stroke; consecutive such strokes add up while the selection is

@@ -159,8 +159,13 @@ class EditorWindow(QMainWindow):
         if ann is not None and ann.shape != image.shape[:2]:
             readonly = f"annotation size {ann.shape} differs from the image {image.shape[:2]}"
             ann = None
+        try:
+            instances = it.load_instances(image.shape[:2])
+        except NpsimInputError as exc:  # the annotation works without them: say why a car is not grouped
+            instances = None
+            self.statusBar().showMessage(f"{exc}; vehicle lights are not grouped as drawn")
         self.index = index
-        self.editor.load(image, labels, ann, folder, stem, dirty=dirty)
+        self.editor.load(image, labels, ann, folder, stem, dirty=dirty, instances=instances)
         self.editor.session.readonly_reason = readonly
         if readonly:
             self.statusBar().showMessage(f"read-only: {readonly}")
