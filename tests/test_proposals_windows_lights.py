@@ -151,13 +151,17 @@ def test_a_shop_fronts_glass_is_proposed_without_the_wall_above_it(monkeypatch):
     the colour of the wall around the blob (windows._wall_coloured), the glass does not (its inside, which
     the pulled reference calls wall, is a hole in the blob: not the wall around it): the glass is the window
     (IoU 0.87: the two fascia rows next to it grown back by ``_extend_ends``, which reads the same
-    reference), not the glass and the whole strip (without the rule: IoU 0.73)."""
+    reference), and a shop front, not the glass and the whole strip (without the rule: IoU 0.73)."""
     scene, gt, fascia = _shop_under_a_fascia(monkeypatch)
     ann = _run(*scene).above(0.5)
     m = ann.instance_map
-    wins = [m == i for i in np.unique(m) if i // 1000 == 1]
+    ids = [int(i) for i in np.unique(m) if i // 1000 == 1]
+    wins = [m == i for i in ids]
     assert max(_iou(gt["shop"], w) for w in wins) >= 0.85
     assert not any((w & fascia).sum() > 0.5 * fascia.sum() for w in wins)
+    # glazing found under its fascia is a shop front (not capped as a window, not in the 1.5x rule)
+    best = ids[int(np.argmax([_iou(gt["shop"], w) for w in wins]))]
+    assert ann.meta["light_kinds"][str(best)] == "shop"
     off = PARAMS.__class__(**{**PARAMS.__dict__, "window_trim_wall_share": 1.0})
     from npsim_core.proposals import propose_lights
     img, labels, depth, noise = scene

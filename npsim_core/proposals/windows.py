@@ -980,9 +980,12 @@ def _is_dormer(ctx: Context, li: Light) -> bool:
 def _kind(ctx: Context, li: Light) -> str:
     """``shop`` (glazing from near the ground, at least ``window_shop_min_h_m`` tall: a shop front),
     ``office_band`` (at least ``window_band_min_aspect`` times wider than tall in metres: a glass
-    floor band) or ``window`` (a final window may become a ``dormer``, :func:`_is_dormer`)."""
+    floor band) or ``window`` (a final window may become a ``dormer``, :func:`_is_dormer`). Ground-floor
+    glazing found without the strip of wall over it (``Light.shop_front``, :func:`propose`) is a shop front."""
     p = ctx.params
     h, w = li.mask.shape
+    if getattr(li, "shop_front", False):
+        return "shop"
     if ctx.depth is None:
         return "window"
     d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
@@ -1659,6 +1662,8 @@ def propose(ctx: Context) -> list[Group]:
                         accept(y0 + py, x0 + px, pm)
                     # the glass is most of what is not wall: a fleck of another colour is not
                     if sum(int(f[3].mask.sum()) for f in found[n:]) >= int((m & ~wall).sum()) / 3.0:
+                        for f in found[n:]:
+                            f[3].shop_front = True  # ground-floor glazing under its fascia: a shop front
                         continue
                     del found[n:]
                     found.append(whole)
