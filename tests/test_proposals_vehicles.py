@@ -572,3 +572,32 @@ def test_side_windows_a_little_off_the_paints_colour_still_part_at_their_painted
     for window in (glass & ~pillar & (np.arange(lab.shape[1]) < 36)[None, :],
                    glass & ~pillar & (np.arange(lab.shape[1]) >= 40)[None, :]):
         assert max(_iou(p, window) for p in panes) >= 0.7
+
+
+def test_a_face_laid_out_from_its_inner_edge_ends_at_the_pillar_when_depth_runs_onto_the_side_face():
+    """A red car at 8 m parked left of the road, its outer part hidden by the car in front, so its end face
+    (112 px) is laid out from its inner edge. Its side face (33 px, the same paint, no shading step) recedes
+    only 0.25 m in predicted depth (blurred), within the end face's depth run; the cabin above shows the
+    dark rear window and the lit side window parted by the pillar. The face ends at the pillar and the
+    right lamp (grey on the paint: nothing to snap to) is laid out on it (IoU >= 0.5). The old code ended
+    the face at the depth run's end, 33 px too far right, and laid the lamp out on the side face (IoU 0)."""
+    z = 8.0
+    ppm = 500.0 / z
+    img, lab, depth, inst, intr = _frame(cx=199.5)
+    body, cab = slice(_row(0.9, z), _row(0.3, z)), slice(_row(1.4, z), _row(0.9, z))
+    c0, corner, far = 40, 152, 185                           # end face 40..151 (1.8 m), side face to 184
+    inset = int(round(0.1 * ppm))
+    for rows, a in ((body, c0), (cab, c0 + inset)):
+        lab[rows, a:far], img[rows, a:far], inst[rows, a:far] = CAR, (150, 40, 40), CAR * 1000 + 1
+    depth[lab == CAR] = z
+    side = (slice(None), slice(corner, far))
+    depth[side] = np.where(lab[side] == CAR, np.linspace(z, z + 0.25, far - corner)[None, :], depth[side])
+    glass = slice(_row(1.33, z), _row(0.97, z))
+    img[glass, c0 + inset + 4:corner - inset] = (30, 32, 38)  # the rear window
+    img[glass, corner:far - 2] = (120, 125, 135)              # the side window, lit by the sky
+    lamp = np.zeros(lab.shape, bool)
+    lamp[_row(0.83, z):_row(0.68, z), corner - int(round(0.38 * ppm)):corner - int(round(0.08 * ppm))] = True
+    front = (slice(0, 120), slice(0, 75))                    # the car in front, 1 m nearer
+    lab[front], img[front], depth[front], inst[front] = CAR, (30, 30, 35), 7.0, CAR * 1000 + 2
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert max((_iou(ann.mask(i), lamp) for i in lamps), default=0.0) >= 0.5

@@ -122,6 +122,14 @@ class ProposalParams:
     #: A column of a vehicle's cabin band most of whose pixels lie within this many levels of the
     #: paint is a pillar: the band's panes part there (0: at the end face's edge only).
     vehicle_pillar_paint_diff: float = 20.0
+    #: An end face laid out from its inner edge (its outer edge hidden by a nearer object): that edge,
+    #: found from depth, moves in by up to this share of the face's width to the pillar -- the shading
+    #: step in the cabin rows (glass up to ``vehicle_pillar_rows_m`` above the body top) where end and
+    #: side pane meet (``vehicles._pillar_edge``); only where the body rows show no shading step and the
+    #: pillar (0.1 m) spans at least ``vehicle_pillar_min_px`` pixels (a far car's pane edges step as much).
+    vehicle_pillar_reach: float = 0.3
+    vehicle_pillar_rows_m: float = 0.45
+    vehicle_pillar_min_px: int = 4
     #: A vehicle light at least 0.5 confident gets 0.5 + 0.5 sigmoid(bias + weights . features)
     #: (``vehicles._rescore``; docs/proposals.md, "Ninth pass: vehicle confidence"). Lamps: ring contrast
     #: (levels / 40, at most 3), both lamps of the pair stand out, a sliver beside the cut, ln pixels (at

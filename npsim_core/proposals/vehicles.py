@@ -58,6 +58,8 @@ RED_LAMP_H_M = (0.5, 1.1)
 PANE_MIN_COLS = 2
 #: A car's glass ends this far (m) below the cabin's top and above the body's top (its frame).
 PANE_INSET_M = 0.07
+#: A car's pillar between end and side pane is about this wide (m; :func:`_pillar_edge`).
+PILLAR_M = 0.1
 #: A run of glass between pillars narrower than this share of its band's widest run is a reflection's
 #: edge or a pillar's blurred edge far more often than a pane (2048x1024 seeds 0-2: all 6 such runs
 #: matched no pane): it keeps its rule confidence, not raised by the rescoring, so the slider's default
@@ -502,7 +504,8 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     above is narrower and set back, the wheels below are apart); failing that, the lower 60 %.
     The face's inner edge snaps to the shading step between end and side face; when its outer edge
     is not the vehicle's (the image border, or a nearer object right beside it), the face is laid
-    out from the inner edge instead.
+    out from the inner edge instead -- beside a nearer object, an inner edge from depth alone moves in to
+    the pillar between end and side pane when the body shows no shading step (:func:`_pillar_edge`).
     """
     p = ctx.params
     H, W = ctx.shape
@@ -555,6 +558,8 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
                 # Cut by the car in front or the frame's border, only a strip of the end face may show
                 if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut else 0.3) * face_w:
                     inner = run_end
+                    if cut and not at_border:
+                        inner = _pillar_edge(ctx, y0, x0, m, r0, r1, inner, face_w, left_side, z)
     if inner is None and face_w >= 6:
         lo, hi = (outer + face_w // 3, outer + 2 * face_w) if left_side else (outer - 2 * face_w, outer - face_w // 3)
         if cut and not at_border:  # the strip left of the end face lies within a face width of the cut
@@ -579,6 +584,50 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     if not at_border and w < p.vehicle_min_face_share * face_w:
         placed = False
     return r0, r1, c0, c1, z, placed
+
+
+def _pillar_edge(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int, inner: int, face_w: int,
+                 left_side: bool, z: float) -> int:
+    """The end face's inner edge (local column) of a face laid out from it (its outer edge hidden by a
+    nearer object), moved in to the pillar between end and side pane when the body rows' depth run
+    ``inner`` overreaches: predicted depth blurs a side face that recedes a few metres into the end
+    face's run, and one paint on both faces shows no shading step (2048x1024 lights seed 1: 27 px, a
+    lamp placed beside its own). The cabin's glass does step where the rear window (or windscreen)
+    meets the side window at the pillar: the strongest shading step (:func:`_step_column`) over the
+    cabin rows (``PANE_INSET_M``..``vehicle_pillar_rows_m`` above the body top) within
+    ``vehicle_pillar_reach`` of the face's width inward of ``inner``, with glass beyond it (the side
+    pane: its luminance off the body's paint by more than the step, 0.03, over a pillar's width -- not the
+    end pane's own edge, beyond which the pillar's paint follows); else ``inner`` as found."""
+    p = ctx.params
+    ppm = float(ctx.intrinsics.fy) / z
+    ra = max(0, r0 - int(round(p.vehicle_pillar_rows_m * ppm)))
+    rb = r0 - 1 - int(round(PANE_INSET_M * ppm))
+    reach = int(round(p.vehicle_pillar_reach * face_w))
+    if rb - ra < 1 or reach < 2 or PILLAR_M * ppm < p.vehicle_pillar_min_px:
+        return inner  # a far car's pillar is a pixel or two: the pane's own edge steps as much
+    strip = int(np.ceil(p.vehicle_cut_min_strip * face_w))  # as the run: a strip of the face stays in view
+    lo, hi = (max(inner - reach, strip), inner) if left_side else (inner, min(inner + reach, m.shape[1] - 1 - strip))
+    if hi - lo < 1:
+        return inner
+    if _step_column(ctx, y0, x0, m, r0, r1, lo, hi) is not None:
+        return inner  # the body shows where its faces meet: depth's run is not the only cue
+    j = _step_column(ctx, y0, x0, m, ra, rb, lo, hi)
+    if j is None:
+        return inner
+    # A pillar, not the end pane's own edge: beyond the step the cabin holds glass (the side pane), not
+    # the paint (the pillar itself, and the silhouette's end, when the face ends where the run does).
+    k = max(1, int(round(PILLAR_M * ppm)))
+    cols = np.arange(j + 1, j + 1 + k) if left_side else np.arange(j - k + 1, j + 1)
+    cols = cols[(cols >= 0) & (cols < m.shape[1])]
+    lum = ctx.lum[y0:y0 + m.shape[0], x0:x0 + m.shape[1]]
+    beyond = m[ra:rb + 1][:, cols]
+    body = m[r0:r1 + 1]
+    if not beyond.any() or not body.any():
+        return inner
+    paint = float(np.median(lum[r0:r1 + 1][body]))
+    if abs(float(np.median(lum[ra:rb + 1][:, cols][beyond])) - paint) <= 0.03:
+        return inner
+    return j if left_side else j + 1
 
 
 def _centres_in(lo: float, hi: float) -> tuple[int, int]:
