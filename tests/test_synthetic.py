@@ -311,16 +311,44 @@ def test_albedo_texture_is_consistent_with_image(scene):
     assert np.corrcoef(lum, alb)[0, 1] > 0.0
 
 
-def test_render_in_child_process_matches_in_process():
-    """Used when the caller's process runs another Mitsuba variant; must give the same pixels."""
-    from npsim_core.synthetic.render import render_rgba
+_CHILD_VS_IN_PROCESS = """
+import numpy as np
+from npsim_core.synthetic import street_ground_truth
+from npsim_core.synthetic.render import render_rgba
+layout, intr, pose, _ = street_ground_truth(48, 24, seed=0)
+a = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=False)
+b = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=True)
+assert a.shape == (24, 48, 4)
+# Same pixels up to float rounding: the LLVM backend's threads may sum in another order.
+np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+"""
 
-    layout, intr, pose, _ = street_ground_truth(48, 24, seed=0)
-    a = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=False)
-    b = render_rgba(layout.prims, intr, pose, kind="sun", spp=4, seed=0, subprocess=True)
-    assert a.shape == (24, 48, 4)
-    # Same pixels up to float rounding: the LLVM backend's threads may sum in another order.
-    np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+
+def test_render_in_child_process_matches_in_process():
+    """Used when the caller's process runs another Mitsuba variant; must give the same pixels. Compared in a
+    fresh interpreter: a test before this one in the same process may have set another variant (the
+    in-process render then refuses, below; it used to render with that variant's sampler, other pixels)."""
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-c", _CHILD_VS_IN_PROCESS], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+
+
+def test_an_in_process_sun_render_under_another_mitsuba_variant_is_refused():
+    import subprocess
+    import sys
+
+    code = ("import mitsuba as mi; mi.set_variant('llvm_ad_rgb')\n"
+            "from npsim_core.synthetic import street_ground_truth\n"
+            "from npsim_core.synthetic.render import render_rgba\n"
+            "layout, intr, pose, _ = street_ground_truth(48, 24, seed=0)\n"
+            "try:\n"
+            "    render_rgba(layout.prims, intr, pose, kind='sun', spp=4, seed=0, subprocess=False)\n"
+            "except ValueError as exc:\n"
+            "    assert 'scalar_rgb' in str(exc); print('refused')\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and run.stdout.strip() == "refused", run.stderr[-2000:]
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 7])

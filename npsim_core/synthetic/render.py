@@ -261,6 +261,10 @@ def render_rgba(prims: Primitives, intr: Intrinsics, pose: CameraPose, *, kind: 
 
     if subprocess is None:
         subprocess = mi.variant() not in (None, "scalar_rgb")
+    elif not subprocess and mi.variant() not in (None, "scalar_rgb"):
+        # in-process it would render with the other variant's sampler: other pixels, silently
+        raise ValueError(f"render_rgba in-process needs Mitsuba's scalar_rgb variant, this process runs "
+                         f"{mi.variant()}; pass subprocess=None or True")
     if subprocess:
         return _rgba_in_child(prims, intr, pose, kind=kind, spp=spp, seed=seed, sun_irradiance=sun_irradiance,
                               sun=list(sun))

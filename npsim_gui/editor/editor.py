@@ -155,7 +155,7 @@ class AnnotationEditor(QWidget):
         self.overwrite_box.toggled.connect(lambda v: setattr(self.options, "overwrite", v))
         self.fine_box = QCheckBox("Fine superpixel scale (D; Alt inverts)")
         self.fine_box.toggled.connect(self._on_fine_toggled)
-        self.vehicle_box = QCheckBox("Group a vehicle's lights as drawn")
+        self.vehicle_box = QCheckBox("Group by vehicle")
         self.vehicle_box.setChecked(True)
         self.vehicle_box.setToolTip("A window or lamp drawn on a car, truck or bus joins that vehicle's group (or "
                                     "makes it): needs the frame's instanceIds (X_instanceIds.png beside its labels)")
@@ -165,9 +165,11 @@ class AnnotationEditor(QWidget):
         sim.addWidget(self.similar_box)
         sim.addWidget(self.tol_spin)
         opts.addRow(sim)
-        opts.addRow(self.overwrite_box)
+        paint_row = QHBoxLayout()  # (one row: the side panel fits 1600x900 without scrolling)
+        paint_row.addWidget(self.overwrite_box)
+        paint_row.addWidget(self.vehicle_box)
+        opts.addRow(paint_row)
         opts.addRow(self.fine_box)
-        opts.addRow(self.vehicle_box)
         tl.addLayout(opts, 2, 0, 1, 3)
         pl.addWidget(tools)
 
