@@ -601,3 +601,26 @@ def test_a_face_laid_out_from_its_inner_edge_ends_at_the_pillar_when_depth_runs_
     lab[front], img[front], depth[front], inst[front] = CAR, (30, 30, 35), 7.0, CAR * 1000 + 2
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     assert max((_iou(ann.mask(i), lamp) for i in lamps), default=0.0) >= 0.5
+
+
+def test_a_car_cut_on_its_centre_side_by_the_car_ahead_gets_the_sliver_of_its_red_lamp_not_of_a_white_one():
+    """A car parked right of the road at 10 m, seen from behind, cut on both sides: the car in front in its row
+    (9 m, further out) hides its right part, the car driving ahead in our lane (8 m, nearer the image centre)
+    all of its left part but 5 px of its left lamp, which shows as a sliver beside that car's edge. That sliver
+    is proposed (IoU >= 0.5). The old code looked for a sliver only on the side away from the image centre (a
+    parked row's car in front, here beside the right lamp, hidden) and proposed none. A white lamp there is not
+    proposed: on the centre side only a red lamp's sliver is looked for (a white one is what glass and bright
+    paint bled at the cut look like)."""
+    for lamp, want in (((200, 20, 20), True), ((235, 235, 230), False)):
+        img, lab, depth, inst, intr = _frame(cx=20.0)       # the car is right of the image centre
+        truth = _car(img, lab, depth, inst, 55, 145, 1, lamp=lamp)
+        cut = int(np.flatnonzero(truth[0].any(0))[-1]) - 4  # 5 columns of the left lamp show
+        row = (slice(_row(0.95), 120), slice(105, 200))      # the car in front in the row, 1 m nearer
+        lab[row], img[row], depth[row], inst[row] = CAR, (60, 60, 70), 9.0, CAR * 1000 + 2
+        ahead = (slice(20, 120), slice(0, cut))              # the car ahead in our lane
+        lab[ahead], img[ahead], depth[ahead], inst[ahead] = CAR, (200, 200, 200), 8.0, CAR * 1000 + 3
+        visible = truth[0] & (inst == CAR * 1000 + 1)
+        assert visible.any(0).sum() == 5
+        ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+        on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
+        assert (max((_iou(ann.mask(i), visible) for i in on_car), default=0.0) >= 0.5) == want

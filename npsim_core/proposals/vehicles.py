@@ -819,10 +819,10 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     return lamps, n_snapped
 
 
-def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.ndarray:
+def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float, red_only: bool = False) -> np.ndarray:
     """Whether colours (..., 3; 8-bit RGB) departing from the paint look like a lamp's: red by day, or
     departing toward red (``red_share``, as the rear-lamp rule), or brighter than the paint (a white
-    or amber lamp) -- not the dark glass of a side window, a shadow or a wheel arch."""
+    or amber lamp; not with ``red_only``) -- not the dark glass of a side window, a shadow or a wheel arch."""
     c = np.asarray(c, np.float32)
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     d = c - np.asarray(paint, np.float32)
@@ -832,10 +832,11 @@ def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float) -> np.nda
     leans_red = (d[..., 0] - np.maximum(d[..., 1], d[..., 2]) > red_share * dn) & \
         (c.max(-1) - c.min(-1) > LAMP_MIN_CHROMA)
     red = ((r > 1.5 * np.maximum(g, b)) & (r > 50)) | ((dn > 10.0) & leans_red)
-    return red | (d.mean(-1) > 20.0)
+    return red if red_only else red | (d.mean(-1) > 20.0)
 
 
-def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float) -> np.ndarray | None:
+def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float,
+                 centre_side: bool = False) -> np.ndarray | None:
     """The visible part of a lamp of a vehicle cut on its side away from the image centre -- by the
     car in front of a parked row, which stands further out, or by the frame's border -- or None
     (local mask). The car in front hides all of the end face but a strip at its inner end, whose
@@ -852,7 +853,13 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     shadow or a wheel arch). The lamp is the connected part of them with the most pixels within
     ``SLIVER_MAX_GAP`` of the cut, as tall as a lamp (``SLIVER_ROWS_M``, at least 2 px) and at most a
     lamp wide (0.3 m): its bounding box within the window. None on vehicles whose whole lamp would be
-    under ``SLIVER_MIN_LAMP_PX`` tall, without depth, or when nothing fits."""
+    under ``SLIVER_MIN_LAMP_PX`` tall, without depth, or when nothing fits.
+
+    ``centre_side``: the cut on the side toward the image centre instead -- a car parked beside the lane
+    that the car driving ahead (or an oncoming one) hides but a strip, its centre-side lamp showing beside
+    that car's edge (2048x1024 lights seed 2) -- where only red lamp pixels count (``_lamp_coloured``'s
+    ``red_only``: a parked row beside our lane is seen from behind when parked with the traffic, and a
+    white sliver there is as often the glass or bright paint bled at the cut)."""
     import cv2
 
     p = ctx.params
@@ -867,7 +874,7 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     br = np.flatnonzero(band)
     if br.size < 2:
         return None
-    left = x0 + w / 2.0 < float(ctx.intrinsics.cx)  # the cut side: away from the image centre
+    left = (x0 + w / 2.0 < float(ctx.intrinsics.cx)) != centre_side  # the cut side: away from the centre
     end = np.where(has, m.argmax(1), w) if left else np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
     out_step = -1 if left else 1
     k = max(1, int(round(W / 512)))
@@ -890,7 +897,7 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     sub = img[box]
     cand = np.zeros_like(win)
     cand[box] = win[box] & (np.abs(sub - paint).max(-1) > SLIVER_DIFF) & \
-        _lamp_coloured(sub, paint, p.vehicle_rear_red_share)
+        _lamp_coloured(sub, paint, p.vehicle_rear_red_share, red_only=centre_side)
     if not cand.any():
         return None
     n, lab, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=8)
@@ -1046,6 +1053,8 @@ def propose(ctx: Context) -> list[Group]:
             n_pair = len(lamps)
             if len(lamps) < 2:  # a cut end face: the visible part of the lamp beside the cut
                 sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
+                if sliver is None:  # cut on its centre side by a car in the lane: a red lamp's sliver there
+                    sliver = _sliver_lamp(ctx, y0, x0, m, img, z, centre_side=True)
                 if sliver is not None and not any((sliver & b).any() for b in lamps):
                     lamps.append(sliver)
             if n_pair == 0 and placed:  # nothing where the face puts its lamps: red ones by colour alone
