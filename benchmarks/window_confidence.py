@@ -114,9 +114,11 @@ def window_records(scene) -> list[dict]:
 def design(recs: list[dict]) -> np.ndarray:
     """The terms of ``window_confidence.window_confidence`` (without the bias), one row per record:
     ``window_confidence.score_terms``, so the fit and the rule read the same terms."""
-    from npsim_core.proposals.window_confidence import score_terms
+    from npsim_core.proposals import ProposalParams
+    from npsim_core.proposals.window_confidence import first_confidence, score_terms
 
-    rows = [score_terms(x["conf0"], x) for x in recs]
+    p = ProposalParams()
+    rows = [score_terms(first_confidence(p, x["conf0"], x), x) for x in recs]
     return np.asarray(rows, float).reshape(len(rows), -1) if rows else np.zeros((0, 14))
 
 
@@ -178,8 +180,11 @@ def main(argv: list[str] | None = None) -> int:
 
 def _fit(args) -> int:
     from npsim_cli.options import parse_size
+    from npsim_core.proposals import ProposalParams
+    from npsim_core.proposals.window_confidence import first_confidence
     from npsim_core.synthetic import street_scene
 
+    p = ProposalParams()
     t0 = time.perf_counter()
     sizes = [s for s in args.sizes.split(",") if s]
     variants = [v for v in args.variants.split(",") if v]
@@ -189,7 +194,7 @@ def _fit(args) -> int:
             w, h = parse_size(size)
             got = [r for v in variants for s in (int(x) for x in seeds.split(",") if x)
                    for r in window_records(street_scene(w, h, s, v))]
-            recs[part, size] = [r for r in got if r["conf0"] >= 0.5]
+            recs[part, size] = [r for r in got if first_confidence(p, r["conf0"], r) >= 0.5]
     train = [r for size in sizes for r in recs["fit", size]]
     wts = fit_logistic(design(train), np.array([r["iou"] >= args.target for r in train], float))
     bias = float(wts[0]) + args.raise_

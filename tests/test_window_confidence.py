@@ -235,3 +235,49 @@ def test_edge_contrast_finds_the_side_of_a_pane_traced_short():
     assert edge_contrast(feat, 10, 10, 6, 4, p) == 0.0
     feat[0:6, 0:8, 0] = np.log(0.1)
     assert abs(edge_contrast(feat, 0, 0, 6, 8, p) - np.log(5) / t) < 1e-5
+
+
+# --- panes the frame cuts (docs/proposals.md "Twelfth pass: panes the frame cuts")
+
+def _receding_pane(h=40, w=24, slant=14):
+    """A pane on a receding wall: a parallelogram ``h`` rows tall per column whose top and bottom edges
+    fall ``slant`` rows across its ``w`` columns (its box ``h + slant`` rows)."""
+    m = np.zeros((h + slant, w), bool)
+    for c in range(w):
+        top = round(slant * c / (w - 1))
+        m[top:top + h, c] = True
+    return m
+
+
+def test_a_receding_pane_the_frame_top_cuts_is_judged_on_its_fill_beyond_the_frame():
+    """The lowest 21 rows of a receding pane, the frame's top cutting it (the lights street's seed 0 pane at
+    40 m): its box is filled 0.70 where the whole pane's is 0.74; judged beyond the frame to a pane's least
+    height it is filled like the whole. The same mask away from the frame, a triangle's apex on the frame,
+    a box already a pane's height tall, or no depth: the fill its box shows."""
+    from npsim_core.proposals.window_confidence import frame_cut_fill
+
+    whole = _receding_pane()
+    cut = whole[-21:]  # the frame's top at the pane's 33rd row of 54
+    f_whole, f_cut = whole.mean(), cut.mean()
+    assert f_cut < f_whole - 0.03
+    got = frame_cut_fill(cut, 0, 1024, 26.0)
+    assert abs(got - f_whole) < abs(f_cut - f_whole) / 2 and got > f_cut
+    assert frame_cut_fill(cut[::-1], 1024 - 21, 1024, 26.0) == got  # the frame's bottom, mirrored
+    assert frame_cut_fill(cut, 5, 1024, 26.0) == f_cut  # not on the frame's edge
+    assert frame_cut_fill(cut, 0, 1024, 21.0) == f_cut and frame_cut_fill(cut, 0, 1024, float("nan")) == f_cut
+    tri = np.tri(12, 12, dtype=bool)  # apex on the frame's top: one pixel of the edge row
+    assert frame_cut_fill(tri, 0, 1024, 30.0) == tri.mean()
+
+
+def test_a_pane_the_frame_top_cuts_scores_like_its_uncut_row_mates():
+    """The lights street's seed 0 pane at 40 m the frame's top cuts (IoU 0.95 with its truth): the
+    proposer's first confidence 0.496 read its box's 0.70 fill, under the 0.5 that decides which proposals
+    exist. Judged on its fill beyond the frame (0.75) it is kept, rescored like a pane of that contrast; the
+    old rule left it at 0.496. Features without ``fill_seen`` (the fit's records of uncut panes) as before."""
+    p = ProposalParams()
+    x = _x(ring_lum=0.90, ring_chroma=2.0, area_px=353.0, h_m=0.37, fill=0.75, fill_seen=0.70,
+           bottom_m=8.35, edge=0.01)
+    assert window_confidence(p, 0.496, x) >= 0.5
+    assert window_confidence(p, 0.496, {**x, "fill": 0.70}) == 0.496
+    uncut = {k: v for k, v in x.items() if k != "fill_seen"}
+    assert window_confidence(p, 0.45, uncut) == 0.45

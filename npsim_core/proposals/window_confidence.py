@@ -195,6 +195,43 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> floa
     return float(min(out)) if out else 0.0
 
 
+def frame_cut_fill(mask: np.ndarray, y0: int, H: int, min_h_px: float) -> float:
+    """The fill of a pane's box, judged beyond the frame where the image's top or bottom edge cuts it
+    (docs/proposals.md "Twelfth pass: panes the frame cuts").
+
+    Parameters
+    ----------
+    mask : (h, w) bool
+        The window's mask in its box, whose top row is image row ``y0``.
+    y0 : int
+        The box's top row (px).
+    H : int
+        The image's height (px).
+    min_h_px : float
+        The least height of a pane at the window's depth (px; ``window_height_m[0]``); NaN or 0: unknown.
+
+    Returns
+    -------
+    float
+        ``mask.sum() / (h w)``, except when the box lies on the image's top (bottom) edge and the mask holds
+        at least half the box's columns on that edge row: the frame cut the pane there, and a receding pane
+        cut short shows mostly its slanted other end (a trapezoid of fill 0.7 where its whole is a
+        parallelogram of 0.9). It goes on beyond the frame for at least the rows a pane needs: the box is
+        grown by ``ceil(min_h_px) - h`` rows (none when the box is that tall already) beyond the cut edge,
+        filled there as the edge row shows (its mask pixels), and the fill is taken over the grown box.
+    """
+    h, w = mask.shape
+    a = float(mask.sum())
+    fill = a / float(h * w)
+    if not (np.isfinite(min_h_px) and min_h_px > h):
+        return fill
+    e = int(np.ceil(min_h_px)) - h
+    for on_edge, row in ((y0 <= 0, mask[0]), (y0 + h >= H, mask[-1])):
+        if on_edge and row.sum() >= 0.5 * w:
+            return max(fill, (a + e * float(row.sum())) / float((h + e) * w))
+    return fill
+
+
 def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light, n_group: int) -> dict:
     """What a window's final confidence is judged on (:func:`window_confidence`): the contrast to
     the building pixels in a ring around it (:func:`windows._ring_contrast`, 0 without a ring), its area and
@@ -211,7 +248,11 @@ def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light
             "z_m": float(z) if z is not None else float("nan"),
             # the pane's bottom edge (the row below its last), m above the ground
             "bottom_m": float(ctx.height_above_ground(li.y0 + h, z)) if z is not None else float("nan"),
-            "fill": float(li.mask.sum()) / float(h * w),
+            # a pane the frame's top or bottom cuts: its fill judged beyond the frame (frame_cut_fill);
+            # "fill_seen" as the box shows it (the proposer's first confidence read that)
+            "fill": frame_cut_fill(li.mask, li.y0, ctx.shape[0], ctx.params.window_height_m[0]
+                                   * float(ctx.intrinsics.fy) / z if z else float("nan")),
+            "fill_seen": float(li.mask.sum()) / float(h * w),
             "edge": edge_contrast(feat, li.y0, li.x0, h, w, ctx.params),
             "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
             "y0": li.y0, "x0": li.x0}
@@ -250,6 +291,21 @@ def score_terms(conf: float, x: dict) -> list[float]:
             min(x.get("edge", 0.0), 3.0)]
 
 
+def first_confidence(p, conf: float, x: dict) -> float:
+    """The proposer's first confidence ``conf`` of a window with features ``x`` (:func:`window_features`),
+    its fill term read on the fill :func:`frame_cut_fill` judges (``x["fill"]``) instead of its box's
+    (``x["fill_seen"]``): ``windows.propose`` adds 0.25 x (fill - ``window_min_fill``) / (1 -
+    ``window_min_fill``) (at most 0.25). Unchanged for a window the frame does not cut (docs/proposals.md
+    "Twelfth pass: panes the frame cuts")."""
+    if "fill_seen" not in x or x["fill"] == x["fill_seen"]:
+        return conf
+
+    def term(f):
+        return min(1.0, (f - p.window_min_fill) / (1 - p.window_min_fill + 1e-6))
+    out = float(np.clip(conf + 0.25 * (term(x["fill"]) - term(x["fill_seen"])), 0.0, 1.0))
+    return min(out, p.window_tiny_max_confidence) if x["area_px"] < p.window_tiny_px else out
+
+
 def window_confidence(p, conf: float, x: dict) -> float:
     """A window's final confidence from its first one ``conf`` and its features ``x``
     (:func:`window_features`; docs/proposals.md "Seventh pass", "Tenth pass", "Eleventh pass: the slider").
@@ -268,8 +324,11 @@ def window_confidence(p, conf: float, x: dict) -> float:
     (:func:`score_terms`) mapped to 0.5 + 0.5 sigmoid(score). Only windows at least 0.5 confident are
     rescored, into [0.5, 1): the set kept at 0.5 does not change, only its order. A window of fewer
     than ``window_tiny_px`` pixels stays at most ``window_tiny_max_confidence``. Fewer weights leave the
-    later terms out (5: the seventh pass's rule, 8: the tenth pass's).
+    later terms out (5: the seventh pass's rule, 8: the tenth pass's). A pane the frame's top or bottom cuts
+    has its first confidence's fill read beyond the frame first (:func:`first_confidence`, twelfth pass):
+    the only windows that may cross 0.5 here.
     """
+    conf = first_confidence(p, conf, x)
     wts = tuple(p.window_conf_weights)
     if conf < 0.5 or not any(wts):
         return conf
