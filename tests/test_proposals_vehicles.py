@@ -624,3 +624,23 @@ def test_a_car_cut_on_its_centre_side_by_the_car_ahead_gets_the_sliver_of_its_re
         ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
         on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
         assert (max((_iou(ann.mask(i), visible) for i in on_car), default=0.0) >= 0.5) == want
+
+
+def test_a_car_whose_face_is_laid_out_from_the_car_in_fronts_edge_is_parked_however_near_our_lane_that_guess_lies():
+    """The car of the first sliver test (10 m, all of its end face but 8 px hidden by the car in front, no
+    inner edge found) stands 1.2 m left of the camera by the face guessed from the occluder's edge, with no
+    kerb in view: that guess says nothing of where the car stands sideways, so its sliver is a parked rear
+    lamp (class 4). The old code took the guess's offset for the car's and proposed a moving rear lamp (6),
+    lit at night."""
+    img, lab, depth, inst, intr = _frame(cx=160.0)
+    side = (slice(_row(0.9), _row(0.3)), slice(145, 175))
+    lab[side], img[side], inst[side] = CAR, (28, 42, 100), CAR * 1000 + 1
+    depth[side] = 10.0 + 0.13 * (np.arange(145, 175) - 144)
+    _car(img, lab, depth, inst, 55, 145, 1)
+    front = (slice(30, 120), slice(0, 137))
+    lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 9.0, CAR * 1000 + 2
+    strip = (slice(None), slice(137, 141))
+    depth[strip] = np.where(inst[strip] == CAR * 1000 + 1, np.linspace(9.2, 9.9, 4)[None, :], depth[strip])
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
+    assert on_car and all(class_of(i) == 4 for i in on_car)

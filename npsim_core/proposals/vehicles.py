@@ -1073,7 +1073,10 @@ def propose(ctx: Context) -> list[Group]:
             dr, dg, db = float(r - paint[0]), float(g - paint[1]), float(bl - paint[2])
             dn = float(np.sqrt(dr * dr + dg * dg + db * db))
             rear = (r > 1.5 * max(g, bl) and r > 50) or (dn > 10.0 and dr - max(dg, db) > p.vehicle_rear_red_share * dn)
-            moving = _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
+            # A face not placed (laid out from a nearer object's edge) says nothing of where the vehicle
+            # stands sideways -- it may lie in our lane while the car is parked beyond the car ahead
+            # (2048x1024 lights seeds 1, 2) --: parked, as without depth.
+            moving = placed and _in_traffic(ctx, y0, x0, m, (r0, r1, c0, c1), z)
             lamp_cls = (MOVING_REAR if rear else MOVING_FRONT) if moving else (PARKED_REAR if rear else PARKED_FRONT)
             pair = float(distinct == len(lamps) == 2)
             members = [Light(lamp_cls, y0, x0, b, _rescore(
