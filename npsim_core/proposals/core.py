@@ -127,17 +127,20 @@ class Context:
             self._lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
         return self._lum
 
-    def metres_per_px(self, y0: int, y1: int, x0: int, x1: int, mask: np.ndarray | None = None) -> float | None:
-        """Metres per pixel at the median depth of a box (mask: local bool of the box), None without depth."""
+    def depths_in(self, y0: int, y1: int, x0: int, x1: int, mask: np.ndarray | None = None) -> np.ndarray | None:
+        """The finite depths (m) of a box (mask: local bool of the box); None without depth or none finite."""
         if self.depth is None:
             return None
         d = self.depth[y0:y1, x0:x1]
         if mask is not None:
             d = d[mask]
         d = d[np.isfinite(d)]
-        if d.size == 0:
-            return None
-        return float(np.median(d)) / float(self.intrinsics.fy)
+        return d if d.size else None
+
+    def metres_per_px(self, y0: int, y1: int, x0: int, x1: int, mask: np.ndarray | None = None) -> float | None:
+        """Metres per pixel at the median depth of a box (mask: local bool of the box), None without depth."""
+        d = self.depths_in(y0, y1, x0, x1, mask)
+        return None if d is None else float(np.median(d)) / float(self.intrinsics.fy)
 
     def height_above_ground(self, v: np.ndarray | float, z: np.ndarray | float) -> np.ndarray | float:
         """Height (m) above the ground plane of the point seen at image row ``v`` with z-depth ``z`` (m)."""

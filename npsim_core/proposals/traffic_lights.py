@@ -104,11 +104,8 @@ def lit_cell(glow: np.ndarray, cells: list[np.ndarray], ratio: float) -> int | N
 def _head_height_m(ctx: Context, y0: int, x0: int, mask: np.ndarray) -> float | None:
     """Height (m) of a signal housing from its pixel height and depth (a low percentile: predicted depth
     bleeds the farther background into small objects); None without depth."""
-    if ctx.depth is None:
-        return None
-    d = ctx.depth[y0:y0 + mask.shape[0], x0:x0 + mask.shape[1]][mask]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    d = ctx.depths_in(y0, y0 + mask.shape[0], x0, x0 + mask.shape[1], mask)
+    if d is None:
         return None
     ys = np.flatnonzero(mask.any(1))
     return float(ys[-1] - ys[0] + 1) * float(np.percentile(d, 20)) / float(ctx.intrinsics.fy)

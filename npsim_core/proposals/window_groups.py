@@ -198,17 +198,11 @@ def _blank_column(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
     (depth within ``2 tol`` of the inverse-depth line from ``i`` to ``j``; any without depth) lie in the
     bays of both ``i`` and ``j`` (centre column within a quarter of the gap of theirs) and none in the
     middle half of the gap."""
-    cu, z = t["cu"], t["z"]
-    a, b = cu[i], cu[j]
-    q = 0.25 * (b - a)
-    if q <= 0:
+    gap = _other_floors_panes(t, i, j, idx, tol)
+    if gap is None:
         return False
-    other = np.ones(cu.size, bool)
-    other[idx] = False
-    if np.isfinite(z[i]) and np.isfinite(z[j]):
-        f = np.clip((cu - a) / (b - a), -1.0, 2.0)
-        want = 1.0 / (1.0 / z[i] + (1.0 / z[j] - 1.0 / z[i]) * f)
-        other &= ~(np.abs(z - want) > 2.0 * tol * want)  # NaN depth: kept
+    other, a, b, q = gap
+    cu = t["cu"]
     near_i = other & (np.abs(cu - a) <= max(q, 1.0))
     near_j = other & (np.abs(cu - b) <= max(q, 1.0))
     inside = other & (cu > a + q) & (cu < b - q)
@@ -221,18 +215,31 @@ def _bay_in_gap(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
     centre column lies in the middle half of the gap. Bays repeat from floor to floor, so a wide step there
     is a pane the proposer missed (or a tree's shadow), not the blank wall of a building's end
     (docs/proposals.md "Twelfth pass: window groups")."""
+    gap = _other_floors_panes(t, i, j, idx, tol)
+    if gap is None:
+        return False
+    other, a, b, q = gap
+    cu = t["cu"]
+    return bool((other & (cu > a + q) & (cu < b - q)).any())
+
+
+def _other_floors_panes(t: dict, i: int, j: int, idx: np.ndarray,
+                        tol: float) -> tuple[np.ndarray, float, float, float] | None:
+    """(panes not in ``idx`` on the wall's plane between panes ``i`` (left) and ``j`` -- depth within ``2 tol``
+    of the inverse-depth line from ``i`` to ``j``, any without depth --, the two panes' centre columns
+    ``a`` < ``b``, a quarter of the gap); None when ``j`` is not right of ``i``."""
     cu, z = t["cu"], t["z"]
-    a, b = cu[i], cu[j]
+    a, b = float(cu[i]), float(cu[j])
     q = 0.25 * (b - a)
     if q <= 0:
-        return False
+        return None
     other = np.ones(cu.size, bool)
     other[idx] = False
     if np.isfinite(z[i]) and np.isfinite(z[j]):
         f = np.clip((cu - a) / (b - a), -1.0, 2.0)
         want = 1.0 / (1.0 / z[i] + (1.0 / z[j] - 1.0 / z[i]) * f)
         other &= ~(np.abs(z - want) > 2.0 * tol * want)  # NaN depth: kept
-    return bool((other & (cu > a + q) & (cu < b - q)).any())
+    return other, a, b, q
 
 
 def _side_colour_step(t: dict, o: np.ndarray, k: int) -> float:

@@ -693,11 +693,8 @@ def _hull_fill(m: np.ndarray) -> float:
 def _on_ground_floor(ctx: Context, y: int, x: int, m: np.ndarray) -> bool:
     """Whether a blob (``m`` at (y, x)) reaches into the ground floor: its bottom row at most
     ``window_shop_max_top_m`` above the ground at its median depth (False without depth)."""
-    if ctx.depth is None:
-        return False
-    d = ctx.depth[y:y + m.shape[0], x:x + m.shape[1]][m]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    d = ctx.depths_in(y, y + m.shape[0], x, x + m.shape[1], m)
+    if d is None:
         return False
     return float(ctx.height_above_ground(y + m.shape[0] - 0.5, float(np.median(d)))) <= ctx.params.window_shop_max_top_m
 
