@@ -559,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
                          "double-clicking it active (the model before; module doc)")
     args = ap.parse_args(argv)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
-    from PySide6.QtCore import QCoreApplication
+    from PySide6.QtCore import QCoreApplication, QThreadPool
 
     from npsim_cli.options import parse_size
     from npsim_core.proposals import propose_for_scene
@@ -615,6 +615,10 @@ def main(argv: list[str] | None = None) -> int:
                     s.shutdown()
                     row = (variant, seed, t, counts, len(gt.instance_ids()), len(gt.groups), t_prop, by_cat)
                     (rows if model_k == 0 else rows_before).append(row)
+    # Every session started superpixels in Qt's pool (cancelled by shutdown, but a job in native code runs
+    # to its step's end): wait for them, or the interpreter's exit can crash under them (a segfault, the
+    # buffered tables lost, seen under load).
+    QThreadPool.globalInstance().waitForDone()
     load = os.getloadavg()[0]
     model = ("per-member grouping (older model)" if args.per_member_grouping else
              "group by group, partial groups by select + Ctrl+G (--no-active-group)" if args.no_active_group else
