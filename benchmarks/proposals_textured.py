@@ -10,7 +10,9 @@ over the occluder joins"). The frame: the default fixture street, its walls text
 tests/test_proposals_fuzz.py's ``_expose(..., "texture")`` (rng = seed). Per size, seed and depth:
 the time of ``propose_lights`` (the scene's intrinsics; no instance ids), the parts of it in the
 windows' occluder joins, in the window groups and confidences (``regroup_windows``,
-``rescore_windows``) and in the groups alone, the window candidates entering the joins and the windows proposed. Target:
+``rescore_windows``) and in the groups alone, the window candidates entering the joins, the windows proposed
+and their recall / precision against the scene's true lights (the proposals of confidence >= 0.5, IoU >= 0.3:
+``npsim_core.proposals.evaluate.score``, as ``benchmarks.proposals``). Target:
 <= 2 s at 2048x1024 (README). Prints the 1-min load average with each row (2 cores shared).
 """
 
@@ -48,6 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     import npsim_core.proposals.window_groups as gmod
     import npsim_core.proposals.windows as wmod
     from npsim_core.proposals import propose_lights
+    from npsim_core.proposals.evaluate import score_category
 
     join, regroup, rescore = wmod._join_across_occluders, gmod.regroup_windows, cmod.rescore_windows
     spent = {"join": 0.0, "n": 0, "after": 0.0, "groups": 0.0}
@@ -72,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     wmod._join_across_occluders = timed
     gmod.regroup_windows, cmod.rescore_windows = after(regroup, "groups"), after(rescore)
     print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'joins s':>8} {'groups+conf s':>13} {'groups s':>8} {'cands':>6} "
-          f"{'windows':>7} {'load':>5}")
+          f"{'windows':>7} {'recall':>6} {'prec':>6} {'load':>5}")
     try:
         for size in a.sizes.split(","):
             W, H = (int(v) for v in size.split("x"))
@@ -85,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
                     props = propose_lights(img, s.labels, depth, s.intrinsics, None)
                     total = time.perf_counter() - t
                     nwin = len(props.category_ids("windows"))
+                    sc = score_category(s.lights, props.above(0.5), "windows")
                     print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {spent['join']:8.2f} {spent['after']:13.2f} {spent['groups']:8.2f} {spent['n']:6d} "
-                          f"{nwin:7d} {os.getloadavg()[0]:5.2f}", flush=True)
+                          f"{nwin:7d} {sc.recall:6.2f} {sc.precision:6.2f} {os.getloadavg()[0]:5.2f}", flush=True)
     finally:
         wmod._join_across_occluders = join
         gmod.regroup_windows, cmod.rescore_windows = regroup, rescore

@@ -262,6 +262,16 @@ class ProposalParams:
     window_strip_max_px: int = 3
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
+    #: Without depth, a building region whose luminance departs from its 3x3 mean (1.4826 x the median
+    #: absolute deviation, in log luminance) by more than ``window_texture_mad`` x the window threshold
+    #: (-ln ``window_dark_ratio``) is textured (brick, stone): its features are averaged over the rows its
+    #: texture repeats in (a brick course's few pixels, at most ``window_texture_cell_px``; a pane is a cell
+    #: of metres) before the wall reference and the candidates (windows._texture_walls; 0: no test; with
+    #: depth nothing changes).
+    window_texture_mad: float = 0.6
+    #: ... judged on building regions of at least this share of the image (a small piece is mostly edges).
+    window_texture_min_share: float = 0.005
+    window_texture_cell_px: int = 12
     #: A blob kept as a window of which at least ``window_trim_wall_share`` has the colour of the wall
     #: around it (windows._wall_coloured) is glass and a piece of that wall: its parts of other colours
     #: filling ``window_trim_min_fill`` of their box are judged instead (1: no test).

@@ -147,6 +147,73 @@ def _differs(feat: np.ndarray, ref: np.ndarray, params) -> np.ndarray:
     return (d_lum > t) | (d_chroma > params.window_chroma_delta)
 
 
+def _robust_sigma(val: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
+    """1.4826 x the median absolute deviation of ``val`` per id 1..n of ``ids`` (0: none); index 0 unused."""
+    out = np.zeros(n + 1, np.float64)
+    order = np.argsort(ids, kind="stable")
+    iv, vv = ids[order], val[order]
+    cuts = np.searchsorted(iv, np.arange(n + 2))
+    for i in range(1, n + 1):
+        v = vv[cuts[i]:cuts[i + 1]]
+        if v.size:
+            out[i] = 1.4826 * float(np.median(np.abs(v - np.median(v))))
+    return out
+
+
+def _texture_walls(feat: np.ndarray, B: np.ndarray, params) -> tuple[np.ndarray, np.ndarray | None]:
+    """Without depth: the building regions of strong texture (brick, stone), their features averaged.
+
+    A region (connected building pixels, :func:`facades` without depth, of at least
+    ``window_texture_min_share`` of the image) whose log luminance relative to its wall reference
+    (:func:`wall_reference`) departs from its own 3x3 mean by a robust spread (1.4826 x the median
+    absolute deviation) above ``window_texture_mad`` x the window threshold is textured: most of its
+    pixels would differ from the wall and each brick course become a "window". There the features are
+    averaged (box mean over building pixels) over the rows the texture repeats in
+    (:func:`_texture_period`): a brick course repeats every few pixels, a pane is a cell of metres.
+    Returns the features (``feat`` itself when no region is textured) and the textured pixels (HxW
+    bool, None when none).
+    """
+    if params.window_texture_mad <= 0:
+        return feat, None
+    n, reg = cv2.connectedComponents(B.astype(np.uint8), connectivity=4)
+    if n <= 1:
+        return feat, None
+    ref = wall_reference(feat, B, params)
+    r = feat[..., 0] - ref[..., 0]
+    w = B.astype(np.float32)
+    # the texture: what departs from a 3x3 mean (a plain wall's pixels match their neighbours; a pane's
+    # edges are a minority of its wall's pixels)
+    hp = r - _masked_mean(r, w, 3)[0]
+    s = max(1, int(np.sqrt(B.sum() / 20000.0)))  # a subsample of ~20 k pixels is enough for a spread
+    sub = reg[::s, ::s]
+    sel = sub > 0
+    sig = _robust_sigma(hp[::s, ::s][sel], sub[sel], n - 1)
+    t = -np.log(params.window_dark_ratio)
+    area = np.bincount(reg.ravel(), minlength=n)
+    # a small piece of building (a gable beside a tree, a wall strip between poles) is mostly edges
+    bad = (sig > params.window_texture_mad * t) & (area >= params.window_texture_min_share * B.size)
+    bad[0] = False
+    if not bad.any():
+        return feat, None
+    tex = bad[reg]
+    k = _texture_period(hp, tex, params)
+    sm = np.stack([_masked_mean(feat[..., c], w, k)[0] for c in range(feat.shape[2])], -1)
+    return np.where(tex[..., None], sm, feat).astype(np.float32), tex
+
+
+def _texture_period(hp: np.ndarray, tex: np.ndarray, params) -> int:
+    """The rows over which a textured wall repeats: the lag (2 .. ``window_texture_cell_px``) of the
+    highest autocorrelation of its high-passed luminance ``hp`` down the columns of ``tex`` (brick
+    courses repeat every few rows); ``window_texture_cell_px`` when nothing repeats (noise, plaster)."""
+    kmax = max(2, int(params.window_texture_cell_px))
+    v = np.where(tex, hp, 0.0)[:, ::2].astype(np.float64)
+    c0 = float((v * v).sum())
+    if c0 <= 0 or v.shape[0] <= kmax:
+        return kmax
+    corr = np.array([float((v[:-L] * v[L:]).sum()) / c0 for L in range(2, kmax + 1)])
+    return int(np.argmax(corr)) + 2 if corr.max() > 0.2 else kmax
+
+
 def _open2(m: np.ndarray) -> np.ndarray:
     """Morphological opening of ``m`` (HxW bool) by a 2x2 square, in place: OpenCV's MORPH_OPEN with
     an even kernel erodes and dilates about the same anchor, which moves the result one pixel right
@@ -1530,6 +1597,8 @@ def propose(ctx: Context) -> list[Group]:
         return []
     H, W = ctx.shape
     feat = _features(ctx)
+    if ctx.depth is None:  # a bare image: a brick facade's courses are not panes (docs/proposals.md "Twelfth pass")
+        feat, _ = _texture_walls(feat, B, p)
     ref = wall_reference(feat, B, p)
     ratio = feat[..., 0] - ref[..., 0]
     chroma = np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2])
