@@ -595,7 +595,7 @@ def main(argv: list[str] | None = None) -> int:
             t_prop = time.perf_counter() - t0
             for t in [None] + thresholds:
                 for model_k, m in enumerate(models):
-                    s = EditorSession()
+                    s = EditorSession(superpixels=False)  # drawn from masks: no pool thread
                     s.load(scene.image, scene.labels, None)
                     if m["vehicle_groups"]:
                         s.set_vehicle_instances(scene.instances)

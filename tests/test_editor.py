@@ -966,7 +966,7 @@ def test_action_benchmark_strokes_are_the_editors(qtbot, tmp_path):
                       13002: GroupInstance(13002, tuple(sorted(floor2)))})
     groups = {}
     for stroke, stroke_group in ((True, True), (True, False), (False, False)):
-        sess = EditorSession()
+        sess = EditorSession(superpixels=False)
         sess.load(np.zeros(gt.shape + (3,), np.uint8), None, load_annotation(folder, "slant"))
         counts = dict.fromkeys(("draw", "class keys", "group", "remove", "class fix", "touch up", "ungroup"), 0)
         finish_by_hand(sess, gt, counts, stroke_select=stroke, stroke_group=stroke_group)
@@ -1029,7 +1029,7 @@ def test_action_benchmark_class_keys_follow_the_double_click(qtbot):
         for j, i in enumerate(car):
             m[10 + 8 * j:14 + 8 * j, 10 + 35 * k:20 + 35 * k] = i
     gt = LightAnnotation(m, {14001 + k: GroupInstance(14001 + k, car) for k, car in enumerate(cars)})
-    s = EditorSession()
+    s = EditorSession(superpixels=False)
     s.load(np.zeros((40, 120, 3), np.uint8), None, None)
     for car in ((2001,), (2002,), (2003, 4003)):                     # accepted: panes, the third car's lamp
         ids = []
@@ -1113,7 +1113,7 @@ def test_action_benchmark_charges_the_keys_to_the_select_tool_and_back_for_a_ban
     for rows in (1, 3):
         gt = _rows_of_windows(rows)
         for switches in (True, False):
-            sess = EditorSession()
+            sess = EditorSession(superpixels=False)
             sess.load(np.zeros(gt.shape + (3,), np.uint8), None, None)
             for i in gt.instance_ids():                                  # accepted, ungrouped
                 cmd, nid = new_instance(sess.ann, 1)
@@ -1184,7 +1184,7 @@ def test_action_benchmark_charges_a_touch_up_one_right_drag(qtbot):
     gt = _rows_of_windows(1)
     got = {}
     for switches in (True, False):
-        sess = EditorSession()
+        sess = EditorSession(superpixels=False)
         sess.load(np.zeros(gt.shape + (3,), np.uint8), None, None)
         for i in gt.instance_ids():                                  # accepted; the first one too small
             cmd, nid = new_instance(sess.ann, 1)
@@ -1217,7 +1217,7 @@ def test_action_benchmark_draws_a_group_starting_with_the_class_in_hand(qtbot):
     gt = LightAnnotation(m, {14001 + k: GroupInstance(14001 + k, car) for k, car in enumerate(cars)})
     got = {}
     for class_order in (False, True):
-        s = EditorSession()
+        s = EditorSession(superpixels=False)
         s.load(np.zeros((40, 120, 3), np.uint8), None, None)
         counts = dict.fromkeys(("draw", "class keys", "group", "tool"), 0)
         log = []

@@ -195,7 +195,7 @@ def test_action_benchmark_reviews_pending_groups_worth_a_shift_a(qtbot):
     props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003)),
                                                    13002: GroupInstance(13002, (1004, 1007))}),
                            {i: 0.5 for i in (1001, 1002, 1003, 1004, 1007, 13001, 13002)})
-    s = EditorSession()
+    s = EditorSession(superpixels=False)
     s.load(np.zeros((40, 80, 3), np.uint8), None, None)
     book = ProposalBook(props)
     assert book.accept_above(s, 0.9) == []
@@ -234,7 +234,7 @@ def test_action_benchmark_reviews_the_one_pending_light_that_completes_a_group(q
     props = LightProposals(LightAnnotation(np.where(gt_map <= 1003, gt_map, 0),
                                            {13001: GroupInstance(13001, (1001, 1002, 1003))}),
                            {1001: 0.95, 1002: 0.95, 1003: 0.6, 13001: 0.95})
-    s = EditorSession()
+    s = EditorSession(superpixels=False)
     s.load(np.zeros((40, 80, 3), np.uint8), None, None)
     book = ProposalBook(props)
     assert len(book.accept_above(s, 0.9)) == 2
@@ -323,7 +323,7 @@ def test_action_benchmark_charges_a_removal_one_key_with_hover_delete():
     gt_map[10:16, 10:16] = 1001
     gt = LightAnnotation(gt_map, {})
     for hover, cost in ((True, 1), (False, 2)):
-        s = EditorSession()
+        s = EditorSession(superpixels=False)
         s.load(np.zeros((40, 80, 3), np.uint8), None, None)
         m = gt_map.copy()
         m[20:26, 40:46] = 1002                                       # a false light

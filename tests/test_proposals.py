@@ -753,7 +753,7 @@ def test_editor_actions_count_drawn_lights_as_selected_and_a_band_over_accepted_
     totals = {}
     for old in (False, True):
         for accepted in (False, True):
-            s = EditorSession()
+            s = EditorSession(superpixels=False)
             s.load(img, None, None)
             if accepted:                                             # the windows are there, ungrouped
                 for i in (1001, 1002, 1003):

@@ -78,7 +78,7 @@ def test_a_car_whose_lights_are_in_two_groups_is_left_to_the_annotator(ann):
 def test_the_editor_groups_a_car_as_its_lights_are_drawn(qtbot):
     from npsim_gui.editor.session import EditorSession
 
-    s = EditorSession()
+    s = EditorSession(superpixels=False)
     s.load(np.zeros((H, W, 3), np.uint8), None, None)
     with pytest.raises(NpsimInputError, match="instance ids"):
         s.set_vehicle_instances(np.zeros((H, W + 1), np.int32))
@@ -124,7 +124,7 @@ def test_the_action_benchmark_charges_no_grouping_for_a_car_drawn_with_instance_
     gt = LightAnnotation(gt_map, {14001: GroupInstance(14001, (2001, 4001, 4002))})
     got = {}
     for with_ids in (True, False):
-        s = EditorSession()
+        s = EditorSession(superpixels=False)
         s.load(np.zeros((H, W, 3), np.uint8), None, None)
         if with_ids:
             s.set_vehicle_instances(_instances())
@@ -151,3 +151,20 @@ def test_an_annotation_item_finds_the_instance_ids_beside_its_labels(tmp_path):
     write_image(tmp_path / "c_instanceIds.png", np.zeros((3, 6), np.uint16))
     with pytest.raises(NpsimInputError, match="c_instanceIds.png"):
         c.load_instances((4, 6))
+
+
+def test_a_session_without_superpixels_starts_no_job(qtbot):
+    """``EditorSession(superpixels=False)`` (the action benchmark's replays, which draw from given masks)
+    never starts a superpixel job: no pool thread runs native code behind a session a script drops (a
+    worker crashed in such a test under load)."""
+    from PySide6.QtCore import QThreadPool
+
+    from npsim_gui.editor.session import EditorSession
+
+    QThreadPool.globalInstance().waitForDone()
+    s = EditorSession(superpixels=False)
+    s.load(np.zeros((H, W, 3), np.uint8), None, None)
+    assert QThreadPool.globalInstance().activeThreadCount() == 0
+    qtbot.wait(50)
+    assert s.sp_coarse is None and not s.superpixels_ready
+    s.shutdown()

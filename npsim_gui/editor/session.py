@@ -123,8 +123,11 @@ class EditorSession(QObject):
     #: A background autosave wrote the recovery file (its path).
     autosaved = Signal(object)
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent=None, *, superpixels: bool = True) -> None:
+        """``superpixels=False``: never compute superpixels (a session replayed by a script, e.g. the action
+        benchmark, draws with masks it is given; no pool thread then runs native code behind it)."""
         super().__init__(parent)
+        self.compute_superpixels = superpixels
         self.image = np.zeros((1, 1, 3), np.uint8)
         self.labels: np.ndarray | None = None
         self.ann = LightAnnotation.empty(1, 1)
@@ -219,6 +222,8 @@ class EditorSession(QObject):
         self.sp_coarse = self.sp_fine = self.sp_means = self._sp_fine_means = None
         self._job_cancel.set()  # a previous job skips what it has not started (its result is stale)
         self._job_cancel = threading.Event()
+        if not self.compute_superpixels:
+            return
         self.pool.start(_SuperpixelJob(self._bridge, self._sp_generation, self.image, self.image_key, self.sp_params,
                                        self._job_cancel, self._closed))
 
