@@ -71,7 +71,8 @@ class EditorWindow(QMainWindow):
         f.addSeparator()
         self._menu_action(f, "Quit", "quit", self.close)
         e = mb.addMenu("&Edit")
-        for name in ("undo", "redo", "new", "class", "group", "ungroup", "activate", "delete", "delete_hovered", "escape", "filter"):
+        for name in ("undo", "redo", "new", "class", "group", "ungroup", "activate", "delete", "delete_hovered",
+                     "escape", "filter"):
             e.addAction(self.editor.actions_by_name[name])
         t = mb.addMenu("&Tools")
         for name, a in self.editor.actions_by_name.items():
