@@ -6,10 +6,11 @@
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
                                                       [--no-tool-switches] [--class-order]
                                                       [--no-hover-delete] [--no-vehicle-groups]
+                                                      [--no-stroke-accept]
                                                       [--compare [active-group|stroke-select|stroke-group|
                                                                   review|ninth-pass|tool-switches|
                                                                   class-order|tool-keys|hover-delete|
-                                                                  vehicle-groups]]
+                                                                  vehicle-groups|stroke-accept]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -68,6 +69,9 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   and the band is taken only where it saves more than that;
 * **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, a
   pending proposal group worth it is accepted with Shift+A over it, 1 each (:func:`review_pending`);
+  then the good pending proposals left (their group holds false lights) are accepted by Ctrl+drags that
+  start on one of them, 1 per path (*stroke accept*, issue #26's thirteenth pass; :func:`stroke_accept_pending`;
+  ``--no-stroke-accept``: without);
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
   the slider's default (``npsim_gui.editor.proposals.DEFAULT_ACCEPT_THRESHOLD``, 0.90); "Propose lights"
   itself: 1.
@@ -471,6 +475,40 @@ def review_pending(session, book, gt, counts: dict[str, int], by_category: dict 
             by_category[key] = by_category.get(key, 0) + 1
 
 
+def stroke_accept_pending(session, book, gt, counts: dict[str, int], by_category: dict | None = None) -> None:
+    """After :func:`review_pending`: the pending proposals that match a ground-truth light not yet annotated
+    (mask IoU >= 0.5) and that a Shift+A was not worth (their group holds false lights) are accepted by
+    Ctrl+drags that start on one of them (the editor's *stroke accept*, ``npsim_gui.editor.tools``: every
+    pending proposal the path passes over, with its proposed group restricted to those, one undo step):
+    the paths of :func:`stroke_paths` over the pending proposals' map, through those lights only (a
+    pending false light on the path would be accepted too), one path per run, taken when the draws it saves
+    exceed 1 for the drag and 1 for each match below IoU 0.7 (a touch-up). Counted as "review"; since issue
+    #26's thirteenth pass (``--no-stroke-accept``: without)."""
+    from npsim_core.annotation import class_of
+    from npsim_gui.editor.tools import lights_on_path
+
+    by_category = {} if by_category is None else by_category
+    existing = session.existing_ids()
+    pmap = book.pending_map(existing)
+    if pmap is None:
+        return
+    covered = set(match_lights(gt, session.ann))
+    pending = set(book.pending(existing))
+    good = {pid: iou for g, (pid, iou) in match_lights(gt, book.proposals.annotation).items()
+            if g not in covered and pid in pending}
+    for path in stroke_paths(pmap, set(good), set(good)):
+        x, y = (int(np.floor(v)) for v in path[0])
+        if session.ann.instance_map[y, x]:
+            continue  # the press lands on a light: a stroke select, not a stroke accept
+        lights = lights_on_path(pmap, path)
+        if len(lights) - 1 - sum(good[p] < TOUCH_UP_IOU for p in lights) <= 0:
+            continue
+        if book.accept_lights(session, lights):
+            counts["review"] += 1
+            key = ("review", CATEGORY_OF_CLASS.get(class_of(min(lights)), "other"))
+            by_category[key] = by_category.get(key, 0) + 1
+
+
 def _left_whole(book, gt, prop_match: dict[int, tuple[int, float]], gid: int) -> bool:
     """Whether accepting the whole proposal group ``gid`` (Shift+A over it: its accepted and pending
     lights become one group) gives a ground-truth group exactly: every light of the group matched (IoU
@@ -536,9 +574,13 @@ def main(argv: list[str] | None = None) -> int:
                          "(module doc)")
     ap.add_argument("--no-review", action="store_true",
                     help="leave the proposals below the slider pending (no Shift+A review; module doc)")
+    ap.add_argument("--no-stroke-accept", action="store_true",
+                    help="accept pending proposals by Shift+A over their groups only, not also by Ctrl+drags over "
+                         "them (the model before; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
                     choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
-                             "tool-switches", "class-order", "tool-keys", "hover-delete", "vehicle-groups"),
+                             "tool-switches", "class-order", "tool-keys", "hover-delete", "vehicle-groups",
+                             "stroke-accept"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
@@ -577,14 +619,16 @@ def main(argv: list[str] | None = None) -> int:
     # rows_before: --compare, the same frames and proposals without the active group (or stroke select)
     rows, rows_before = [], []
     # (active group, stroke select, stroke group, review, tool switches, class in hand, hover delete)
-    names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete", "vehicle_groups")
+    names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete", "vehicle_groups",
+             "stroke_accept")
     now = dict(zip(names, (not args.no_active_group, not args.no_stroke_select,
                            not (args.no_stroke_select or args.no_stroke_group), not args.no_review,
                            not args.no_tool_switches, not args.class_order, not args.no_hover_delete,
-                           not args.no_vehicle_groups)))
+                           not args.no_vehicle_groups, not (args.no_review or args.no_stroke_accept))))
     off = {"active-group": ("active",), "stroke-select": ("stroke", "stroke_group"), "stroke-group": ("stroke_group",),
            "review": ("review",), "ninth-pass": ("stroke", "stroke_group", "review"), "tool-switches": ("switches",),
-           "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",), "vehicle-groups": ("vehicle_groups",)}
+           "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",), "vehicle-groups": ("vehicle_groups",),
+           "stroke-accept": ("stroke_accept",)}
     models = [now] + ([{**now, **dict.fromkeys(off[args.compare], False)}] if args.compare else [])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
@@ -607,6 +651,8 @@ def main(argv: list[str] | None = None) -> int:
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
                         if m["review"] and t != ORACLE:  # (the oracle accepted every good proposal already)
                             review_pending(s, book, gt, counts, by_cat, remove_cost=1 if m["hover_delete"] else 2)
+                            if m["stroke_accept"]:
+                                stroke_accept_pending(s, book, gt, counts, by_cat)
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
                                    active_group=m["active"], stroke_select=m["stroke"],
                                    stroke_group=m["stroke_group"], tool_switches=m["switches"],
@@ -627,7 +673,8 @@ def main(argv: list[str] | None = None) -> int:
         model += (", no stroke select" if args.no_stroke_select else
                   ", stroke select (Ctrl+drag), no stroke group" if args.no_stroke_group else
                   ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
-        model += ", no review" if args.no_review else ", pending groups reviewed (Shift+A)"
+        model += (", no review" if args.no_review else ", pending groups reviewed (Shift+A)" if args.no_stroke_accept
+                  else ", pending groups reviewed (Shift+A) and pending proposals stroke-accepted (Ctrl+drag)")
         model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
         model += ", groups drawn in class order" if args.class_order else ", groups start with the class in hand"
         model += ", removals by right-click + Delete" if args.no_hover_delete else ", removals by X over the light"
@@ -657,7 +704,8 @@ def main(argv: list[str] | None = None) -> int:
                 "class-order": "--class-order (a group's lights drawn in class order)",
                 "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)",
                 "hover-delete": "--no-hover-delete (a wrong light removed by right-click + Delete)",
-                "vehicle-groups": "--no-vehicle-groups (every car's lights grouped by hand)"
+                "vehicle-groups": "--no-vehicle-groups (every car's lights grouped by hand)",
+                "stroke-accept": "--no-stroke-accept (pending proposals accepted by Shift+A over their groups only)"
                 }[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)

@@ -334,3 +334,90 @@ def test_action_benchmark_charges_a_removal_one_key_with_hover_delete():
         check_equal(gt, s.ann)
         assert (counts["remove"], counts["draw"]) == (cost, 0)
         s.shutdown()
+
+
+def test_a_ctrl_drag_from_a_pending_proposal_accepts_what_it_passes_over(editor, qtbot):
+    """Stroke accept (docs/annotation.md): after "Accept ≥ 0.9" took one window of a proposed floor, a
+    Ctrl+drag that starts on a pending window and runs along the floor accepts the pending windows it
+    passes over -- not the group's false mate elsewhere -- into the group the first became, selected, in
+    one undo step. A Ctrl+drag from the background stays a plain stroke select, and a hidden layer is
+    not there to accept from."""
+    from PySide6.QtCore import QPoint, Qt
+
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+
+    p_map = np.zeros((H, W), np.int32)
+    for k in range(4):
+        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
+    p_map[60:66, 100:106] = 1005  # a false mate of the floor's group, off the stroke's path
+    conf = {1001: 0.95, 1002: 0.6, 1003: 0.6, 1004: 0.6, 1005: 0.6, 13001: 0.95}
+    editor.set_proposals(LightProposals(
+        LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003, 1004, 1005))}), conf))
+    s, c = editor.session, editor.canvas
+    assert len(editor.accept_proposals_above()) == 1
+    CTRL, LEFT = Qt.KeyboardModifier.ControlModifier, Qt.MouseButton.LeftButton
+
+    def stroke(x0, x1, y=23):
+        a, b = QPoint(c.view_point(x0 + 0.5, y + 0.5)), QPoint(c.view_point(x1 + 0.5, y + 0.5))
+        qtbot.mousePress(c.viewport(), LEFT, CTRL, a)
+        qtbot.mouseMove(c.viewport(), (a + b) / 2)
+        qtbot.mouseMove(c.viewport(), b)
+        qtbot.mouseRelease(c.viewport(), LEFT, CTRL, b)
+
+    stroke(10, 60)  # from the background: a stroke select, nothing accepted
+    assert len(s.ann.instance_ids()) == 1 and s.selection == set(s.ann.instance_ids())
+    s.set_selection(set())
+    editor.proposal_box.setChecked(False)
+    stroke(34, 60)  # the layer hidden: nothing to accept
+    assert len(s.ann.instance_ids()) == 1
+    editor.proposal_box.setChecked(True)
+    stroke(34, 60)  # from pending window 1002 over 1003 and 1004
+    assert len(s.ann.instance_ids()) == 4 and s.instance_at(102, 62) == 0
+    (g,) = s.ann.groups.values()
+    assert sorted(g.members) == sorted(s.ann.instance_ids()) and g.class_id == 13
+    assert s.selection == set(s.ann.instance_ids()) - {s.instance_at(22, 22)}
+    assert editor.pending_proposals() == [1005]
+    s.undo()
+    editor.refresh_proposals()
+    assert len(s.ann.instance_ids()) == 1 and [len(g.members) for g in s.ann.groups.values()] == [1]
+    assert sorted(editor.pending_proposals()) == [1002, 1003, 1004, 1005]
+
+
+def test_action_benchmark_stroke_accepts_a_floor_whose_group_holds_false_windows(qtbot):
+    """``benchmarks.annotation_actions.stroke_accept_pending``: a pending proposed group of a floor's three
+    true windows and two false ones elsewhere is not worth a Shift+A (3 draws saved, less the key and 2
+    removals); a Ctrl+drag from the first window along the floor accepts the three alone, as their group
+    (``ProposalBook.accept_lights``: 1 action), and the floor needs nothing more. Without it: 3 draws and
+    a Ctrl+G."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending, stroke_accept_pending
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    gt_map = np.zeros((40, 80), np.int32)
+    for k in range(3):
+        gt_map[10:16, 10 + 12 * k:16 + 12 * k] = 1001 + k
+    gt = LightAnnotation(gt_map, {13001: GroupInstance(13001, (1001, 1002, 1003))})
+    p_map = gt_map.copy()
+    p_map[28:32, 60:66] = 1004                                       # two false windows in the floor's group
+    p_map[28:32, 70:76] = 1005
+    props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003, 1004, 1005))}),
+                           {i: 0.6 for i in (1001, 1002, 1003, 1004, 1005, 13001)})
+    for stroke_accept, want in ((True, (0, 0, 1)), (False, (3, 1, 0))):
+        s = EditorSession(superpixels=False)
+        s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+        book = ProposalBook(props)
+        assert book.accept_above(s, 0.9) == []
+        counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up",
+                                "ungroup"), 0)
+        review_pending(s, book, gt, counts)
+        assert counts["review"] == 0                                 # Shift+A is not worth it
+        if stroke_accept:
+            stroke_accept_pending(s, book, gt, counts)
+            assert sorted(book.pending(s.existing_ids())) == [1004, 1005]
+        finish_by_hand(s, gt, counts)
+        check_equal(gt, s.ann)
+        assert (counts["draw"], counts["group"], counts["review"]) == want
+        s.shutdown()

@@ -53,6 +53,26 @@ STROKE_TIP = ("\nAny tool: Ctrl+drag adds every light the path passes over to th
               "windows in one stroke); Ctrl+Shift+drag adds them and groups the selection (as Ctrl+G)")
 
 
+class _ProposalLayer:
+    """The editor's proposal layer as the tools' stroke accept sees it (``tools.ProposalStroke``): the pending
+    proposals while the layer is shown, and their acceptance through the editor (list, status, message)."""
+
+    def __init__(self, editor: "AnnotationEditor") -> None:
+        self.editor = editor
+
+    def pending_map(self) -> np.ndarray | None:
+        ed = self.editor
+        if ed.proposal_book is None or not ed.proposal_box.isChecked():
+            return None  # a hidden layer is not there to stroke over
+        return ed.proposal_book.pending_map(ed._existing_ids())
+
+    def accept(self, lights: list[int]) -> list[int]:
+        ed = self.editor
+        new = ed._safe_result(lambda: ed.proposal_book.accept_lights(ed.session, lights)) or []
+        ed.refresh_proposals()
+        return new
+
+
 class AnnotationEditor(QWidget):
     """Canvas + side panel editing one image's light annotation (see ``session``)."""
 
@@ -66,6 +86,7 @@ class AnnotationEditor(QWidget):
         self.session = EditorSession(self)
         self.options = ToolOptions()
         self.controller = ToolController(self.session, self.options)
+        self.controller.proposals = _ProposalLayer(self)  # stroke accept (tools module doc)
         self.canvas = EditorCanvas(self)
         self.canvas.handler = self.controller
         self._lights_rgba = np.zeros((1, 1, 4), np.uint8)

@@ -223,6 +223,31 @@ class ProposalBook:
             out.append((key, tuple(sorted(d.items()))))
         return tuple(out)
 
+    def pending_map(self, existing: set[int]) -> np.ndarray | None:
+        """The proposal map with only the pending proposals' ids (0 elsewhere), None when none is pending:
+        what a stroke accept passes over (``npsim_gui.editor.tools``)."""
+        pend = self.pending(existing)
+        if not pend:
+            return None
+        pmap = self.proposals.annotation.instance_map
+        return np.where(np.isin(pmap, pend), pmap, 0)
+
+    def accept_lights(self, session, lights: Iterable[int]) -> list[int]:
+        """Accept the proposal ``lights`` alone, each with its proposed group restricted to the lights of
+        that group accepted now or before (those still in the group it was accepted as; a stroke accept: a floor's true windows without the false mates
+        of their group); one undo step. Returns the new light ids."""
+        lights = {int(i) for i in lights}
+        existing = session.existing_ids()
+        members = {}
+        for gid in {self.group_of[p] for p in lights if p in self.group_of}:
+            # lights of the group accepted before count only while still in the group it was accepted as
+            # (an annotator's regrouping stands)
+            before = self.accepted.get(gid)
+            members[gid] = [m for m in self.proposals.ids_in_group(gid) if m in lights or (
+                self.accepted.get(m) in existing and before is not None
+                and session.ann.group_of(self.accepted[m]) == before)]
+        return self.accept(session, sorted(lights), sorted(members), group_members=members)
+
     def accept_above(self, session, threshold: float) -> list[int]:
         """Accept every pending proposal with confidence >= ``threshold`` (one undo step), grouped as
         the proposals' groups restricted to those lights (as ``LightProposals.above``, from the ids and

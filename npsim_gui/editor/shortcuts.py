@@ -129,6 +129,9 @@ KEYMAP: tuple[Shortcut, ...] = (
        "its group", PROPOSALS),
     _s("accept_above", PROPOSAL_KEYS["accept_above"], "Accept every pending proposal at or above the "
        "confidence slider", PROPOSALS),
+    _s("", "Ctrl+drag from a proposal", "Accept every pending proposal the path passes over, with their "
+       "proposed groups restricted to them, and select them (stroke accept: a row of proposals under the "
+       "slider without their group's false mates); Ctrl+Shift: group them too", PROPOSALS),
     # ---- view
     _s("layer_labels", "L", "Show/hide the semantic labels", VIEW),
     _s("layer_superpixels", "P", "Show/hide the superpixel borders (drawn only where a superpixel is at least "

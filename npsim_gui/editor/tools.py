@@ -22,6 +22,10 @@ Modifiers (every tool)
   would also take the floor above or below; :func:`lights_on_path`);
 * Ctrl+Shift+drag (or click): the same, then group the selection as Ctrl+G does (*stroke group*: a
   floor of accepted windows, split over several proposed groups, becomes one group in one gesture);
+* Ctrl+drag (or click) *starting on a pending proposal* (the dashed layer, where no light is): accept
+  every pending proposal the path passes over, with their proposed groups (one undo step), and select
+  them with the lights it passes over (*stroke accept*: a row of proposals under the slider taken in
+  one gesture, without their false group mates); with Shift the selection is then grouped as well;
 * Shift: remove instead of add (superpixel tool), erase (brush), add/remove (select tool);
 * Alt: use the other superpixel scale (fine instead of coarse, or back when the
   panel's *Fine scale* toggle, key D, is on -- for window managers that take Alt+drag).
@@ -31,6 +35,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import Protocol
 
 import numpy as np
 from PySide6.QtCore import Qt
@@ -107,6 +112,16 @@ def lights_on_path(instance_map: np.ndarray, points) -> set[int]:
     return {int(i) for i in np.unique(instance_map[y[ok], x[ok]]) if i}
 
 
+class ProposalStroke(Protocol):
+    """What a stroke accept needs of the proposal layer (the editor provides it while it shows proposals)."""
+
+    def pending_map(self) -> np.ndarray | None:
+        """The pending proposals' ids per pixel (0 elsewhere), or None when there are none."""
+
+    def accept(self, lights: list[int]) -> list[int]:
+        """Accept proposal ``lights`` with their proposed groups (one undo step); the new light ids."""
+
+
 class ToolController:
     """Dispatches canvas mouse events to the active tool."""
 
@@ -128,6 +143,10 @@ class ToolController:
         self._band_press_pixel = (0, 0)
         self._stroke_last: tuple[float, float] | None = None  # Ctrl+drag: the path's last point
         self._stroke_ids: set[int] = set()  # Ctrl+drag: the lights passed over so far
+        #: The proposal layer, when the editor shows one (:class:`ProposalStroke`); None: no stroke accept.
+        self.proposals: ProposalStroke | None = None
+        self._pending_map: np.ndarray | None = None  # stroke accept: the pending proposals' id map
+        self._pending_ids: set[int] = set()  # stroke accept: the pending proposals passed over so far
         self._grow: tuple | None = None  # right press on a light: (light id, x, y, modifiers)
         self._growing = False  # a right-drag paints into (or, Shift, erases from) that light only
 
@@ -156,6 +175,11 @@ class ToolController:
             self._band_press_pixel = (xi, yi)
             self._stroke_last = (x, y)
             self._stroke_ids = lights_on_path(s.ann.instance_map, [(x, y)])
+            self._pending_map, self._pending_ids = None, set()
+            if self._active == "stroke" and not self._stroke_ids and self.proposals is not None:
+                pmap = self.proposals.pending_map()
+                if pmap is not None and 0 <= yi < pmap.shape[0] and 0 <= xi < pmap.shape[1] and pmap[yi, xi]:
+                    self._pending_map, self._pending_ids = pmap, {int(pmap[yi, xi])}
             return
         self._last = (x, y)
         if self.tool == Tool.SUPERPIXEL:
@@ -174,6 +198,8 @@ class ToolController:
             self._grow_start()
         if self._active == "stroke" and self._stroke_last is not None:
             self._stroke_ids |= lights_on_path(self.session.ann.instance_map, [self._stroke_last, (x, y)])
+            if self._pending_map is not None:
+                self._pending_ids |= lights_on_path(self._pending_map, [self._stroke_last, (x, y)])
             self._stroke_last = (x, y)
         if self._active in ("select", "stroke"):
             self._band = self._band[:2] + (x, y)
@@ -308,7 +334,17 @@ class ToolController:
         group = bool(self._band_mods & Qt.KeyboardModifier.ShiftModifier)
         moved, self._band, self._band_moved, self._stroke_last = self._band_moved, None, False, None
         ids, self._stroke_ids = self._stroke_ids, set()
-        if not moved and not group:
+        pending, self._pending_ids, self._pending_map = self._pending_ids, set(), None
+        if pending:  # a stroke accept: the proposals it passed over become lights, selected with the rest
+            new = self.proposals.accept(sorted(pending))
+            ids |= set(new)
+            if not group:
+                sel = s.selection | {i for i in ids if is_light_class(class_of(i))}
+                s.set_selection(sel)
+                s.message.emit(f"accepted {len(new)} proposals under the stroke; {len(sel)} lights selected "
+                               "(Ctrl+Shift+drag groups them too)")
+                return
+        elif not moved and not group:
             x, y = self._band_press_pixel
             self._select_click(x, y, toggle=True)
             return
