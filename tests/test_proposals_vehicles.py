@@ -195,6 +195,19 @@ def test_a_far_red_lamp_is_its_own_pixels_not_the_colour_bled_around_it():
     assert lamps and all(class_of(i) in (4, 6) for i in lamps)
 
 
+def test_a_far_lamp_whose_rim_stands_out_of_the_paint_more_than_its_middle_is_the_rims_inside():
+    """A far car's lamps (4 x 2 px at 40 m, body top 0.9 m) whose middle stays within 30 levels of the
+    paint while the pixel around them stands out (a bright rim about a lens dim by day; on the 512x256
+    hard street, seed 2, a red car's lamp ringed by lighter pixels): the blob snapped is the ring, and
+    the lamp is its inside -- the ring's box less its bled pixel each way -- (IoU >= 0.7). The old code
+    eroded the ring's own pixels, which left a few of them (IoU 0.33)."""
+    img, lab, depth, inst, intr = _frame()
+    truth = _far_car(img, lab, depth, inst, 40.0, 0.9, (40, 60, 140), (60, 50, 110), bleed=(150, 60, 90))
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7
+
+
 def test_a_clear_cars_lamps_and_windscreen_are_confident_and_lamps_not_standing_out_are_not():
     """Confidence ranks what an annotator would accept at the editor's slider (0.9): a car whose red lamps
     stand out of blue paint gets them and its dark rear window (its end pane: large, far off the paint)

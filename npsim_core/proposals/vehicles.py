@@ -639,21 +639,24 @@ def _centres_in(lo: float, hi: float) -> tuple[int, int]:
 
 
 def _unblur(blob: np.ndarray, lamp_h: float, lamp_w: float) -> np.ndarray:
-    """A small lamp's pixels from the blob of colour it leaves in the photo: the blob less a pixel at
-    each end of every direction in which it is at least 3 px and more than 1.4 px thicker than the lamp
+    """A small lamp's pixels from the blob of colour it leaves in the photo: the blob's box less a pixel
+    at each end of every direction in which it is at least 3 px and more than 1.4 px thicker than the lamp
     (``lamp_h`` x ``lamp_w`` px): a lamp's colour bleeds a pixel around it (antialiasing, and the day
-    render's edge blur), and its label holds the pixels whose centres it covers."""
-    import cv2
-
+    render's edge blur), and its label holds the pixels whose centres it covers. The box, not the blob's
+    own pixels eroded: a lamp whose rim stands out of the paint more than its middle (a bright rim about a
+    lens dim by day) leaves a ring, whose eroded pixels are a pixel or two of the rim (docs/proposals.md,
+    "Thirteenth pass: vehicle lamps")."""
     ys, xs = np.nonzero(blob)
     if ys.size == 0:
         return blob
-    out = blob.astype(np.uint8)
-    if ys.max() - ys.min() + 1 >= max(3.0, lamp_h + 1.4):
-        out = cv2.erode(out, np.ones((3, 1), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    if xs.max() - xs.min() + 1 >= max(3.0, lamp_w + 1.4):
-        out = cv2.erode(out, np.ones((1, 3), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    return out.astype(bool) if out.any() else blob
+    y_a, y_b, x_a, x_b = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
+    if y_b - y_a + 1 >= max(3.0, lamp_h + 1.4):
+        y_a, y_b = y_a + 1, y_b - 1
+    if x_b - x_a + 1 >= max(3.0, lamp_w + 1.4):
+        x_a, x_b = x_a + 1, x_b - 1
+    out = np.zeros_like(blob)
+    out[y_a:y_b + 1, x_a:x_b + 1] = True
+    return out
 
 
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
@@ -767,7 +770,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             tall = rows.size and rows[-1] - rows[0] + 1 > LAMP_TALL_RATIO * (br1 - br0 + 1) + 2
             if n >= max(1, full // 3) and n <= 3 * full and not tall:
                 if small:
-                    cand = _unblur(cand, 0.15 * ppm, 0.30 * ppm)
+                    inside = _unblur(cand, 0.15 * ppm, 0.30 * ppm) & m
+                    cand = inside if inside.any() else cand
                 ys, xs = np.nonzero(cand)
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
                 snapped, blob = True, cand
