@@ -341,6 +341,10 @@ class ProposalParams:
     #: ... unless its top is at most this high (m above the ground): ground-floor glazing larger than
     #: the windows above is a shop front (kind ``shop``; cars often hide its lower part).
     window_shop_max_top_m: float = 3.2
+    #: ... also a final window of kind ``window`` larger than that ratio x the median window above the
+    #: ground floor of its wall (three at least), else of those over its columns (widened by its width
+    #: either side; two at least) at a depth within this share of its own (``windows._shop_fronts``).
+    window_shop_above_depth_tol: float = 0.1
     #: No whole window smaller than this many times the median whole window of its wall (a
     #: fragment: a frame, half a pane, a fleck of wall); a pane's visible part is kept. 0: off.
     window_min_median_ratio: float = 0.33

@@ -1483,6 +1483,65 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
             if not (wh and np.isfinite(ai) and ai < r * med and not f[3].cut)]
 
 
+def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> None:
+    """Call ``shop`` (in place) the final windows whose top is at most ``window_shop_max_top_m`` above
+    the ground and which are larger than ``window_max_median_ratio`` x the median whole window above
+    the ground floor -- of their wall when it has three such windows, else of those over it (two at
+    least: above the ground floor, a centre within its columns widened by its width either side, a depth
+    within ``window_shop_above_depth_tol`` of its own; a shop's fascia often parts the ground floor's
+    wall from the floors above): ground-floor glazing larger than the windows above is a shop front.
+
+    :func:`_median_rule` does so only on walls of ``window_median_min_count`` windows and against the
+    floor's own median, which a row of shop fronts sets to a shop front's size; the shop whose sill a car
+    hides or the ground's estimate puts above ``window_shop_max_sill_m`` stays a ``window`` with
+    :func:`_kind` (docs/proposals.md "Thirteenth pass: the 1.5x rule"). Only the kind changes: which
+    lights are proposed does not. Areas: :func:`_wall_areas` on each window's own wall, the window
+    judged one pixel smaller across and down, the reference at its pixel area.
+    ``found``: [wall id, level, tolerance, Light] rows; ``bld``: the wall ids (:func:`facades`)."""
+    p = ctx.params
+    r = float(p.window_max_median_ratio)
+    wins = [f for f in found if (f[3].kind or "window") == "window"]
+    if ctx.depth is None or r <= 0 or len(wins) < 4:
+        return
+    by_wall: dict[int, list] = {}
+    for f in wins:
+        by_wall.setdefault(f[0], []).append(f)
+    a, a_ref, whole = {}, {}, {}
+    for b_id, fs in by_wall.items():
+        fm = bld == b_id
+        t = _wall_direction(ctx, fm)
+        ai, wh = _wall_areas(ctx, fs, fm, t)
+        ar, _ = _wall_areas(ctx, fs, fm, t, shrink=False)
+        for f, x, y, w in zip(fs, ai, ar, wh):
+            a[id(f)], a_ref[id(f)], whole[id(f)] = x, y, bool(w)
+    top, depth = {}, {}
+    for f in wins:
+        li = f[3]
+        z = _median_depth(ctx, li)
+        depth[id(f)] = z if z is not None else np.nan
+        top[id(f)] = float(ctx.height_above_ground(li.y0 - 0.5, z)) if z is not None else np.inf
+    tol = float(p.window_shop_above_depth_tol)
+    above = [f for f in wins if top[id(f)] > p.window_shop_max_top_m and np.isfinite(a_ref[id(f)])]
+
+    def sizes(qs: list) -> list[float]:
+        """The whole ones' areas, or all of theirs when under three are whole (a tree or the frame's
+        top cuts the floors above: their visible parts, smaller than a pane, as in :func:`_median_rule`)."""
+        w_ = [a_ref[id(q)] for q in qs if whole[id(q)]]
+        return w_ if len(w_) >= 3 else [a_ref[id(q)] for q in qs]
+
+    for f in wins:
+        if not (top[id(f)] <= p.window_shop_max_top_m and np.isfinite(a[id(f)])):
+            continue
+        ref = sizes([q for q in above if q[0] == f[0]])
+        if len(ref) < 3:
+            li = f[3]
+            x0, x1, w = li.x0, li.x0 + li.mask.shape[1], li.mask.shape[1]
+            ref = sizes([q for q in above if x0 - w <= q[3].x0 + q[3].mask.shape[1] / 2.0 <= x1 + w
+                         and abs(depth[id(q)] - depth[id(f)]) <= tol * depth[id(f)]])
+        if len(ref) >= 2 and a[id(f)] > r * float(np.median(ref)):
+            f[3].kind = "shop"
+
+
 def _cap_lit(p, wins: list, area: float) -> list:
     """The most confident windows covering at most ``window_max_lit_share`` of a region of ``area``
     pixels (a lit facade is lit per room, not as a whole)."""
@@ -1795,6 +1854,7 @@ def propose(ctx: Context) -> list[Group]:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
                                           and wm < p.window_min_width_m)]
+    _shop_fronts(ctx, found, bld, B)  # the kind only: ground-floor glazing larger than the windows above
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
