@@ -1542,6 +1542,38 @@ def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> N
             f[3].kind = "shop"
 
 
+def _trim_ends(li: Light, dev: np.ndarray, p) -> None:
+    """Take off a window's end rows of the wall's colour, in place: a top (bottom) row whose mean
+    departure from the wall over the window's pixels in it (``dev``, HxW, in window thresholds) is
+    under ``window_unblur_ratio`` x the window's median row, one row at a time, at most a quarter of
+    its rows. A lintel or a sill is not glass."""
+    r = float(p.window_unblur_ratio)
+    h, w = li.mask.shape
+    if r <= 0 or h < 6:
+        return
+    d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
+    cnt = li.mask.sum(1)
+    prof = np.where(cnt > 0, (d * li.mask).sum(1) / np.maximum(cnt, 1), np.nan)
+    med = float(np.nanmedian(prof))
+    a, b, n = 0, h - 1, 0
+    while n < h // 4 and b - a >= 4:
+        if np.isfinite(prof[a]) and prof[a] < r * med:
+            a += 1
+        elif np.isfinite(prof[b]) and prof[b] < r * med:
+            b -= 1
+        else:
+            break
+        n += 1
+    if a == 0 and b == h - 1:
+        return
+    m = li.mask[a:b + 1]
+    ys, xs = np.nonzero(m)
+    if not ys.size:
+        return
+    li.y0, li.x0 = li.y0 + a + int(ys.min()), li.x0 + int(xs.min())
+    li.mask = m[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+
+
 def _cap_lit(p, wins: list, area: float) -> list:
     """The most confident windows covering at most ``window_max_lit_share`` of a region of ``area``
     pixels (a lit facade is lit per room, not as a whole)."""
@@ -1850,6 +1882,10 @@ def propose(ctx: Context) -> list[Group]:
             _extend_ends(li, dev, free, max_h, p)
         _extend_sides(found, dev, free, p)
     found = _join_across_occluders(ctx, found, p)
+    dev_all = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)
+    for f in found:
+        if (f[3].kind or "window") == "window":
+            _trim_ends(f[3], dev_all, p)
     if p.window_min_width_m > 0:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
