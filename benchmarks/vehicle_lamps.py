@@ -13,8 +13,10 @@ Runs the vehicles proposer alone on a synthetic street frame (the scene's depth 
 instance ids, as ``benchmarks.proposals``), matches vehicle lamps one-to-one at mask IoU >= 0.3
 (``npsim_core.proposals.evaluate``) and writes an overlay: true lamps matched (green outline),
 missed (red fill), proposed lamps not matching (yellow fill), matched proposals (cyan outline).
-Each missed lamp is printed with its size, depth and the share of the whole lamp (0.30 x 0.15 m
-at its depth) that is visible; each false lamp with the IoU of its best true lamp.
+Each missed lamp is printed with its size, depth, the share of the whole lamp (0.30 x 0.15 m
+at its depth) that is visible, its car (instance id and pixels: the proposer looks at cars from
+``vehicle_min_area_px``) and its mate, the car's other lamp: found (matched), missed, or hidden (no
+visible pixel); each false lamp with the IoU of its best true lamp.
 """
 
 from __future__ import annotations
@@ -127,6 +129,12 @@ def main(argv: list[str] | None = None) -> int:
     fy = float(scene.intrinsics.fy)
     depth = scene.depth_gt if getattr(scene, "depth_gt", None) is not None else scene.depth
     img = scene.image[..., ::-1].copy()
+    car_of = {}  # true lamp -> the Cityscapes instance (car) under most of its pixels, 0 for none
+    for gid in g_area:
+        if class_of(gid) in LAMP_CLASSES:
+            v = inst[gt.instance_map == gid]
+            v = v[v >= 1000]
+            car_of[gid] = int(np.bincount(v - v.min()).argmax() + v.min()) if v.size else 0
     print(f"{W}x{H} {args.variant} seed {args.seed}: {sum(class_of(i) in LAMP_CLASSES for i in g_area)} true lamps, "
           f"{len(best)} proposed, {len(match)} matched")
     for gid, a in sorted(g_area.items()):
@@ -142,8 +150,12 @@ def main(argv: list[str] | None = None) -> int:
             continue
         img[m] = (0, 0, 255)
         over = {b: v for b, (a_, v) in best.items() if a_ == gid}
+        car = car_of[gid]
+        mates = [k for k, c in car_of.items() if c == car and k != gid] if car else []
+        mate = ("hidden" if not mates else "found" if any(k in match for k in mates) else "missed")
         print(f"  missed {gid} class {class_of(gid)} at x {xs.min()}-{xs.max()} y {ys.min()}-{ys.max()}: {a} px, "
-              f"z {z:.1f} m, visible {a / whole:.2f}" + (f", overlapped by {over}" if over else ""))
+              f"z {z:.1f} m, visible {a / whole:.2f}, car {car} ({int((inst == car).sum()) if car else 0} px), "
+              f"mate {mate}" + (f", overlapped by {over}" if over else ""))
     for pid, (gid, v) in sorted(best.items()):
         m = pred.instance_map == pid
         if pid in match.values():
