@@ -454,8 +454,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{a[:, 10].max():.2f} | {a[:, 11].max():.2f} |")
     if args.list_big:
         print("\nProposed windows over the corrected 1.5x limit (--list-big):\n")
-        print("| size | variant | seed | light id | confidence (truth: the ground truth's own) | box | area m^2 (1 px allowed) | "
-              "facade's true median | ratio | best true window | IoU |")
+        print("| size | variant | seed | light id | confidence (truth: the ground truth's own) | box | "
+              "area m^2 (1 px allowed) | facade's true median | ratio | best true window | IoU |")
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         print("\n".join(big_list))
     print(f"\nload after: {os.getloadavg()[0]:.2f}")
