@@ -1506,31 +1506,48 @@ def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> N
     by_wall: dict[int, list] = {}
     for f in wins:
         by_wall.setdefault(f[0], []).append(f)
-    a, a_ref, whole = {}, {}, {}
-    for b_id, fs in by_wall.items():
-        fm = bld == b_id
-        t = _wall_direction(ctx, fm)
-        ai, wh = _wall_areas(ctx, fs, fm, t)
-        ar, _ = _wall_areas(ctx, fs, fm, t, shrink=False)
-        for f, x, y, w in zip(fs, ai, ar, wh):
-            a[id(f)], a_ref[id(f)], whole[id(f)] = x, y, bool(w)
     top, depth = {}, {}
     for f in wins:
         li = f[3]
         z = _median_depth(ctx, li)
         depth[id(f)] = z if z is not None else np.nan
         top[id(f)] = float(ctx.height_above_ground(li.y0 - 0.5, z)) if z is not None else np.inf
+    cands = [f for f in wins if top[id(f)] <= p.window_shop_max_top_m]
+    if not cands:
+        return
+    from scipy import ndimage
+
+    boxes = ndimage.find_objects(bld)
+    a, a_ref, whole = {}, {}, {}
+
+    def measure(b_id: int) -> None:
+        """Areas of the wall ``b_id``'s windows (the wall's direction from its pixels, once)."""
+        if id(by_wall[b_id][0]) in a:
+            return
+        fm = np.zeros(bld.shape, bool)
+        sl = boxes[b_id - 1] if 0 < b_id <= len(boxes) and boxes[b_id - 1] is not None else None
+        if sl is not None:
+            fm[sl] = bld[sl] == b_id
+        t = _wall_direction(ctx, fm)
+        ai, wh = _wall_areas(ctx, by_wall[b_id], fm, t)
+        ar, _ = _wall_areas(ctx, by_wall[b_id], fm, t, shrink=False)
+        for q, x, y, w in zip(by_wall[b_id], ai, ar, wh):
+            a[id(q)], a_ref[id(q)], whole[id(q)] = x, y, bool(w)
+
     tol = float(p.window_shop_above_depth_tol)
-    above = [f for f in wins if top[id(f)] > p.window_shop_max_top_m and np.isfinite(a_ref[id(f)])]
+    above = [f for f in wins if top[id(f)] > p.window_shop_max_top_m and np.isfinite(depth[id(f)])]
 
     def sizes(qs: list) -> list[float]:
         """The whole ones' areas, or all of theirs when under three are whole (a tree or the frame's
         top cuts the floors above: their visible parts, smaller than a pane, as in :func:`_median_rule`)."""
+        for q in qs:
+            measure(q[0])
         w_ = [a_ref[id(q)] for q in qs if whole[id(q)]]
         return w_ if len(w_) >= 3 else [a_ref[id(q)] for q in qs]
 
-    for f in wins:
-        if not (top[id(f)] <= p.window_shop_max_top_m and np.isfinite(a[id(f)])):
+    for f in cands:
+        measure(f[0])
+        if not np.isfinite(a[id(f)]):
             continue
         ref = sizes([q for q in above if q[0] == f[0]])
         if len(ref) < 3:
