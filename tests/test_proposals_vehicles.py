@@ -656,3 +656,35 @@ def test_a_car_whose_face_is_laid_out_from_the_car_in_fronts_edge_is_parked_howe
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
     assert on_car and all(class_of(i) == 4 for i in on_car)
+
+
+def test_a_cabin_sliver_too_narrow_for_two_two_column_panes_parts_at_its_pillar_into_one_column_panes():
+    """A far car in a parked row shows a sliver of its cabin: a band of 4 columns, two of glass, a painted
+    pillar, one of glass. Runs of one glass column are not panes in a wider band (a pillar's or the
+    silhouette's blurred edge), but a band narrower than two 2-column runs and a pillar can part no
+    other way: its runs of one column count (2048x1024 hard street, seeds 0-2, panes matched at IoU >= 0.5
+    121 -> 127; docs/proposals.md, "Thirteenth pass: vehicle panes at 512x256"). The old code split the
+    band at the end face's edge (IoU 0.5 and 0.33 with the two panes)."""
+    from npsim_core.proposals.vehicles import _pane_parts
+
+    paint, glass = (40, 60, 140), (20, 22, 25)
+    img = np.zeros((3, 4, 3), np.float32)
+    img[:] = glass
+    img[:, 2] = paint
+    band = np.ones((3, 4), bool)
+    end = np.zeros_like(band)
+    end[:, 1:] = True  # the end face laid out from the car in front's edge, a column off the pillar
+    parts, parted = _pane_parts(img, band, end, np.asarray(paint, np.float32), 20.0)
+    assert parted
+    truth = [np.zeros_like(band), np.zeros_like(band)]
+    truth[0][:, :2] = True
+    truth[1][:, 3] = True
+    for t in truth:
+        assert max(_iou(m, t) for _, m, _ in parts) == 1.0
+    # In a band wide enough for two 2-column panes a 1-column run is still no pane.
+    img6 = np.zeros((3, 6, 3), np.float32)
+    img6[:] = glass
+    img6[:, 1] = paint
+    parts6, parted6 = _pane_parts(img6, np.ones((3, 6), bool), np.zeros((3, 6), bool),
+                                  np.asarray(paint, np.float32), 20.0)
+    assert not parted6 and not any(m[:, 0].all() and m.sum() == 3 for _, m, _ in parts6)

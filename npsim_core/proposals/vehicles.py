@@ -54,7 +54,10 @@ LAMP_MIN_CHROMA = 15.0
 #: Heights (m above the ground) where a red lamp is looked for by colour alone (:func:`_red_lamps`).
 RED_LAMP_H_M = (0.5, 1.1)
 # A run of glass columns between pillars narrower than this is the blur of a pillar's or the
-# silhouette's edge, not a pane (2048x1024 hard seeds 0-2: most 1-column runs matched no pane).
+# silhouette's edge, not a pane (2048x1024 hard seeds 0-2: most 1-column runs matched no pane) -- except
+# in a band too narrow to hold two such runs and a pillar between them (a far car in a parked row showing
+# a sliver of its cabin): there a pane is a column or two, and 1-column runs count (docs/proposals.md,
+# "Thirteenth pass: vehicle panes at 512x256").
 PANE_MIN_COLS = 2
 #: A car's glass ends this far (m) below the cabin's top and above the body's top (its frame).
 PANE_INSET_M = 0.07
@@ -123,7 +126,8 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     (False: split at the end face's edge).
 
     A column of the band most of whose pixels lie within ``diff`` levels of the paint (every channel)
-    is a pillar, painted as the body: the band's runs of other columns are the panes, and each is the
+    is a pillar, painted as the body: the band's runs of other columns (at least ``PANE_MIN_COLS``, or
+    one in a band narrower than two such runs and a pillar) are the panes, and each is the
     end pane when most of it lies in the end face's columns (``end``). Without a pillar inside the band
     (glass the paint's colour, a far car's pillar blurred away) the band is split at the end face's
     edge, as before. Far cars in a parked row show their end face's edge only where the car in front
@@ -146,7 +150,8 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     pillar = cols & (near.sum(0) * 2 > n)
     glass = cols & ~pillar
     lab, k = ndimage.label(glass)
-    runs = [i for i in range(1, k + 1) if (lab == i).sum() >= PANE_MIN_COLS]
+    min_cols = 1 if int(cols.sum()) < 2 * PANE_MIN_COLS + 1 else PANE_MIN_COLS
+    runs = [i for i in range(1, k + 1) if (lab == i).sum() >= min_cols]
     if len(runs) < 2:  # no pillar between two runs of glass
         return old, False
     widths = {i: int((lab == i).sum()) for i in runs}
