@@ -905,3 +905,51 @@ def test_the_occluder_joins_on_a_textured_wall_without_depth_are_those_of_a_full
     found, one, every = _joins_both_ways(256, 128, 1, "hard", depth=True, texture=True)
     assert len(found) - len(one) >= 3
     assert one == every
+
+
+def test_a_pane_found_by_its_band_gets_the_rows_its_floor_mates_have():
+    """Windows of one floor share their sill and lintel. A far pane 1-2 px wide whose glass under a
+    bright band departs from the wall by under ``window_extend_dev`` (0.6 of the thresholds) was
+    proposed as its band: 2 x 5 of a 2 x 12 pane, mask IoU 0.42, drawn again by the annotator (at
+    512x256 a common true window proposed inside its pane; docs/proposals.md "Thirteenth pass:
+    window masks at 512x256"). Its found floor-mates' top and bottom lines (slanted: the wall
+    recedes) give the rows it lacks; they are taken while they depart from the wall a little
+    (``window_mates_dev``). A pane short of the lines above wall alone keeps its size, and so does a
+    window with fewer than two mates. ``windows._floor_ends`` on a departure map like the street's."""
+    from npsim_core.proposals.core import Light
+    from npsim_core.proposals.windows import _floor_ends
+
+    rng = np.random.default_rng(1)
+    dev = rng.uniform(0.0, 0.2, (60, 120))            # wall
+    free = np.ones(dev.shape, bool)
+    found, panes = [], []
+    for k, x in enumerate(range(6, 110, 13)):         # one floor of eight 2-px panes, tops 10 + 0.08 x
+        top = 10 + int(round(0.08 * x))
+        pane = np.zeros(dev.shape, bool)
+        pane[top:top + 12, x:x + 2] = True
+        if k in (1, 5):                                # found as its bright band; the glass below faint
+            dev[top:top + 5, x:x + 2] = 4.0
+            dev[top + 5:top + 12, x:x + 2] = rng.uniform(0.35, 0.55, (7, 2))
+            li = Light(1, top, x, np.ones((5, 2), bool), 0.9)
+        elif k == 3:                                   # a shorter window over plain wall: stays as it is
+            dev[top:top + 6, x:x + 2] = 4.0
+            pane[top + 6:] = False
+            li = Light(1, top, x, np.ones((6, 2), bool), 0.9)
+        else:
+            dev[pane] = 4.0
+            li = Light(1, top, x, np.ones((12, 2), bool), 0.9)
+        panes.append(pane)
+        free[li.y0:li.y0 + li.mask.shape[0], x:x + 2] = False
+        found.append([1, 5.0, 0.6, li])
+    # a window of another wall, alone on it, found as its band over faint glass: no mates, no rows
+    dev[30:35, 60:62], dev[35:47, 60:62] = 4.0, 0.45
+    lone = Light(1, 30, 60, np.ones((5, 2), bool), 0.9)
+    free[30:35, 60:62] = False
+    found.append([2, 5.0, 0.6, lone])
+    _floor_ends(found, dev, free, ProposalParams())
+    for k, (f, pane) in enumerate(zip(found, panes)):
+        li = f[3]
+        m = np.zeros(dev.shape, bool)
+        m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
+        assert _iou(m, pane) >= 0.9, f"pane {k}: IoU {_iou(m, pane):.2f}"
+    assert lone.mask.shape == (5, 2) and lone.y0 == 30

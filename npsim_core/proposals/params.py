@@ -233,6 +233,13 @@ class ProposalParams:
     #: glass below a curtain band or a reflection that departs from the wall less; 0: off).
     window_extend_dev: float = 0.6
     window_extend_side_ratio: float = 1.5
+    #: A window at most ``window_mates_short`` x the height its floor-mates' lintel and sill lines give at
+    #: its centre (half its mates, two at least, with their ends on those lines within
+    #: ``window_mates_fit_px``), one end on its line, grows to the other line by rows departing from the
+    #: wall by ``window_mates_dev`` (mean, in window thresholds): a pane found by its band alone (0: off).
+    window_mates_short: float = 0.75
+    window_mates_fit_px: float = 1.5
+    window_mates_dev: float = 0.3
     #: A window at most ``window_side_thin`` x the median width of its nearest mates (same wall; same
     #: floor with rows overlapping by ``window_side_overlap``, or same column) and at least
     #: ``window_side_tall`` x their height grows sideways by the columns of its pane that depart from

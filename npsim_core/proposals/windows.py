@@ -1591,6 +1591,90 @@ def _trim_ends(li: Light, dev: np.ndarray, p) -> None:
     li.mask = m[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
 
 
+def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
+    """Give a window found in part the rows its floor-mates' sill and lintel lines say its pane has, in
+    place: the windows of one floor share their size, so where a pane shows a bright band or a curtain
+    over glass of nearly the wall's colour and the thresholds take the band alone, its mates -- found
+    whole -- mark where its top and bottom are (docs/proposals.md "Thirteenth pass: window masks at
+    512x256"). Mates: the windows of the same wall (``found`` rows [wall id, level, tolerance, Light])
+    on its floor whose rows overlap its own, up to six nearest; their tops and bottoms lie on two
+    lines (a floor's lintel and sill, straight in the image also on a receding wall): the pair of
+    mates whose lines hold the most of them within ``window_mates_fit_px`` (top and bottom residuals
+    summed; a pane found in part, a door, a smaller window is off them), half the mates and two at
+    least, the lines then fitted to those. A window at most ``window_mates_short`` x the height those
+    lines give at its centre, with one end on its line (within a pixel) and the other short of it by
+    two rows or more, grows row by row towards the line while the row is ``free`` (building, no other
+    window; updated) and departs from the wall (``dev``, HxW, in window thresholds) by a mean of
+    ``window_mates_dev`` over its columns. The new rows copy the columns of the end row."""
+    short, fit_px, a = float(p.window_mates_short), float(p.window_mates_fit_px), float(p.window_mates_dev)
+    if short <= 0 or len(found) < 3:
+        return
+    H, W = dev.shape
+    box = np.array([[f[3].y0, f[3].x0, f[3].mask.shape[0], f[3].mask.shape[1]] for f in found], float)
+    bid = np.array([f[0] for f in found])
+    lev = np.array([f[1] for f in found], float)
+    kind_ok = np.array([(f[3].kind or "window") == "window" for f in found])
+    idx = np.arange(len(found))
+    top, bot, cx = box[:, 0], box[:, 0] + box[:, 2] - 1, box[:, 1] + (box[:, 3] - 1) / 2.0
+    for i, f in enumerate(found):
+        li = f[3]
+        if not kind_ok[i]:
+            continue
+        y0, x0, h, w = (int(v) for v in box[i])
+        rows = np.minimum(bot, y0 + h - 1) - np.maximum(top, y0) + 1
+        mate = (bid == f[0]) & (idx != i) & kind_ok & (np.abs(lev - f[1]) <= f[2]) & (rows > 0)
+        j = np.nonzero(mate)[0]
+        if j.size < 2:
+            continue
+        j = j[np.argsort(np.abs(cx[j] - cx[i]))[:6]]
+        # the lines most mates lie on (a pane found in part, a door or a shorter window is off them):
+        # through each pair of mates, the one with the most mates within fit_px (residuals of top and
+        # bottom summed), then fitted to those
+        best = None
+        for u in range(j.size):
+            for v in range(u + 1, j.size):
+                a_, b_ = j[u], j[v]
+                if abs(cx[a_] - cx[b_]) < 1.0:
+                    continue
+                st, sb = (top[b_] - top[a_]) / (cx[b_] - cx[a_]), (bot[b_] - bot[a_]) / (cx[b_] - cx[a_])
+                res = (np.abs(top[a_] + st * (cx[j] - cx[a_]) - top[j])
+                       + np.abs(bot[a_] + sb * (cx[j] - cx[a_]) - bot[j]))
+                inl = res <= fit_px
+                if best is None or (inl.sum(), -res[inl].sum()) > (best.sum(), -best_res):
+                    best, best_res = inl, float(res[inl].sum())
+        if best is None or best.sum() < max(2, (j.size + 1) // 2):
+            continue  # the mates' ends are no floor's lines
+        j = j[best]
+        ct, cb = np.polyfit(cx[j], top[j], 1), np.polyfit(cx[j], bot[j], 1)
+        pt, pb = int(round(float(np.polyval(ct, cx[i])))), int(round(float(np.polyval(cb, cx[i]))))
+        if h > short * (pb - pt + 1):
+            continue
+        y1 = y0 + h - 1
+        if abs(y0 - pt) <= 1 and pb - y1 >= 2:
+            ys, src = range(y1 + 1, min(pb, H - 1) + 1), li.mask[-1]
+        elif abs(y1 - pb) <= 1 and y0 - pt >= 2:
+            ys, src = range(y0 - 1, max(pt, 0) - 1, -1), li.mask[0]
+        else:
+            continue
+        cols = x0 + np.flatnonzero(src)
+        n = 0
+        for y in ys:
+            if not free[y, cols].all() or float(dev[y, cols].mean()) < a:
+                break
+            n += 1
+        if n == 0:
+            continue
+        add = np.repeat(src[None, :], n, 0)
+        if ys.step > 0:
+            li.mask = np.concatenate([li.mask, add], 0)
+        else:
+            li.mask = np.concatenate([add, li.mask], 0)
+            li.y0 -= n
+        free[li.y0:li.y0 + li.mask.shape[0], x0:x0 + w] &= ~li.mask
+        box[i, 0], box[i, 2] = li.y0, li.mask.shape[0]
+        top[i], bot[i] = box[i, 0], box[i, 0] + box[i, 2] - 1
+
+
 def _cap_lit(p, wins: list, area: float) -> list:
     """The most confident windows covering at most ``window_max_lit_share`` of a region of ``area``
     pixels (a lit facade is lit per room, not as a whole)."""
@@ -1903,6 +1987,12 @@ def propose(ctx: Context) -> list[Group]:
     for f in found:
         if (f[3].kind or "window") == "window":
             _trim_ends(f[3], dev_all, p)
+    if p.window_mates_short > 0 and found:
+        taken = np.zeros((H, W), bool)
+        for f in found:
+            li = f[3]
+            taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] |= li.mask
+        _floor_ends(found, dev_all, B & ~taken, p)
     if p.window_min_width_m > 0:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
