@@ -688,3 +688,30 @@ def test_a_cabin_sliver_too_narrow_for_two_two_column_panes_parts_at_its_pillar_
     parts6, parted6 = _pane_parts(img6, np.ones((3, 6), bool), np.zeros((3, 6), bool),
                                   np.asarray(paint, np.float32), 20.0)
     assert not parted6 and not any(m[:, 0].all() and m.sum() == 3 for _, m, _ in parts6)
+
+
+def test_a_far_cabin_slivers_pillar_blurred_with_its_glass_still_parts_the_panes():
+    """A far car's pillar (0.1 m: a pixel or less at 60 m at 512x256, beyond 120 m at 2048x1024) is blurred with
+    the glass either side and no longer within ``vehicle_pillar_paint_diff`` of the paint; in a band too narrow
+    for two 2-column panes a column departing from the paint clearly less than the glass on both sides of it
+    (``PILLAR_DIP``) is that pillar (2048x1024 hard street, seeds 3-5 held out: panes matched at IoU >= 0.5
+    113 -> 122; docs/proposals.md, "Thirteenth pass: vehicle panes at 512x256"). A 4-column band whose third
+    column is half paint, half glass parts into 2 + 1 columns (IoU 1 with each; the old code: one band over
+    both, split at the face's edge); glass whose columns differ by a few levels does not part."""
+    from npsim_core.proposals.vehicles import _pane_parts
+
+    paint, glass = np.array((40, 60, 140), np.float32), np.array((20, 22, 25), np.float32)
+    img = np.zeros((3, 4, 3), np.float32)
+    img[:] = glass
+    img[:, 2] = (paint + glass) / 2
+    band = np.ones((3, 4), bool)
+    end = np.zeros_like(band)
+    end[:, 1:] = True
+    parts, parted = _pane_parts(img, band, end, paint, 20.0)
+    assert parted
+    for cols in (slice(0, 2), slice(3, 4)):
+        t = np.zeros_like(band)
+        t[:, cols] = True
+        assert max(_iou(m, t) for _, m, _ in parts) == 1.0
+    img[:, 2] = glass + 6  # a reflection a few levels lighter: still glass
+    assert not _pane_parts(img, band, end, paint, 20.0)[1]

@@ -59,6 +59,9 @@ RED_LAMP_H_M = (0.5, 1.1)
 # a sliver of its cabin): there a pane is a column or two, and 1-column runs count (docs/proposals.md,
 # "Thirteenth pass: vehicle panes at 512x256").
 PANE_MIN_COLS = 2
+#: ... and in such a band a column departing from the paint by less than this share of the glass on both
+#: sides of it (the band's most departing column either side) is a pillar the blur has mixed with the glass.
+PILLAR_DIP = 0.85
 #: A car's glass ends this far (m) below the cabin's top and above the body's top (its frame).
 PANE_INSET_M = 0.07
 #: A car's pillar between end and side pane is about this wide (m; :func:`_pillar_edge`).
@@ -127,7 +130,8 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
 
     A column of the band most of whose pixels lie within ``diff`` levels of the paint (every channel)
     is a pillar, painted as the body: the band's runs of other columns (at least ``PANE_MIN_COLS``, or
-    one in a band narrower than two such runs and a pillar) are the panes, and each is the
+    one in a band narrower than two such runs and a pillar, where a column departing from the paint less
+    than ``PILLAR_DIP`` of the glass either side is a pillar too) are the panes, and each is the
     end pane when most of it lies in the end face's columns (``end``). Without a pillar inside the band
     (glass the paint's colour, a far car's pillar blurred away) the band is split at the end face's
     edge, as before. Far cars in a parked row show their end face's edge only where the car in front
@@ -148,9 +152,17 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
     n = band.sum(0)
     cols = n > 0
     pillar = cols & (near.sum(0) * 2 > n)
+    narrow = int(cols.sum()) < 2 * PANE_MIN_COLS + 1
+    if narrow:  # a far sliver's pillar, a pixel or less, is blurred with the glass: a dip in the departure
+        cc = np.flatnonzero(cols)
+        dev = np.abs(img - paint).max(-1)
+        d = np.array([np.median(dev[band[:, c], c]) for c in cc])
+        for j in range(1, cc.size - 1):
+            if d[j] < PILLAR_DIP * min(d[:j].max(), d[j + 1:].max()):
+                pillar[cc[j]] = True
     glass = cols & ~pillar
     lab, k = ndimage.label(glass)
-    min_cols = 1 if int(cols.sum()) < 2 * PANE_MIN_COLS + 1 else PANE_MIN_COLS
+    min_cols = 1 if narrow else PANE_MIN_COLS
     runs = [i for i in range(1, k + 1) if (lab == i).sum() >= min_cols]
     if len(runs) < 2:  # no pillar between two runs of glass
         return old, False
