@@ -389,6 +389,16 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+#: The streams of :func:`_keyed_rng` (distinct from ``traffic_light_states``' ``[seed, 20]``).
+_SHARED, _GROUP_ON, _LIGHT = 31, 32, 33
+
+
+def _keyed_rng(seed: int, stream: int, *key: int) -> np.random.Generator:
+    """A generator for one draw of one night: seeded by the night's seed, the draw's stream and the id(s)
+    it is for, so that it does not depend on which other lights and groups the annotation holds."""
+    return np.random.default_rng([int(seed), int(stream), *(int(k) for k in key)])
+
+
 def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed: int, *,
                     group_all_together: bool = False, image: np.ndarray | None = None,
                     force: dict[int, bool] | None = None) -> ActiveLights:
@@ -398,7 +408,9 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
     ----------
     annotation : light instances and groups (None -> no lights).
     table : the light table.
-    seed : seeds a ``numpy.random.default_rng``; same seed -> same night.
+    seed : seeds the night: every light's and group's draw comes from ``numpy.random.default_rng([seed,
+        stream, id])`` (:func:`_keyed_rng`); same seed -> same night, and a light keeps its draw whatever
+        else the annotation holds.
     group_all_together : a group switches as one (all members on or all off).
     image : (H, W, 3) uint8 daytime sRGB; gives ``inferred`` lights their colour.
     force : optional ``{id: on}`` overrides applied after the draw (e.g. a GUI toggle).
@@ -407,7 +419,6 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
     -------
     ActiveLights with a :class:`LightState` per light id (radiance zero when off).
     """
-    rng = np.random.default_rng(int(seed))
     if annotation is None:
         return ActiveLights({}, int(seed), group_all_together, table.source)
     ids = annotation.instance_ids()
@@ -416,12 +427,16 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
         for m in annotation.groups[gid].members:
             member_group.setdefault(int(m), gid)
 
-    # Shared draws per (group, class), made in sorted order so they depend only on the seed.
+    # Every draw comes from a generator keyed by (seed, what it is for, the id it is for), never from
+    # one generator run in turn: a light or group added, removed or regrouped then leaves every other
+    # light's state as it was (with one shared generator, adding one window group to a street redrew
+    # 72 of its 169 lights -- the night preview changed all over after one edit).
     shared: dict[tuple[int, int], dict] = {}
     for gid in sorted(annotation.groups):
         classes = sorted({class_of(m) for m in annotation.groups[gid].members if member_group.get(m) == gid})
         for cid in classes:
             spec = table.spec(cid)
+            rng = _keyed_rng(seed, _SHARED, gid, cid)
             shared[(gid, cid)] = {"p": float(rng.uniform(*spec.p)), "s": float(rng.uniform(*spec.strength)),
                                   "jit": rng.normal(0.0, 1.0, 2)}
     group_on: dict[int, bool] = {}
@@ -430,7 +445,7 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
             mem = [m for m in annotation.groups[gid].members if member_group.get(m) == gid]
             if mem:
                 p = float(np.mean([shared[(gid, class_of(m))]["p"] for m in mem]))
-                group_on[gid] = bool(rng.random() < p)
+                group_on[gid] = bool(_keyed_rng(seed, _GROUP_ON, gid).random() < p)
 
     signal = traffic_light_states(annotation, table, seed)
     states: dict[int, LightState] = {}
@@ -438,8 +453,7 @@ def activate_lights(annotation: LightAnnotation | None, table: LightTable, seed:
         cid = class_of(lid)
         spec = table.spec(cid)
         gid = member_group.get(lid)
-        # Every light consumes the same number of draws whatever its group, so adding a
-        # group does not reshuffle unrelated lights.
+        rng = _keyed_rng(seed, _LIGHT, lid)
         own_p, own_s, own_jit, u = (float(rng.uniform(*spec.p)), float(rng.uniform(*spec.strength)),
                                     rng.normal(0.0, 1.0, 2), float(rng.random()))
         if gid is not None:
