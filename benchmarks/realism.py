@@ -4,6 +4,7 @@ Usage::
 
     python -m benchmarks.realism [--size 2048x1024] [--seed 0] [--frames 1] [--dir DIR]
         [--spp 16] [--variant default] [--figure docs/img/PNG] [--legacy] [--set SECTION.FIELD=VALUE]
+        [--nights 3]
 
 On the Cityscapes-layout fixture with semi-global-matching stereo (``--stereo sgm``, the default;
 its exact depth written outside the dataset with ``--truth``), per frame:
@@ -20,6 +21,11 @@ ratio relative to the exact one: target within 10 %), the de-lit albedo's error 
 street's true albedo per class against photo-as-albedo (target: at least halved on building,
 road, car), the global statistics against real night photos (target: within 15 %), the frame
 time (geometry + one night) and the load. Timings on a shared machine: size and load printed.
+
+``--nights N`` also renders the SGM and exact-depth nights of the next N - 1 night seeds (the chain's
+geometry reused) and prints the relative structure ratio of each and their mean: which windows and
+lamps a night's draw lights moves one night's ratio by up to ±20 %, so the 10 % target is read on the
+mean (README, issue #26's thirteenth pass).
 """
 
 from __future__ import annotations
@@ -59,6 +65,37 @@ def night_of(scene, params, annotation=None):
     res = chain.compute(params)
     night = chain.night_final(res, params)
     return night, res, time.perf_counter() - t0, chain
+
+
+def _relative_over_nights(scene, params, exact_params, stereo, exact, n: int) -> None:
+    """Print the SGM night's structure ratio relative to the exact-depth night's for ``n`` night seeds
+    from ``params.night.seed`` on (the same lights; each chain's geometry reused) and the mean."""
+    from npsim_core.realism import structure_ratio
+
+    cols = ["whole", *MEASURED]
+    rows = []
+    for k in range(n):
+        def at(p):
+            return replace(p, night=replace(p.night, seed=params.night.seed + k),
+                           lights=replace(p.lights, source="annotation"))
+        sgm = stereo[0].night_final(stereo[1], at(params)).image
+        ex = exact[0].night_final(exact[1], at(exact_params)).image
+        a, b = structure_ratio(scene.image, scene.labels, sgm), structure_ratio(scene.image, scene.labels, ex)
+        rel = {"whole": a["whole"] / b["whole"]}
+        for c in MEASURED:
+            v, r = a["classes"][c], b["classes"][c]
+            rel[c] = None if v is None or r is None else v / r
+        rows.append(rel)
+    print(f"\nrelative structure ratio (SGM night / exact-depth night) over {n} night seeds; target: the mean "
+          "within 10 %")
+    print(f"{'night seed':34s} " + " ".join(f"{c:>10s}" for c in cols))
+    for k, rel in enumerate(rows):
+        print(f"{params.night.seed + k:<34d} " + " ".join(
+            f"{'-' if rel[c] is None else f'{rel[c]:.2f}':>10s}" for c in cols))
+    means = {c: [r[c] for r in rows if r[c] is not None] for c in cols}
+    print(f"{'mean':34s} " + " ".join(f"{np.mean(means[c]):>10.2f}" if means[c] else f"{'-':>10s}" for c in cols)
+          + "   within 10 %: " + str(sum(abs(np.mean(v) - 1) <= 0.10 for v in means.values() if v)) + "/"
+          + str(sum(1 for v in means.values() if v)))
 
 
 def albedo_errors(scene, mats_albedo: np.ndarray, truth: np.ndarray, lights: np.ndarray | None = None) -> dict:
@@ -122,6 +159,8 @@ def main(argv=None) -> int:
     ap.add_argument("--save", default=None, help="folder for the nights' PNGs")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE",
                     help="a chain parameter for every night (e.g. night.delight=true)")
+    ap.add_argument("--nights", type=int, default=1,
+                    help="night seeds to read the relative structure ratio over (module doc; default 1)")
     args = ap.parse_args(argv)
     from npsim_core.camera import normals_from_depth
     from npsim_core.chain import ChainParams
@@ -157,7 +196,7 @@ def main(argv=None) -> int:
     rows["SGM stereo (defaults)"] = (stereo_night.image, t_stereo, chain)
     exact = scene.with_(depth=truth, normals=normals_from_depth(truth, scene.intrinsics), depth_stereo=None)
     exact_params = replace(params, depth=replace(params.depth, source="files"))
-    ex_night, _, t_exact, ex_chain = night_of(exact, exact_params, ann)
+    ex_night, ex_res, t_exact, ex_chain = night_of(exact, exact_params, ann)
     rows["exact depth"] = (ex_night.image, t_exact, ex_chain)
     if args.legacy:
         rows["SGM stereo, before (fits off)"] = (lg_night.image, t_leg, lg_chain)
@@ -175,6 +214,9 @@ def main(argv=None) -> int:
             v, r = sr["classes"][c], ref["classes"][c]
             cells.append("-" if v is None or r is None else f"{v:.2f} [{v / r:.2f}]")
         print(f"{name:34s} " + " ".join(f"{x:>13s}" for x in cells) + f"  {t:7.1f}")
+
+    if args.nights > 1:
+        _relative_over_nights(scene, params, exact_params, (chain, res), (ex_chain, ex_res), args.nights)
 
     print("\nglobal statistics (grey at 1024 px wide; target within 15 % of real nights)")
     print(f"{'night':34s} {'mean':>6s} {'median':>6s} {'p99':>6s} {'%>240':>6s} {'R/B':>6s}")
