@@ -39,6 +39,21 @@ def editor(qtbot, scene, proposals):
     ed.shutdown()
 
 
+def _propose_floor(editor, conf: dict, n: int = 3, extra: dict | None = None):
+    """Show proposals of one floor: ``n`` windows 6x6 px, 12 px apart from (20, 20), ids 1001.., all in
+    group 13001 with ``extra`` (id -> (y0, y1, x0, x1)) lights elsewhere; ``conf``: the confidences."""
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+
+    p_map = np.zeros((H, W), np.int32)
+    for k in range(n):
+        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
+    for i, (y0, y1, x0, x1) in (extra or {}).items():
+        p_map[y0:y1, x0:x1] = i
+    members = tuple(range(1001, 1001 + n)) + tuple(extra or ())
+    editor.set_proposals(LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, members)}), conf))
+
+
 def _group_with(proposals, n_min):
     return next(gid for gid, g in sorted(proposals.annotation.groups.items()) if len(g.members) >= n_min)
 
@@ -255,14 +270,7 @@ def test_shift_a_over_the_pending_rest_of_a_group_accepted_in_part_completes_it(
     from PySide6.QtCore import QPoint, Qt
     from PySide6.QtTest import QTest
 
-    from npsim_core.annotation import GroupInstance, LightAnnotation
-    from npsim_core.proposals import LightProposals
-
-    p_map = np.zeros((H, W), np.int32)
-    for k in range(3):
-        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
-    editor.set_proposals(LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003))}),
-                                        {1001: 0.95, 1002: 0.95, 1003: 0.6, 13001: 0.95}))
+    _propose_floor(editor, {1001: 0.95, 1002: 0.95, 1003: 0.6, 13001: 0.95})
     s, c = editor.session, editor.canvas
     assert len(editor.accept_proposals_above()) == 2              # the slider's default, 0.9
     (gid, g), = s.ann.groups.items()
@@ -283,14 +291,7 @@ def test_x_deletes_the_light_under_the_mouse_with_nothing_selected(editor, qtbot
     from PySide6.QtCore import QPoint, Qt
     from PySide6.QtTest import QTest
 
-    from npsim_core.annotation import GroupInstance, LightAnnotation
-    from npsim_core.proposals import LightProposals
-
-    p_map = np.zeros((H, W), np.int32)
-    for k in range(3):
-        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
-    editor.set_proposals(LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003))}),
-                                        {1001: 0.95, 1002: 0.95, 1003: 0.95, 13001: 0.95}))
+    _propose_floor(editor, {1001: 0.95, 1002: 0.95, 1003: 0.95, 13001: 0.95})
     s, c = editor.session, editor.canvas
     assert len(editor.accept_proposals_above()) == 3
     first = min(s.ann.instance_ids())
@@ -344,16 +345,9 @@ def test_a_ctrl_drag_from_a_pending_proposal_accepts_what_it_passes_over(editor,
     not there to accept from."""
     from PySide6.QtCore import QPoint, Qt
 
-    from npsim_core.annotation import GroupInstance, LightAnnotation
-    from npsim_core.proposals import LightProposals
-
-    p_map = np.zeros((H, W), np.int32)
-    for k in range(4):
-        p_map[20:26, 20 + 12 * k:26 + 12 * k] = 1001 + k
-    p_map[60:66, 100:106] = 1005  # a false mate of the floor's group, off the stroke's path
-    conf = {1001: 0.95, 1002: 0.6, 1003: 0.6, 1004: 0.6, 1005: 0.6, 13001: 0.95}
-    editor.set_proposals(LightProposals(
-        LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003, 1004, 1005))}), conf))
+    # four windows and a false mate of the floor's group, off the stroke's path
+    _propose_floor(editor, {1001: 0.95, 1002: 0.6, 1003: 0.6, 1004: 0.6, 1005: 0.6, 13001: 0.95}, n=4,
+                   extra={1005: (60, 66, 100, 106)})
     s, c = editor.session, editor.canvas
     assert len(editor.accept_proposals_above()) == 1
     CTRL, LEFT = Qt.KeyboardModifier.ControlModifier, Qt.MouseButton.LeftButton
