@@ -1,7 +1,7 @@
 """Window groups against the synthetic street's true windows_groups, with and without the regrouping.
 
     .venv/bin/python -m benchmarks.window_groups [--size 2048x1024] [--seeds 0,1,2]
-                                                 [--variants default,hard,lights]
+                                                 [--variants default,hard,lights] [--slider [--ceiling]]
 
 Per true windows_group (one floor of one building), from the proposed windows that match its panes at
 mask IoU >= 0.5 (``benchmarks.annotation_actions.match_lights``, as its oracle column accepts them):
@@ -13,6 +13,14 @@ activates it, as much as grouping it from scratch), *false_in*: its proposed gro
 window matching no true one (which keeps the editor's Shift+A review from taking the group). "before"
 is the windows proposer's groups per floor of each wall piece, "after" those regrouped per building (:mod:`npsim_core.proposals.window_groups`,
 docs/proposals.md "Window groups"); the lights and their confidences are the same.
+
+``--slider``: what the editor benchmark pays for at its slider instead (docs/proposals.md "Fourteenth pass:
+why the true floors cost a group action at the slider"): every proposal (``propose_for_scene``) accepted
+as ``benchmarks.annotation_actions`` does at the slider's default (0.9, then the Shift+A review and the
+stroke accept), and per true windows_group why it costs a group action (:func:`slider_causes`).
+``--ceiling`` adds the mean actions a frame at the slider with the proposals as they are and with the
+windows matched at IoU >= 0.5 regrouped by their true floor (the rest kept in their proposed groups):
+what any grouping of these windows could save.
 """
 
 from __future__ import annotations
@@ -52,12 +60,163 @@ def classify(gt, ann) -> dict[str, int]:
     return res
 
 
+#: Why a true windows_group costs a group action at the slider (:func:`slider_causes`), in the order tested.
+SLIDER_CAUSES = ("exact", "not proposed", "not proposed, rest broken", "pending", "merged", "split", "class")
+
+
+def slider_causes(gt, ann, proposals) -> dict[str, int]:
+    """Per true windows_group (class 13) of ``gt``, why the annotation ``ann`` (what the editor holds after
+    accepting proposals: the slider, the review) does not hold it as a group already, the first that holds:
+
+    * ``exact``: it does (every light matched at mask IoU >= 0.5, all in one group whose other lights
+      match no true light -- they are removed, each by its own action -- and of its class): no group action;
+    * ``not proposed``: a light no proposal (``proposals``: the proposals' annotation) matches at IoU >= 0.5:
+      it is drawn, and the group costs the double-click that activates its accepted part or the Ctrl+G of
+      one drawn whole -- as from scratch; ``not proposed, rest broken``: the same, its accepted lights
+      split over groups (or left single) or sharing one with another true group's light (more than one
+      action);
+    * ``pending``: every light proposed, one not accepted (under the slider, not worth a review);
+    * ``merged``: all accepted, in a group with another true group's light;
+    * ``split``: all accepted, over two groups or more (or left single);
+    * ``class``: one group of the wrong class.
+
+    Returns the counts per :data:`SLIDER_CAUSES` and ``n``."""
+    from benchmarks.annotation_actions import match_lights
+
+    match = match_lights(gt, ann)
+    owner = {b: a for a, (b, _) in match.items()}
+    pmatch = match_lights(gt, proposals)
+    tg = {m: gid for gid, g in gt.groups.items() for m in g.members}
+    gof = ann.group_index()
+    res = dict.fromkeys(SLIDER_CAUSES, 0)
+    res["n"] = 0
+    for gid, g in gt.groups.items():
+        if gid // 1000 != 13:
+            continue
+        res["n"] += 1
+        have = {match[a][0] for a in g.members if a in match}
+        groups = {gof.get(p) for p in have}
+        # the lights of those groups that match a true light (the others are removed before grouping)
+        held = {q for k in groups - {None} for q in ann.groups[k].members if q in owner}
+        merged = any(tg.get(owner[q]) != gid for q in held)
+        split = len(groups) > 1 or None in groups
+        if len(have) == len(g.members) and not split and not merged:
+            res["exact" if ann.groups[groups.pop()].class_id == g.class_id else "class"] += 1
+        elif any(a not in pmatch for a in g.members):
+            res["not proposed, rest broken" if have and (split or merged) else "not proposed"] += 1
+        elif len(have) < len(g.members):
+            res["pending"] += 1
+        else:
+            res["merged" if merged else "split"] += 1
+    return res
+
+
+def regrouped_by_truth(gt, props):
+    """``props`` with its windows matched at IoU >= 0.5 regrouped by their true windows_group (one group each),
+    the other windows left in their proposed groups (restricted to them); for the ceiling of ``--slider``."""
+    from benchmarks.annotation_actions import match_lights
+    from npsim_core.annotation import GroupInstance
+    from npsim_core.proposals import LightProposals
+
+    ann = props.annotation
+    owner = {b: a for a, (b, _) in match_lights(gt, ann).items()}
+    tg = {m: gid for gid, g in gt.groups.items() if gid // 1000 == 13 for m in g.members}
+    truth = {q: tg[owner[q]] for q in ann.instance_ids() if q in owner and owner[q] in tg}
+    groups = {k: g for k, g in ann.groups.items() if k // 1000 != 13}
+    conf = {k: v for k, v in props.confidence.items() if k // 1000 != 13}
+    parts = [[m for m in g.members if m not in truth] for k, g in ann.groups.items() if k // 1000 == 13]
+    by_truth: dict[int, list[int]] = {}
+    for q, t in truth.items():
+        by_truth.setdefault(t, []).append(q)
+    used = set(ann.groups)
+    k = 0
+    for members in parts + list(by_truth.values()):
+        if not members:
+            continue
+        k += 1
+        while 13000 + k in used:
+            k += 1
+        gid = 13000 + k
+        groups[gid] = GroupInstance(gid, tuple(sorted(members)))
+        conf[gid] = float(sum(props.confidence[m] for m in members) / len(members))
+    return LightProposals(replace(ann, groups=groups), conf)
+
+
+def slider_actions(scene, props, causes: dict[str, int] | None = None) -> int:
+    """The editor benchmark's actions at the slider's default on ``scene`` with ``props`` (its default model:
+    ``benchmarks.annotation_actions.main``); ``causes``: when given, :func:`slider_causes` of the state before
+    the finish by hand are added to it."""
+    from benchmarks import annotation_actions as aa
+    from npsim_gui.editor.proposals import DEFAULT_ACCEPT_THRESHOLD, ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    gt = scene.lights
+    s = EditorSession(superpixels=False)
+    s.load(scene.image, scene.labels, None)
+    s.set_vehicle_instances(scene.instances)
+    counts = dict.fromkeys(("draw", "class keys", "group", "tool", "accept", "review", "remove", "class fix",
+                            "touch up", "ungroup"), 0)
+    book = ProposalBook(props)
+    book.accept_above(s, DEFAULT_ACCEPT_THRESHOLD)
+    counts["accept"] = aa.accept_actions(DEFAULT_ACCEPT_THRESHOLD)
+    aa.review_pending(s, book, gt, counts, {})
+    aa.stroke_accept_pending(s, book, gt, counts, {})
+    if causes is not None:
+        for key, v in slider_causes(gt, s.ann, props.annotation).items():
+            causes[key] = causes.get(key, 0) + v
+    aa.finish_by_hand(s, gt, counts, {})
+    aa.check_equal(gt, s.ann)
+    s.shutdown()
+    return sum(counts.values())
+
+
+def _main_slider(args) -> int:
+    import sys
+
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from PySide6.QtCore import QCoreApplication, QThreadPool
+
+    from npsim_cli.options import parse_size
+    from npsim_core.proposals import propose_for_scene
+    from npsim_core.synthetic import street_scene
+
+    _app = QCoreApplication.instance() or QCoreApplication(sys.argv[:1])  # noqa: F841 (Qt objects need it)
+    w, h = parse_size(args.size)
+    rows = []
+    for variant in [v for v in args.variants.split(",") if v]:
+        causes: dict[str, int] = {}
+        acts, ceil = [], []
+        for seed in [int(s) for s in args.seeds.split(",") if s]:
+            sc = street_scene(w, h, seed, variant)
+            props = propose_for_scene(sc)
+            acts.append(slider_actions(sc, props, causes))
+            if args.ceiling:
+                ceil.append(slider_actions(sc, regrouped_by_truth(sc.lights, props)))
+        rows.append((variant, causes, acts, ceil))
+    QThreadPool.globalInstance().waitForDone()
+    print(f"# Why the true window groups cost a group action at the slider (0.9), synthetic street {w}x{h}, "
+          f"seeds {args.seeds} (load {os.getloadavg()[0]:.1f})\n")
+    print("| variant | true groups | " + " | ".join(SLIDER_CAUSES) + " |" + (
+        " actions a frame | regrouped by truth |" if args.ceiling else ""))
+    print("|---" * (2 + len(SLIDER_CAUSES) + (2 if args.ceiling else 0)) + "|")
+    for variant, c, acts, ceil in rows:
+        print(f"| {variant} | {c.get('n', 0)} | " + " | ".join(str(c.get(k, 0)) for k in SLIDER_CAUSES) + " |" + (
+            f" {sum(acts) / len(acts):.1f} | {sum(ceil) / len(ceil):.1f} |" if args.ceiling and acts else ""))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="2048x1024")
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--variants", default="default,hard,lights")
+    ap.add_argument("--slider", action="store_true",
+                    help="why each true window group costs a group action at the editor's slider (module doc)")
+    ap.add_argument("--ceiling", action="store_true",
+                    help="with --slider: also the actions with the matched windows regrouped by their true floor")
     args = ap.parse_args(argv)
+    if args.slider:
+        return _main_slider(args)
     from npsim_cli.options import parse_size
     from npsim_core.proposals import core, window_groups, windows
     from npsim_core.proposals.params import ProposalParams

@@ -295,3 +295,38 @@ def test_wide_panes_stay_one_group_across_a_pane_missing_on_one_floor():
     per_floor, _ = _groups_per_floor(img, labels, depth, [(lo, m) for lo, m in panes if m is not gone[0]])
     assert all(len(g) == 1 for g in per_floor.values()), per_floor  # old code: two groups downstairs
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
+
+
+def _lights(boxes: dict[int, int], groups: dict[int, tuple[int, ...]]):
+    """An annotation 8 x 80 px: light ``i`` a 3 x 4 px box from column ``boxes[i]``; ``groups``: id -> members."""
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+
+    m = np.zeros((8, 80), np.int32)
+    for i, x in boxes.items():
+        m[2:5, x:x + 4] = i
+    return LightAnnotation(m, {g: GroupInstance(g, tuple(ms)) for g, ms in groups.items()})
+
+
+def test_slider_causes_tell_why_each_true_floor_costs_a_group_action():
+    # Six true floors of two panes; what the editor holds after the slider (ann) and every proposal (props).
+    from benchmarks.window_groups import slider_causes
+
+    x = {1001: 0, 1002: 5, 1003: 10, 1004: 15, 1005: 20, 1006: 25, 1007: 30, 1008: 35, 1009: 40, 1010: 45,
+         1011: 50, 1012: 55}
+    gt = _lights(x, {13001: (1001, 1002), 13002: (1003, 1004), 13003: (1005, 1006), 13004: (1007, 1008),
+                     13005: (1009, 1010), 13006: (1011, 1012)})
+    props = _lights({i: v for i, v in x.items() if i != 1004} | {1099: 70}, {})
+    ann = _lights({i: v for i, v in x.items() if i not in (1004, 1006)} | {1099: 70},
+                  {13101: (1001, 1002, 1099),  # a floor and a false window (removed by its own X): exact
+                   13102: (1003,),  # 1004 has no proposal, the rest is a group of its own
+                   13103: (1005,),  # 1006 was proposed, left pending
+                   13104: (1007, 1008, 1009), 13105: (1010,),  # 1007-1008 merged with a pane of 13005
+                   13106: (1011,), 13107: (1012,)})  # split
+    c = slider_causes(gt, ann, props)
+    assert c == {"exact": 1, "not proposed": 1, "not proposed, rest broken": 0, "pending": 1, "merged": 2,
+                 "split": 1, "class": 0, "n": 6}, c
+    # the part of a floor with a pane nobody proposed, shared with another floor's pane: more than one action
+    ann.groups[13102] = type(ann.groups[13102])(13102, (1003, 1005))
+    del ann.groups[13103]
+    c = slider_causes(gt, ann, props)
+    assert c["not proposed, rest broken"] == 1 and c["not proposed"] == 0 and c["merged"] == 2, c
