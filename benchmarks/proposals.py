@@ -2,6 +2,7 @@
 
     .venv/bin/python -m benchmarks.proposals [--sizes 512x256,2048x1024] [--variants default,hard]
                                              [--seeds 0,1,2] [--picture docs/img/proposals.png]
+                                             [--list-big] [--list-lit]
 
 Table 1: per image size, street variant and category (windows, vehicle lamps, street
 lamps, traffic-light lamps; vehicle windows and advertisements as extra rows), the
@@ -27,6 +28,12 @@ face of one building box), and the largest share of a facade's area that propose
 <= 40 %); and the proposed groups an annotator keeps: ground-truth groups (lights matched at mask
 IoU >= 0.5) reproduced exactly, reproduced in part without a foreign member (the editor completes
 them in 2 + missing actions), or not at all.
+
+Table 5: the facades over the 40 % lit share by the face they are -- horizontal (a soffit, a slab's
+top: no facade, though the scene's geometry makes it a wall plane), vertical but under 3 px across (no
+image outlines them), the rest -- and the largest share over the vertical faces at least 3 px across
+(docs/proposals.md "Fourteenth pass"). ``--list-lit`` lists each facade over the cap with the windows on
+it; ``--list-big`` each window over the 1.5x rule.
 
 The ``lights`` variant (docs/proposals.md) is the light-proposal test bed: gables, dormers, shop
 fronts, office floors, plates, cars driving, signals showing a state.
@@ -155,7 +162,9 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
                  kinds: dict[str, str] | None = None,
                  pane_m2: dict[int, float] | None = None,
                  gt_kinds: dict[str, str] | None = None,
-                 offenders: list | None = None) -> tuple[int, int, float, int, int]:
+                 offenders: list | None = None,
+                 lit_over: list | None = None, cap: float = 0.4,
+                 faces: list | None = None) -> tuple[int, int, float, int, int]:
     """(windows of kind ``window``, of those larger than 1.5x their facade's median, largest share of a
     facade covered by them, of those larger than 1.5x the median of the facade's true windows, of those
     larger than 1.5x the median of the facade's *whole* true windows with a one-pixel allowance) -- Table 4.
@@ -185,7 +194,14 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
     failures of the corrected count, 4 at 512x256 and 11-12 at 2048x1024 on the default street).
     ``offenders``: when given, each window over the corrected count's limit is appended to it as
     (light id, its box (y0, y1, x0, x1), its area in m^2 with the pixel's allowance, the facade's
-    true median, the best true window's id and mask IoU) -- ``--list-big``."""
+    true median, the best true window's id and mask IoU) -- ``--list-big``.
+    ``lit_over``: when given, each facade whose lit share is over ``cap`` is appended to it as (its
+    share, its pixels, its area in m^2, its box (y0, y1, x0, x1), its median depth in m, the shares of
+    it the true windows of kind ``window`` (``gt_kinds``) and all true panes cover, and its proposed
+    windows of any kind: (light id, box, kind, pixels on the facade, best true window's id, mask IoU
+    and kind), and the face's normal axis (0 x, 1 y: a horizontal face -- a soffit, a slab's top --,
+    2 z)) -- ``--list-lit``. ``faces``: when given (with ``walls``), each facade holding a window
+    of kind ``window`` is appended to it as (lit share, normal axis, box width, box height in px)."""
     import cv2
 
     from npsim_core.annotation import class_of
@@ -299,6 +315,39 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
                             iou = c / float(mk.sum() + (g == j).sum() - c)
                             best = max(best, (int(j), iou), key=lambda t: t[1])
                     offenders.append((i, box_of(mk), a, float(np.median(ref)), best[0], best[1]))
+    if faces is not None and walls is not None:
+        for fid, a in lit.items():
+            y0, y1, x0, x1 = box_of(bld == fid)
+            faces.append((a / max(area(fid), 1.0), int(ids[fid] % 4), x1 - x0 + 1, y1 - y0 + 1))
+    if lit_over is not None and walls is not None:
+        for fid, a in lit.items():
+            if a / max(area(fid), 1.0) <= cap:
+                continue
+            fm = bld == fid
+            on = m[fm]
+            gt_on = g[fm]
+            gt_js, gt_c = np.unique(gt_on, return_counts=True)
+            gt_pane = [(int(j), int(c)) for j, c in zip(gt_js, gt_c) if j and class_of(int(j)) == 1]
+            gt_lit = sum(c for j, c in gt_pane if gt_kinds.get(str(j), "window") == "window")
+            gt_all = sum(c for _, c in gt_pane)
+            d = depth[fm] if depth is not None else np.array([])
+            d = d[np.isfinite(d)]
+            wins = []
+            for i, c in zip(*np.unique(on, return_counts=True)):
+                if not i or class_of(int(i)) != 1:
+                    continue
+                mk = m == i
+                js, cnt = np.unique(g[mk], return_counts=True)
+                best = (0, 0.0)
+                for j, cj in zip(js.tolist(), cnt.tolist()):
+                    if j:
+                        iou = cj / float(mk.sum() + (g == j).sum() - cj)
+                        best = max(best, (int(j), iou), key=lambda t: t[1])
+                wins.append((int(i), box_of(mk), kinds.get(str(int(i)), "window"), int(c), best[0], best[1],
+                             gt_kinds.get(str(best[0]), "window") if best[0] else "-"))
+            lit_over.append((a / max(area(fid), 1.0), int(fm.sum()), wall_area(fm), box_of(fm),
+                             float(np.median(d)) if d.size else float("nan"), gt_lit / max(area(fid), 1.0),
+                             gt_all / max(area(fid), 1.0), wins, int(ids[fid] % 4)))
     return n, big, share, big_true, big_corr
 
 
@@ -370,6 +419,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--picture", default="docs/img/proposals.png")
     ap.add_argument("--list-big", action="store_true",
                     help="list each proposed window over the corrected 1.5x limit (after the tables)")
+    ap.add_argument("--list-lit", action="store_true",
+                    help="list each facade over the 40 %% lit share with its proposed windows (after the tables)")
     args = ap.parse_args(argv)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     variants = args.variants.split(",")
@@ -383,6 +434,8 @@ def main(argv: list[str] | None = None) -> int:
     rules: dict[tuple, list] = {}
     pic = None
     big_list: list[str] = []
+    lit_list: list[str] = []
+    lit_faces: dict[tuple, list] = {}
     for W, H in sizes:
         for variant in variants:
             tot = {c: np.zeros(5, int) for c in CATS}  # GT, proposed, matched, GT >= 9 px, matched of those
@@ -401,7 +454,18 @@ def main(argv: list[str] | None = None) -> int:
                 gt_offs: list | None = [] if args.list_big else None
                 gt_k = window_rules(scene, scene.lights, walls, kinds=pk, pane_m2=pm2, gt_kinds=pk, offenders=gt_offs)
                 offs: list | None = [] if args.list_big else None
-                wr = window_rules(scene, kept, walls, pane_m2=pm2, gt_kinds=pk, offenders=offs)
+                lits: list | None = [] if args.list_lit else None
+                fcs: list = []
+                wr = window_rules(scene, kept, walls, pane_m2=pm2, gt_kinds=pk, offenders=offs, lit_over=lits,
+                                  faces=fcs)
+                lit_faces.setdefault((W, H, variant), []).extend(fcs)
+                for sh, npx, am2, (y0, y1, x0, x1), z, gsh, gall, wins, ax in lits or []:
+                    ws = "; ".join(f"{i} y {b[0]}-{b[1]} x {b[2]}-{b[3]} ({b[3] - b[2] + 1}x{b[1] - b[0] + 1}) {k} "
+                                   f"{props.confidence.get(i, 0.0):.2f} {c} px, {j} {iou:.2f} {jk}"
+                                   for i, b, k, c, j, iou, jk in wins)
+                    lit_list.append(f"| {W}x{H} | {variant} | {seed} | {sh:.2f} | {'xyz'[ax]} | {npx} | {am2:.1f} | "
+                                    f"y {y0}-{y1} x {x0}-{x1} ({x1 - x0 + 1}x{y1 - y0 + 1}) | {z:.0f} | "
+                                    f"{gsh:.2f} / {gall:.2f} | {ws} |")
                 for i, (y0, y1, x0, x1), a, med, j, iou, o_prop in [o + (True,) for o in offs or []] + \
                         [o + (False,) for o in gt_offs or []]:
                     conf = f"{props.confidence.get(i, 0.0):.2f}" if o_prop else "truth"
@@ -452,12 +516,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {W}x{H} | {v} | {a[:, 0].sum():.0f} | {a[:, 1].sum():.0f} | {a[:, 7].sum():.0f} | "
               f"{a[:, 12].sum():.0f} | {a[:, 8].sum():.0f} | {a[:, 9].sum():.0f} | {a[:, 2].max():.2f} | "
               f"{a[:, 10].max():.2f} | {a[:, 11].max():.2f} |")
+    print("\nThe facades over the 40 % lit share (proposed windows of kind window) by the face they are: "
+          "horizontal (a soffit or a slab's top, normal up or down: no facade), vertical under 3 px across "
+          "(the true geometry draws them; no image outlines them), the rest; and the largest share over the "
+          "vertical faces at least 3 px across:\n")
+    print("| size | variant | faces over 40 % | horizontal | vertical < 3 px across | vertical >= 3 px | "
+          "max lit share, vertical >= 3 px |")
+    print("|---|---|---|---|---|---|---|")
+    for (W, H, v), fc in lit_faces.items():
+        over = [f for f in fc if f[0] > 0.4]
+        hor = sum(1 for f in over if f[1] == 1)
+        thin = sum(1 for f in over if f[1] != 1 and min(f[2], f[3]) < 3)
+        big = max((f[0] for f in fc if f[1] != 1 and min(f[2], f[3]) >= 3), default=0.0)
+        print(f"| {W}x{H} | {v} | {len(over)} | {hor} | {thin} | {len(over) - hor - thin} | {big:.2f} |")
     if args.list_big:
         print("\nProposed windows over the corrected 1.5x limit (--list-big):\n")
         print("| size | variant | seed | light id | confidence (truth: the ground truth's own) | box | "
               "area m^2 (1 px allowed) | facade's true median | ratio | best true window | IoU |")
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         print("\n".join(big_list))
+    if args.list_lit:
+        print("\nFacades over the 40 % lit share (--list-lit; windows: id, box (w x h px), kind, confidence, "
+              "px on the facade, best true window, its IoU and kind):\n")
+        print("| size | variant | seed | lit share | normal | facade px | m^2 | box | depth m | "
+              "true share (kind window / all panes) | proposed windows on it |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        print("\n".join(lit_list))
     print(f"\nload after: {os.getloadavg()[0]:.2f}")
     if pic is None and sizes:
         scene, inst = frame(*sizes[-1], seeds[0], variants[-1])

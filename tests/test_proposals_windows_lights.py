@@ -255,3 +255,25 @@ def test_a_panes_shaded_lintel_is_not_glass():
     for b in range(5):
         best = max(wins.values(), key=lambda w: _iou(gt[b], w))
         assert _iou(gt[b], best) >= 0.95, (b, _iou(gt[b], best))
+
+
+def test_the_lit_share_list_names_each_face_over_the_cap_with_its_windows():
+    """``benchmarks.proposals --list-lit`` (docs/proposals.md "Fourteenth pass: the 40 % lit share, face
+    by face"): the ground truth of the lights street at 512x256 (seed 0), every pane counted as a
+    window, is itself over the 40 % cap on one face -- a dormer's cheek one pixel wide (9 px) holding
+    its dormer's pane. The list names that face with its size, normal and the window on it; Table 5
+    counts it among the faces under 3 px across."""
+    from benchmarks.proposals import frame_and_walls, pane_kinds, window_rules
+
+    scene, _, walls = frame_and_walls(512, 256, 0, "lights")
+    every = {str(i): "window" for i in scene.lights.instance_ids()}
+    over: list = []
+    faces: list = []
+    _, _, share, _, _ = window_rules(scene, scene.lights, walls, kinds=every, gt_kinds=pane_kinds(0, "lights"),
+                                     lit_over=over, faces=faces)
+    assert len(over) == 1 and share > 0.4
+    sh, n_px, _, (y0, y1, x0, x1), _, _, all_panes, wins, axis = over[0]
+    assert sh == share and n_px == 9 and x1 == x0 and axis == 0 and all_panes == sh
+    assert [(w[2], w[5] == 1.0, w[6]) for w in wins] == [("window", True, "dormer")]
+    hot = [f for f in faces if f[0] > 0.4]
+    assert hot == [(sh, 0, 1, y1 - y0 + 1)]
