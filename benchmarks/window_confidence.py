@@ -18,7 +18,9 @@ every window's features (``window_confidence.window_features``, logged from ``re
 ``--seeds`` of all sizes, a logistic regression (Newton) for "matched at IoU >= ``--target``" over the
 windows at least 0.5 confident, its bias then raised by ``--raise`` (the slider's break-even: a false
 window accepted costs two actions, a clean one saves one); it prints the weights for ``ProposalParams``
-and the AUC of the fit on the fitting and the ``--held-out`` seeds, per size.
+and the AUC of the rule's confidences with the committed weights ("now") and with the fitted ones
+("fit", :func:`rule_confidences`: the same rule, tiny windows' cap included) on the fitting and the
+``--held-out`` seeds, per size.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -122,6 +125,17 @@ def design(recs: list[dict]) -> np.ndarray:
     return np.asarray(rows, float).reshape(len(rows), -1) if rows else np.zeros((0, 14))
 
 
+def rule_confidences(recs: list[dict], p) -> np.ndarray:
+    """The rule's own final confidences of logged windows (``window_confidence.window_confidence`` with the
+    params ``p``: the first confidence read as the rule reads it, the logistic score, the tiny windows'
+    cap). ``--fit`` compares the fitted weights with the rule's through this, like with like: the linear
+    score alone leaves out the cap, which at 512x256 holds a tenth of the windows kept at 0.5 at 0.6 and
+    lowers the rule's AUC by 0.006-0.016 (docs/proposals.md "Fourteenth pass")."""
+    from npsim_core.proposals.window_confidence import window_confidence
+
+    return np.array([window_confidence(p, r["conf0"], r) for r in recs], float)
+
+
 def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = 1e-3, iters: int = 30) -> np.ndarray:
     """Weights (bias first) of a logistic regression of ``y`` on ``X`` by Newton's method, a small ridge ``l2``."""
     A = np.column_stack([np.ones(len(X)), X])
@@ -205,10 +219,11 @@ def _fit(args) -> int:
     print(f"window_conf_weights = ({', '.join(f'{v:.2f}' for v in wts[1:])})\n")
     print("| seeds | size | windows | AUC matched: now / fit | AUC clean: now / fit |")
     print("|---|---|---|---|---|")
+    fitted = replace(p, window_conf_bias=bias, window_conf_weights=tuple(float(v) for v in wts[1:]))
     for (part, size), rs in recs.items():
         if not rs:
             continue
-        s = design(rs) @ wts[1:]
+        s = rule_confidences(rs, fitted)  # the rule with the fitted weights, tiny cap and all
         now = np.array([r["conf"] for r in rs])
         iou = np.array([r["iou"] for r in rs])
         print(f"| {part} | {size} | {len(rs)} | {roc_auc(now, iou >= 0.5):.3f} / {roc_auc(s, iou >= 0.5):.3f} | "
