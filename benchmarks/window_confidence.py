@@ -129,8 +129,8 @@ def rule_confidences(recs: list[dict], p) -> np.ndarray:
     """The rule's own final confidences of logged windows (``window_confidence.window_confidence`` with the
     params ``p``: the first confidence read as the rule reads it, the logistic score, the tiny windows'
     cap). ``--fit`` compares the fitted weights with the rule's through this, like with like: the linear
-    score alone leaves out the cap, which at 512x256 holds a tenth of the windows kept at 0.5 at 0.6 and
-    lowers the rule's AUC by 0.006-0.016 (docs/proposals.md "Fourteenth pass")."""
+    score alone leaves out the cap, which at 512x256 holds a tenth of the windows kept at 0.5 to at most
+    0.6 and lowers the rule's AUC by 0.006-0.017 (docs/proposals.md "Fourteenth pass")."""
     from npsim_core.proposals.window_confidence import window_confidence
 
     return np.array([window_confidence(p, r["conf0"], r) for r in recs], float)

@@ -287,7 +287,7 @@ def test_the_fit_tool_scores_the_fitted_weights_with_the_rule_tiny_windows_cap_a
     """``--fit``'s "fit" column is the rule itself with the fitted weights (``rule_confidences``), so its AUC
     compares like with like with the committed weights' "now": with the committed weights it reproduces every
     logged window's confidence, the tiny ones held at ``window_tiny_max_confidence`` too (the linear score the
-    column read before left the cap out: at 512x256 that alone read 0.006-0.016 more AUC)."""
+    column read before left the cap out: at 512x256 that alone read 0.006-0.017 more AUC)."""
     from benchmarks.window_confidence import rule_confidences
 
     p = ProposalParams()
