@@ -953,3 +953,65 @@ def test_a_pane_found_by_its_band_gets_the_rows_its_floor_mates_have():
         m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
         assert _iou(m, pane) >= 0.9, f"pane {k}: IoU {_iou(m, pane):.2f}"
     assert lone.mask.shape == (5, 2) and lone.y0 == 30
+
+
+def test_a_pane_split_in_parts_by_a_bar_or_a_pole_is_one_window_two_panes_across_a_pier_stay_two():
+    """A pane split by a mullion, a transom or a pole in front was proposed as its parts, each a window
+    of its own (at 512x256 a true window holding two proposals, neither at IoU 0.5; docs/proposals.md
+    "Fourteenth pass: a pane split in parts"). Two windows of one floor whose gap is thin and not wall
+    (it departs from the wall like a frame bar, or something in front covers it) and whose union is the
+    size of their floor-mates' pane are one window: the bar's pixels filled in, the pole's left out.
+    Two whole panes with a blurred 1-px pier between (twice a pane together) and two narrow windows with
+    wall between them (the union the pane's size, but a pier of wall) stay two.
+    ``windows._join_split_panes`` on a departure map like the street's (20 m, 150 px focal length)."""
+    from npsim_core.proposals.core import Context, Light
+    from npsim_core.proposals.windows import _join_split_panes
+
+    h, w = 60, 130
+    rng = np.random.default_rng(2)
+    dev = rng.uniform(0.0, 0.2, (h, w))                 # wall
+    labels = np.full((h, w), 11, np.uint8)
+    labels[:, 92] = 17                                  # a pole in front of a pane
+    depth = np.full((h, w), 20.0, np.float32)
+    ctx = Context(np.zeros((h, w, 3), np.uint8), labels, depth, K, None, PARAMS)
+    found, truth = [], {}
+
+    def add(y, x, hh, ww, wall=1):
+        dev[y:y + hh, x:x + ww] = 4.0
+        li = Light(1, y, x, np.ones((hh, ww), bool), 0.9)
+        found.append([wall, 5.0 if y < 35 else 12.0, 0.6, li])
+        return li
+
+    # floor 1 (rows 20-29): 5 x 10 px panes every 12 px
+    for x in (6, 30, 42, 66, 78, 102, 114):
+        add(20, x, 10, 5)
+    a, b = add(20, 18, 10, 2), add(20, 21, 10, 2)       # a mullion at column 20
+    dev[20:30, 20] = 3.0
+    c, d = add(20, 54, 3, 5), add(24, 54, 6, 5)         # a transom at row 23
+    dev[23, 54:59] = 3.0
+    e, f = add(20, 90, 10, 2), add(20, 93, 10, 2, wall=2)  # the pole at column 92 (facades cut there)
+    dev[:, 92] = 3.0
+    for k, x in enumerate((18, 54, 90)):
+        truth[k] = np.zeros((h, w), bool)
+        truth[k][20:30, x:x + 5] = True
+    truth[2][:, 92] = False                             # the annotator's pane leaves the pole out
+    # floor 2 (rows 40-49): whole panes, two of them a blurred pier apart; two narrow windows with wall
+    # between them
+    for x in (6, 18, 30, 72, 84, 96, 108):
+        add(40, x, 10, 5)
+    g1, g2 = add(40, 42, 10, 5), add(40, 48, 10, 5)
+    dev[40:50, 47] = 2.5
+    n1, n2 = add(40, 58, 10, 2), add(40, 61, 10, 2)
+    n = len(found)
+    out = _join_split_panes(ctx, found, dev, ProposalParams())
+    assert len(out) == n - 3
+    lights = [r[3] for r in out]
+    for k, li in enumerate((a, c, e)):
+        assert li in lights
+        m = np.zeros((h, w), bool)
+        m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
+        assert _iou(m, truth[k]) == 1.0, f"pane {k}: IoU {_iou(m, truth[k]):.2f}"
+    for li in (b, d, f):
+        assert li not in lights
+    for li in (g1, g2, n1, n2):
+        assert li in lights and li.mask.shape[1] in (5, 2)

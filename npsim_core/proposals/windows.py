@@ -1675,6 +1675,131 @@ def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
         top[i], bot[i] = box[i, 0], box[i, 0] + box[i, 2] - 1
 
 
+def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list | None = None) -> list:
+    """Join the parts of one pane that a frame bar, a curtain's edge or something in front splits (a
+    mullion, a transom, a pole, a branch), in place: each part passed the window tests alone, while an
+    annotator outlines the pane (docs/proposals.md "Fourteenth pass: a pane split in parts"). Two
+    windows of kind ``window`` (``found`` rows [wall id, level, tolerance, Light]; not one wall id:
+    :func:`facades` cuts the wall at a post in front), side by side on one floor (levels within the
+    tolerance) or one above the other, their extents across the split overlapping by 0.6 of the
+    smaller, join when
+
+    (a) the gap is not wall. Side by side: at most ``window_split_gap_m`` wide at their depth (2 px at
+    least), every column of it over their common rows departing from the wall (``dev``, HxW, in window
+    thresholds) by a mean of ``window_split_gap_dev`` -- a frame bar, not a pier -- or mostly labelled in
+    front of the wall; or covered in front all along and at most both parts' width. One above the
+    other (no pier parts two panes of a floor that way): also any gap whose rows depart by
+    ``window_extend_dev``, a pane's glass beyond its band;
+    (b) the union box is the floor's pane: the floor-mates (windows whose rows overlap the union's by
+    half, depth within 15 %, the six nearest, two at least) are of one size (two in three within a
+    quarter of their median and a pixel) and the union is within ``window_split_size`` x their median
+    height and width plus a pixel -- half a pixel along the split, since two 1-px panes and their
+    blurred pier, 3 px, depart like a 2-px pane split by a bar. Two whole panes side by side are twice
+    a pane.
+
+    The joined mask is the parts and the gap's pixels not labelled in front (a bar is the pane's, a pole
+    in front is not); its confidence the larger. ``log``: each pair tested, with its measures (tools)."""
+    gap_m, gdev, size = float(p.window_split_gap_m), float(p.window_split_gap_dev), float(p.window_split_size)
+    if gap_m <= 0 or len(found) < 4:
+        return found
+    fy = float(ctx.intrinsics.fy)
+    front = ~np.isin(ctx.labels, (BUILDING, SKY))
+    box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
+                    for f in found], np.int64).reshape(-1, 4)
+    wall = np.array([f[0] for f in found])
+    lev = np.array([f[1] for f in found], float)
+    tol = np.array([f[2] for f in found], float)
+    ok = np.array([(f[3].kind or "window") == "window" for f in found])
+    z = np.array([np.nan if (v := _median_depth(ctx, f[3])) is None else v for f in found], float)
+    i = 0
+    while i < len(found):
+        if not ok[i]:
+            i += 1
+            continue
+        ext = box[:, 2:] - box[:, :2]
+        cx = 0.5 * (box[:, 1] + box[:, 3])
+        done = False
+        for ax in (1, 0):
+            co = 1 - ax
+            gap = box[:, ax] - box[i, 2 + ax]  # windows after i along the axis
+            ovl = np.minimum(box[i, 2 + co], box[:, 2 + co]) - np.maximum(box[i, co], box[:, co])
+            cand = ok & (gap >= 1) & (ovl >= 0.6 * np.minimum(ext[i, co], ext[:, co])) & (ovl > 0)
+            if ax == 1:  # side by side: one floor (one above the other: a part's level is not its pane's)
+                cand &= np.abs(lev - lev[i]) <= tol[i]
+            cand[i] = False
+            gmax = max(2.0, gap_m * fy / z[i]) if np.isfinite(z[i]) else 2.0
+            for j in np.flatnonzero(cand)[np.argsort(gap[cand], kind="stable")].tolist():
+                g = int(gap[j])
+                a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
+                sl = [slice(a0, a1), slice(a0, a1)]
+                sl[ax] = slice(box[i, 2 + ax], box[j, ax])
+                fr = front[tuple(sl)].mean(co) if g else np.zeros(0)
+                dv = dev[tuple(sl)].mean(co) if g else np.zeros(0)
+                bar = bool(((fr >= 0.5) | (dv >= gdev)).all())
+                covered = bool(g and (fr >= 0.5).all())
+                gap_ok = (g <= gmax and bar) or (covered and g <= ext[i, ax] + ext[j, ax])
+                if ax == 0 and not gap_ok and p.window_extend_dev > 0:
+                    # one above the other on a floor no pier parts two panes: what lies between is the
+                    # pane's when it departs as a pane's glass beyond its band does (a transom, a faint
+                    # reflection), of any height the union's size allows
+                    gap_ok = bool(((fr >= 0.5) | (dv >= p.window_extend_dev)).all())
+                uy0, uy1 = min(box[i, 0], box[j, 0]), max(box[i, 2], box[j, 2])
+                u = np.array([uy1 - uy0, max(box[i, 3], box[j, 3]) - min(box[i, 1], box[j, 1])])
+                # the floor's panes: windows whose rows overlap the union's by half the shorter (a wall
+                # id stops at a post in front: facades() cuts there), at its depth
+                rov = np.minimum(box[:, 2], uy1) - np.maximum(box[:, 0], uy0)
+                mates = ok & (rov >= 0.5 * np.minimum(ext[:, 0], u[0])) & (rov > 0)
+                if np.isfinite(z[i]):
+                    mates &= np.abs(z - z[i]) <= 0.15 * z[i]
+                mates[[i, j]] = False
+                k = np.flatnonzero(mates)
+                k = k[np.argsort(np.abs(cx[k] - cx[i]), kind="stable")[:6]]
+                med = np.median(ext[k], 0) if k.size >= 2 else None
+                # a floor of one pane size (two in three of the mates within a quarter of their median
+                # and a pixel), and the union is that size: two whole panes side by side are twice it;
+                # along the split within half a pixel (two 1-px panes and their pier are 3 px, a 2-px
+                # floor's 1.5x: at 1-2 px a pier blurred by its panes departs like a bar)
+                allow = np.full(2, 1.0)
+                allow[ax] = 0.5
+                size_ok = med is not None \
+                    and 3 * int((np.abs(ext[k] - med) <= 0.25 * med + 1).all(1).sum()) >= 2 * k.size \
+                    and bool((np.abs(u - med) <= (size - 1) * med + allow).all())
+                if log is not None:
+                    log.append(dict(a=(found[i][3].y0, found[i][3].x0, found[i][3].mask.copy()),
+                                    b=(found[j][3].y0, found[j][3].x0, found[j][3].mask.copy()), ax=ax, gap=g, gmax=gmax, bar=bar,
+                                    covered=covered, union=u.tolist(),
+                                    med=None if med is None else med.tolist(), mates=int(k.size), mext=ext[k].tolist(),
+                                    dev=dv.tolist(), front=fr.tolist(), joined=gap_ok and size_ok))
+                if not (gap_ok and size_ok):
+                    continue
+                a, b = found[i][3], found[j][3]
+                y0, x0 = int(box[[i, j], 0].min()), int(box[[i, j], 1].min())
+                y1, x1 = int(box[[i, j], 2].max()), int(box[[i, j], 3].max())
+                m = np.zeros((y1 - y0, x1 - x0), bool)
+                m[a.y0 - y0:a.y0 - y0 + a.mask.shape[0], a.x0 - x0:a.x0 - x0 + a.mask.shape[1]] |= a.mask
+                m[b.y0 - y0:b.y0 - y0 + b.mask.shape[0], b.x0 - x0:b.x0 - x0 + b.mask.shape[1]] |= b.mask
+                if g:  # the bar between them is the pane's; what stands in front is not
+                    gs = [slice(a0 - (y0, x0)[co], a1 - (y0, x0)[co])] * 2
+                    gs[ax] = slice(box[i, 2 + ax] - (y0, x0)[ax], box[j, ax] - (y0, x0)[ax])
+                    m[tuple(gs)] |= ~front[tuple(sl)]
+                a.y0, a.x0, a.mask = y0, x0, m
+                a.confidence = max(a.confidence, b.confidence)
+                a.cut = a.cut and b.cut
+                box[i] = (y0, x0, y1, x1)
+                z[i] = np.nan if (v := _median_depth(ctx, a)) is None else v
+                del found[j]
+                box, wall, lev, tol, ok, z = (np.delete(v, j, 0) for v in (box, wall, lev, tol, ok, z))
+                if j < i:
+                    i -= 1
+                done = True
+                break
+            if done:
+                break
+        if not done:
+            i += 1
+    return found
+
+
 def _cap_lit(p, wins: list, area: float) -> list:
     """The most confident windows covering at most ``window_max_lit_share`` of a region of ``area``
     pixels (a lit facade is lit per room, not as a whole)."""
@@ -1993,6 +2118,7 @@ def propose(ctx: Context) -> list[Group]:
             li = f[3]
             taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] |= li.mask
         _floor_ends(found, dev_all, B & ~taken, p)
+    found = _join_split_panes(ctx, found, dev_all, p)
     if p.window_min_width_m > 0:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
