@@ -240,14 +240,14 @@ class ProposalParams:
     window_mates_short: float = 0.75
     window_mates_fit_px: float = 1.5
     window_mates_dev: float = 0.3
-    #: Two windows of one floor, side by side or one above the other, whose gap is at most
-    #: ``window_split_gap_m`` on the wall (2 px at least) and not wall -- each line across it departs from
-    #: the wall by ``window_split_gap_dev`` of the window thresholds (a frame bar, a curtain's edge) or is
-    #: covered by something in front; one above the other, of any height, each row departing by
-    #: ``window_extend_dev`` -- and whose union box is within ``window_split_size`` x their floor-mates'
-    #: median pane (a pixel's allowance, half along the split) are one pane split in parts (0: off).
+    #: Two windows of one floor whose gap is not wall -- each line across it departs from the wall by
+    #: ``window_split_gap_dev`` of the window thresholds (a frame bar, faint glass; ``window_extend_dev``'s
+    #: value: glass beyond a pane's band) or is covered by something in front -- and, side by side, at
+    #: most ``window_split_gap_m`` on the wall (2 px at least), and whose union box is within
+    #: ``window_split_size`` x their floor-mates' median pane (a pixel's allowance, half along the split)
+    #: are one pane split in parts (0: off).
     window_split_gap_m: float = 0.15
-    window_split_gap_dev: float = 1.5
+    window_split_gap_dev: float = 0.6
     window_split_size: float = 1.2
     #: A window at most ``window_side_thin`` x the median width of its nearest mates (same wall; same
     #: floor with rows overlapping by ``window_side_overlap``, or same column) and at least

@@ -1686,10 +1686,9 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
 
     (a) the gap is not wall. Side by side: at most ``window_split_gap_m`` wide at their depth (2 px at
     least), every column of it over their common rows departing from the wall (``dev``, HxW, in window
-    thresholds) by a mean of ``window_split_gap_dev`` -- a frame bar, not a pier -- or mostly labelled in
-    front of the wall; or covered in front all along and at most both parts' width. One above the
-    other (no pier parts two panes of a floor that way): also any gap whose rows depart by
-    ``window_extend_dev``, a pane's glass beyond its band;
+    thresholds) by a mean of ``window_split_gap_dev`` -- a frame bar or glass, not a pier of wall -- or
+    mostly labelled in front of the wall; or covered in front all along and at most both parts' width.
+    One above the other (no pier parts two panes of a floor that way): every row so, of any height;
     (b) the union box is the floor's pane: the floor-mates (windows whose rows overlap the union's by
     half, depth within 15 %, the six nearest, two at least) are of one size (two in three within a
     quarter of their median and a pixel) and the union is within ``window_split_size`` x their median
@@ -1737,12 +1736,9 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
                 dv = dev[tuple(sl)].mean(co) if g else np.zeros(0)
                 bar = bool(((fr >= 0.5) | (dv >= gdev)).all())
                 covered = bool(g and (fr >= 0.5).all())
-                gap_ok = (g <= gmax and bar) or (covered and g <= ext[i, ax] + ext[j, ax])
-                if ax == 0 and not gap_ok and p.window_extend_dev > 0:
-                    # one above the other on a floor no pier parts two panes: what lies between is the
-                    # pane's when it departs as a pane's glass beyond its band does (a transom, a faint
-                    # reflection), of any height the union's size allows
-                    gap_ok = bool(((fr >= 0.5) | (dv >= p.window_extend_dev)).all())
+                # side by side: thin, or a post in front all along; one above the other no pier parts
+                # two panes of a floor, so any height the union's size allows (a transom, faint glass)
+                gap_ok = bar and (g <= gmax or ax == 0) or (covered and g <= ext[i, ax] + ext[j, ax])
                 uy0, uy1 = min(box[i, 0], box[j, 0]), max(box[i, 2], box[j, 2])
                 u = np.array([uy1 - uy0, max(box[i, 3], box[j, 3]) - min(box[i, 1], box[j, 1])])
                 # the floor's panes: windows whose rows overlap the union's by half the shorter (a wall
