@@ -243,7 +243,8 @@ class ProposalParams:
     #: Two windows of one floor whose gap is not wall -- each line across it departs from the wall by
     #: ``window_split_gap_dev`` of the window thresholds (a frame bar, faint glass; ``window_extend_dev``'s
     #: value: glass beyond a pane's band) or is covered by something in front -- and, side by side, at
-    #: most ``window_split_gap_m`` on the wall (2 px at least), and whose union box is within
+    #: most ``window_split_gap_m`` on the wall (2 px at least; covered: both parts' width; one above the
+    #: other: both parts' height), and whose union box is within
     #: ``window_split_size`` x their floor-mates' median pane (a pixel's allowance, half along the split)
     #: are one pane split in parts (0: off).
     window_split_gap_m: float = 0.15

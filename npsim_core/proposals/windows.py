@@ -1688,7 +1688,8 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
     least), every column of it over their common rows departing from the wall (``dev``, HxW, in window
     thresholds) by a mean of ``window_split_gap_dev`` -- a frame bar or glass, not a pier of wall -- or
     mostly labelled in front of the wall; or covered in front all along and at most both parts' width.
-    One above the other (no pier parts two panes of a floor that way): every row so, of any height;
+    One above the other (no pier parts two panes of a floor that way): every row so, up to both parts'
+    height;
     (b) the union box is the floor's pane: the floor-mates (windows whose rows overlap the union's by
     half, depth within 15 %, the six nearest, two at least) are of one size (two in three within a
     quarter of their median and a pixel) and the union is within ``window_split_size`` x their median
@@ -1727,6 +1728,7 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
                 cand &= np.abs(lev - lev[i]) <= tol[i]
             cand[i] = False
             gmax = max(2.0, gap_m * fy / z[i]) if np.isfinite(z[i]) else 2.0
+            cand &= gap <= np.maximum(gmax, ext[i, ax] + ext[:, ax])  # no gap passes beyond both parts
             for j in np.flatnonzero(cand)[np.argsort(gap[cand], kind="stable")].tolist():
                 g = int(gap[j])
                 a0, a1 = max(box[i, co], box[j, co]), min(box[i, 2 + co], box[j, 2 + co])
@@ -1737,8 +1739,10 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
                 bar = bool(((fr >= 0.5) | (dv >= gdev)).all())
                 covered = bool(g and (fr >= 0.5).all())
                 # side by side: thin, or a post in front all along; one above the other no pier parts
-                # two panes of a floor, so any height the union's size allows (a transom, faint glass)
+                # two panes of a floor, so as high as the union's size allows (a transom, faint glass)
                 gap_ok = bar and (g <= gmax or ax == 0) or (covered and g <= ext[i, ax] + ext[j, ax])
+                if not gap_ok and log is None:
+                    continue
                 uy0, uy1 = min(box[i, 0], box[j, 0]), max(box[i, 2], box[j, 2])
                 u = np.array([uy1 - uy0, max(box[i, 3], box[j, 3]) - min(box[i, 1], box[j, 1])])
                 # the floor's panes: windows whose rows overlap the union's by half the shorter (a wall
