@@ -271,6 +271,11 @@ class ProposalParams:
     window_ledge_rel: float = 0.05
     window_ledge_min_share: float = 0.2
     window_ledge_keep_m: float = 0.8
+    #: ... not judged within this share of the image width of anything in front (a tree, a pole, a
+    #: car) when that is over 2 px (the reads' own standoff): a depth map bleeds their depth over about
+    #: that width (a depth network's or a stereo matcher's; twice a bleed sigma of 0.25 % of the width:
+    #: 10 px at 2048x1024, 2 at 512x256).
+    window_ledge_bleed_frac: float = 0.005
     #: A final window at most ``window_strip_max_px`` wide and three times as tall that spans less than
     #: ``window_min_width_m`` of its wall (from the wall's depth either side; 0: no test) is a downpipe, a
     #: crease or a pilaster's side, not a pane -- unless something in front cuts it at a side
@@ -365,6 +370,10 @@ class ProposalParams:
     #: No whole window smaller than this many times the median whole window of its wall (a
     #: fragment: a frame, half a pane, a fleck of wall); a pane's visible part is kept. 0: off.
     window_min_median_ratio: float = 0.33
+    #: ... but a window at least this many pixels across both ways is judged against its floor's whole
+    #: windows (two at least) when their median is smaller: a floor of small panes (windows._small_rule);
+    #: a narrower piece is within one pane's blur.
+    window_resolved_px: int = 3
     #: A window larger than ``window_max_median_ratio`` x its wall's median is cut where its departure
     #: from the wall over a column (row) dips below this fraction of the peaks either side (0: never).
     window_oversized_gap_contrast: float = 0.6

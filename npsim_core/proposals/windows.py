@@ -837,7 +837,9 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
     (a pane is flush with it or recessed). On a vertical wall the depth along an image column is
     constant, so the wall's depth in a column is read 2 px above the blob's top and below its bottom
     there, linearly between the two down the column (columns with anything but building or ground on
-    either side are not judged). Blob pixels nearer
+    either side are not judged, nor reads and blob pixels within ``window_ledge_bleed_frac`` of the
+    image width of anything in front, when that is over 2 px: a tree, a pole, a car -- the depth map
+    bleeds their depth over that width, which reads nearer than the wall). Blob pixels nearer
     than that by ``window_ledge_step_m`` (and ``window_ledge_rel`` x depth) are a ledge: dropped, and
     the rest's 4-connected components returned (local (y, x, mask)); a blob mostly ledge and lower
     than ``window_ledge_keep_m`` is dropped whole (a dormer's pane stands in front of its roof, but
@@ -852,11 +854,25 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
     cols = x + np.arange(w)
     top = y + np.argmax(m, axis=0) - 2
     bot = y + h - 1 - np.argmax(m[::-1], axis=0) + 2
+    # The bleed of what is in front (not sky: no depth): a pane beside a tree or under a pole's arm
+    # reads nearer than its wall over the bleed's width, and was cut there as a ledge (docs/proposals.md
+    # "Fourteenth pass: the ledge test and the depth's bleed"). Outside the frame: as if in it. The
+    # reads 2 px off stand clear of a bleed that narrow (512x256: 2 px).
+    b = int(p.window_ledge_bleed_frac * W)
+    bleed = None
+    if b > 2:
+        ya, yb, xa, xb = max(y - b, 0), min(y + h + b, H), max(x - b, 0), min(x + w + b, W)
+        front = (~np.isin(labels[ya:yb, xa:xb], (BUILDING, SKY) + GROUND)).astype(np.uint8)
+        bleed = np.ones((h + 2 * b, w + 2 * b), bool)  # local, at (y - b, x - b)
+        bleed[ya - y + b:yb - y + b, xa - x + b:xb - x + b] = cv2.dilate(front, np.ones((2 * b + 1, 2 * b + 1),
+                                                                                       np.uint8)) > 0
     sides = []
     for rows in (top, bot):
         ok = has & (rows >= 0) & (rows < H)
         v = np.full(w, np.nan)
         v[ok] = np.where(np.isin(labels[rows[ok], cols[ok]], (BUILDING,) + GROUND), depth[rows[ok], cols[ok]], np.nan)
+        if bleed is not None:
+            v[ok & bleed[np.clip(rows - y + b, 0, h + 2 * b - 1), np.arange(w) + b]] = np.nan
         sides.append(v)
     # Judged only in columns with wall (or the ground at its foot) on both sides: beside a car, a
     # pole or the frame the edge pixels mix the depths of both and look nearer.
@@ -871,6 +887,8 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
     with np.errstate(invalid="ignore"):  # -inf in columns not judged: never near
         gap = np.maximum(p.window_ledge_step_m, p.window_ledge_rel * ref)
         near = m & np.isfinite(d) & (d < ref - gap)
+        if bleed is not None:
+            near &= ~bleed[b:b + h, b:b + w]
     n = int(near.sum())
     if n < p.window_ledge_min_share * m.sum():  # a few pixels nearer are depth noise, not a ledge
         return [(0, 0, m)]
@@ -1469,7 +1487,11 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
     whole: the wall's windows say what one pane is, and a piece far smaller is a fragment (a pane's
     frame, half a pane split by a mullion, a fleck of the wall), not a window. Such fragments also
     pull the wall's median window down, so that its whole panes look oversized against it
-    (docs/proposals.md "Fifth pass")."""
+    (docs/proposals.md "Fifth pass"). A window with two whole windows or more on its floor (levels
+    within its tolerance), itself at least ``window_resolved_px`` across both ways, is judged against
+    their median when that is smaller: a floor of small panes (an attic row), as :func:`_median_rule`
+    judges a floor of large ones (docs/proposals.md "Fourteenth pass: the ledge test and the depth's
+    bleed")."""
     p = ctx.params
     r = float(p.window_min_median_ratio)
     if r <= 0 or len(wins) < p.window_median_min_count or ctx.depth is None:
@@ -1479,8 +1501,17 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
     if ok.sum() < p.window_median_min_count:
         return wins
     med = float(np.median(a[ok]))
-    return [f for f, ai, wh in zip(wins, a, whole)
-            if not (wh and np.isfinite(ai) and ai < r * med and not f[3].cut)]
+    lev = np.array([f[1] for f in wins])
+    out = []
+    for k, (f, ai, wh) in enumerate(zip(wins, a, whole)):
+        if wh and np.isfinite(ai) and ai < r * med and not f[3].cut:
+            mates = (np.abs(lev - f[1]) <= f[2]) & ok
+            mates[k] = False
+            if not (mates.sum() >= 2 and min(f[3].mask.shape) >= p.window_resolved_px
+                    and ai >= r * float(np.median(a[mates]))):
+                continue
+        out.append(f)
+    return out
 
 
 def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> None:
