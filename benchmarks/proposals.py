@@ -158,6 +158,18 @@ def pane_kinds(seed: int, variant: str) -> dict[str, str]:
     return out
 
 
+def _best_true(mask: np.ndarray, truth: np.ndarray) -> tuple[int, float]:
+    """The true light (id in the instance map ``truth``) that ``mask`` overlaps with the highest mask IoU, and
+    that IoU; (0, 0.0) when it overlaps none."""
+    js, cnt = np.unique(truth[mask], return_counts=True)
+    best = (0, 0.0)
+    n = int(mask.sum())
+    for j, c in zip(js.tolist(), cnt.tolist()):
+        if j:
+            best = max(best, (int(j), c / float(n + (truth == j).sum() - c)), key=lambda t: t[1])
+    return best
+
+
 def window_rules(scene, ann, walls: np.ndarray | None = None,
                  kinds: dict[str, str] | None = None,
                  pane_m2: dict[int, float] | None = None,
@@ -308,12 +320,7 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
             for i, a in zip(ids_q[f], v):
                 if a > 1.5 * np.median(ref):
                     mk = m == i
-                    js, cnt = np.unique(g[mk], return_counts=True)
-                    best = (0, 0.0)
-                    for j, c in zip(js.tolist(), cnt.tolist()):
-                        if j:
-                            iou = c / float(mk.sum() + (g == j).sum() - c)
-                            best = max(best, (int(j), iou), key=lambda t: t[1])
+                    best = _best_true(mk, g)
                     offenders.append((i, box_of(mk), a, float(np.median(ref)), best[0], best[1]))
     if faces is not None and walls is not None:
         for fid, a in lit.items():
@@ -337,12 +344,7 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
                 if not i or class_of(int(i)) != 1:
                     continue
                 mk = m == i
-                js, cnt = np.unique(g[mk], return_counts=True)
-                best = (0, 0.0)
-                for j, cj in zip(js.tolist(), cnt.tolist()):
-                    if j:
-                        iou = cj / float(mk.sum() + (g == j).sum() - cj)
-                        best = max(best, (int(j), iou), key=lambda t: t[1])
+                best = _best_true(mk, g)
                 wins.append((int(i), box_of(mk), kinds.get(str(int(i)), "window"), int(c), best[0], best[1],
                              gt_kinds.get(str(best[0]), "window") if best[0] else "-"))
             lit_over.append((a / max(area(fid), 1.0), int(fm.sum()), wall_area(fm), box_of(fm),
