@@ -57,6 +57,15 @@ def _pane(img, gt, k, x0_m, x1_m, y0_m, y1_m, z):
     gt[k] = m
 
 
+def _floors_of_panes(img, gt, sills, x0_m, pitch_m, width_m, height_m, z, bays=4):
+    """``bays`` panes ``width_m`` x ``height_m`` every ``pitch_m`` from ``x0_m`` on each floor whose sill is in
+    ``sills`` (metres on the wall); ``gt[(floor, bay)]`` their true masks (:func:`_pane`)."""
+    for f, sill in enumerate(sills):
+        for b in range(bays):
+            x = x0_m + pitch_m * b
+            _pane(img, gt, (f, b), x, x + width_m, sill, sill + height_m, z)
+
+
 def _windows(props):
     """Proposed window masks of kind ``window`` (id -> HxW bool) and the windows_groups' members."""
     ann = props.above(0.5)
@@ -1052,9 +1061,7 @@ def test_a_floor_of_small_panes_is_not_taken_for_fragments():
     z = 25.0
     _wall(img, labels, depth, -7.0, 7.0, 10.5, z)
     gt = {}
-    for f, sill in enumerate((3.0, 5.8)):
-        for b in range(4):
-            _pane(img, gt, (f, b), -4.8 + 2.6 * b, -3.6 + 2.6 * b, sill, sill + 1.6, z)
+    _floors_of_panes(img, gt, (3.0, 5.8), -4.8, 2.6, 1.2, 1.6, z)
     for b in range(4):
         _pane(img, gt, ("attic", b), -4.5 + 2.6 * b, -3.9 + 2.6 * b, 8.6, 9.4, z)
     vent = {}

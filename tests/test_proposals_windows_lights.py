@@ -6,7 +6,8 @@ their wall than any pane. Painted facades as in tests/test_proposals_windows.py.
 from __future__ import annotations
 
 import numpy as np
-from test_proposals_windows import K, PARAMS, WALL, _canvas, _iou, _pane, _run, _u, _v, _wall, _windows
+from test_proposals_windows import (K, PARAMS, WALL, _canvas, _floors_of_panes, _iou, _pane, _run, _u, _v, _wall,
+                                    _windows)
 
 from npsim_core.proposals.core import Context, Light
 from npsim_core.proposals.windows import _strip_width_m
@@ -198,10 +199,7 @@ def _shops_with_raised_sills():
     z = 30.0
     _wall(img, labels, depth, -10.0, 10.0, 10.0, z)
     gt = {}
-    for fl, sill in enumerate((4.0, 7.0)):
-        for b in range(4):
-            x = -8.0 + 4.4 * b
-            _pane(img, gt, (fl, b), x, x + 1.2, sill, sill + 1.5, z)
+    _floors_of_panes(img, gt, (4.0, 7.0), -8.0, 4.4, 1.2, 1.5, z)
     for b in range(3):
         x = -8.5 + 6.0 * b
         _pane(img, gt, ("shop", b), x, x + 2.8, 1.2, 3.1, z)
