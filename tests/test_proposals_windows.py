@@ -1071,3 +1071,51 @@ def test_a_floor_of_small_panes_is_not_taken_for_fragments():
     for k, g in gt.items():
         assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {k}"
     assert not any((w & vent[0]).any() for w in wins.values()), "the vent proposed as a window"
+
+
+def test_a_pane_found_as_its_top_band_grows_down_its_frame_to_its_rail():
+    """A pane whose upper part shows a bright reflection band and whose glass below departs from the
+    wall barely (0.5 of the thresholds: under ``window_extend_dev`` and no wider than the wall beside
+    it by 1.5x) was proposed as its band: 8 of its 30 rows, mask IoU 0.27, and its bottom rail a
+    window of its own (on the 2048x1024 lights street, seeds 1-2, two panes; docs/proposals.md
+    "Fourteenth pass: panes found as their top part"). Its frame's side -- a 1-px line in its reveal's
+    shade -- runs on from the band down to the rail: the window grows to the rail and takes it in. A
+    band over a downpipe that meets no cross line keeps its size, and so does one over plain wall
+    (the glass between not departing). ``windows._frame_ends`` on a departure map like the street's."""
+    from npsim_core.proposals.core import Context, Light
+    from npsim_core.proposals.windows import _frame_ends
+
+    Hh, Ww = 60, 80
+    rng = np.random.default_rng(2)
+    dev = rng.uniform(0.0, 0.25, (Hh, Ww))                 # wall
+    labels = np.full((Hh, Ww), 11, np.uint8)
+    depth = np.full((Hh, Ww), 10.0, np.float32)            # 2.5 m of pane: 37 px at 150 px focal length
+    ctx = Context(np.zeros((Hh, Ww, 3), np.uint8), labels, depth, Intrinsics(150.0, 150.0, 39.5, 29.5, Ww, Hh),
+                  None, ProposalParams())
+    found = []
+    # the pane: rows 5-34, columns 10-17; its band rows 5-12, frame side column 10, rail rows 33-34
+    pane = np.zeros((Hh, Ww), bool)
+    pane[5:35, 10:18] = True
+    dev[5:35, 11:18] = rng.uniform(0.4, 0.6, (30, 7))
+    dev[5:13, 10:18] = 4.0
+    dev[5:35, 10] = 5.0
+    dev[33:35, 10:18] = 5.0
+    band = Light(1, 5, 10, np.ones((8, 8), bool), 0.9)
+    rail = Light(1, 33, 10, np.ones((2, 8), bool), 0.9)
+    found += [[1, 5.0, 0.6, band], [1, 2.0, 0.6, rail]]
+    # a band over a downpipe running on to the ground: no cross line
+    dev[5:13, 30:38] = 4.0
+    dev[5:, 30] = 5.0
+    pipe = Light(1, 5, 30, np.ones((8, 8), bool), 0.9)
+    # a band whose frame meets a line across, but over plain wall
+    dev[5:13, 50:58] = 4.0
+    dev[5:35, 50] = 5.0
+    dev[33:35, 50:58] = 5.0
+    plain = Light(1, 5, 50, np.ones((8, 8), bool), 0.9)
+    found += [[1, 5.0, 0.6, pipe], [1, 5.0, 0.6, plain]]
+    out = _frame_ends(ctx, found, dev, ProposalParams())
+    assert [f[3] for f in out] == [band, pipe, plain]       # the rail is the pane's
+    m = np.zeros((Hh, Ww), bool)
+    m[band.y0:band.y0 + band.mask.shape[0], band.x0:band.x0 + band.mask.shape[1]] = band.mask
+    assert _iou(m, pane) >= 0.95, f"IoU {_iou(m, pane):.2f}"
+    assert (pipe.y0, pipe.mask.shape) == (5, (8, 8)) and (plain.y0, plain.mask.shape) == (5, (8, 8))

@@ -240,6 +240,11 @@ class ProposalParams:
     window_mates_short: float = 0.75
     window_mates_fit_px: float = 1.5
     window_mates_dev: float = 0.3
+    #: A window grows to the cross line (a row departing by the window thresholds over two thirds of its
+    #: columns: a sill, the bottom rail) that a line of its own edge column (each pixel by the thresholds)
+    #: runs to from its end, within a pane's height (``window_tall_keep_m``), the glass between departing by
+    #: ``window_mates_dev``: a pane found as its band, outlined by its frame (False: off).
+    window_frame_ends: bool = True
     #: Two windows of one floor whose gap is not wall -- each line across it departs from the wall by
     #: ``window_split_gap_dev`` of the window thresholds (a frame bar, faint glass; ``window_extend_dev``'s
     #: value: glass beyond a pane's band) or is covered by something in front -- and, side by side, at

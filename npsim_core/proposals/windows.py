@@ -1706,6 +1706,89 @@ def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
         top[i], bot[i] = box[i, 0], box[i, 0] + box[i, 2] - 1
 
 
+def _frame_ends(ctx: Context, found: list, dev: np.ndarray, p) -> list:
+    """Give a window found as its top (bottom) part the rest of its pane that its frame outlines: a
+    reflection or a curtain band departs from the wall, the glass beyond it barely, and the thresholds
+    take the band while the frame -- a side of it in its reveal's shade, a line one pixel wide that the
+    candidates' opening removes -- runs on along the pane's side to its bottom rail or sill (docs/proposals.md
+    "Fourteenth pass: panes found as their top part"). From each end row of a window of kind ``window``
+    (``found`` rows [wall id, level, tolerance, Light]; ``dev``, HxW, departure from the wall in window
+    thresholds), an edge column of the window's box walks on while it departs by the thresholds (``dev``
+    >= 1) on building pixels, until a cross row: one departing by the thresholds over two thirds of the
+    window's columns. The column beyond the edge departs under the thresholds on mean along the walk (a
+    frame line has wall beside it; a shadow or a neighbour running on past the side has not). The
+    window grows to that row, inclusive, when the walk is three rows or more, the
+    window then at most a pane tall (``window_tall_keep_m`` at its depth; twice its height without
+    depth), and the glass between (its other columns) departs by ``window_mates_dev`` on mean; the new
+    rows copy the columns of the end row. A window whose box lies in the rows added, within the
+    window's columns (the pane's rail found alone), is part of it and goes. Returns ``found``."""
+    H, W = dev.shape
+    B = ctx.labels == BUILDING
+    fy = float(ctx.intrinsics.fy)
+    strong = (dev >= 1.0) & B
+    a = float(p.window_mates_dev)
+    gone: set[int] = set()
+    for i, f in enumerate(found):
+        li = f[3]
+        if i in gone or (li.kind or "window") != "window":
+            continue
+        h, w = li.mask.shape
+        if w < 2 or h < 3:
+            continue
+        z = _median_depth(ctx, li)
+        max_h = max(h, int(p.window_tall_keep_m * fy / z)) if z else 2 * h
+        x0, x1 = li.x0, li.x0 + w
+        best = None
+        for down in (True, False):
+            end = li.y0 + h - 1 if down else li.y0
+            step = 1 if down else -1
+            src = li.mask[-1] if down else li.mask[0]
+            for c in (x0, x1 - 1):
+                if not src[c - x0]:
+                    continue
+                y, n = end + step, 0
+                while 0 <= y < H and h + n + 1 <= max_h and strong[y, c]:
+                    n += 1
+                    if (strong[y, x0:x1]).mean() >= 2.0 / 3.0:
+                        break
+                    y += step
+                else:
+                    continue
+                if n < 3:
+                    continue
+                rows = slice(end + step, y) if down else slice(y + 1, end)
+                out = c - 1 if c == x0 else c + 1
+                # a frame line has wall beyond it: a darker area running on past the window's side (a
+                # shadow, a neighbour) is no line of its pane
+                if not 0 <= out < W or float(dev[rows, out].mean()) >= 1.0:
+                    continue
+                inner = [k for k in range(x0, x1) if k != c and src[k - x0]]
+                glass = dev[rows, inner] if inner else np.zeros(0)
+                if glass.size and float(glass.mean()) < a:
+                    continue
+                if best is None or n > best[0]:
+                    best = (n, down, src)
+        if best is None:
+            continue
+        n, down, src = best
+        ny0 = li.y0 + h if down else li.y0 - n
+        # the pane's rail or sill found alone: a window inside the rows added and the window's columns
+        for j, g in enumerate(found):
+            lj = g[3]
+            if j == i or j in gone:
+                continue
+            jh, jw = lj.mask.shape
+            if lj.y0 >= ny0 - 1 and lj.y0 + jh <= ny0 + n + 1 and lj.x0 >= x0 - 1 and lj.x0 + jw <= x1 + 1:
+                gone.add(j)
+        add = np.repeat(src[None, :], n, 0)
+        if down:
+            li.mask = np.concatenate([li.mask, add], 0)
+        else:
+            li.mask = np.concatenate([add, li.mask], 0)
+            li.y0 -= n
+    return [f for j, f in enumerate(found) if j not in gone]
+
+
 def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list | None = None) -> list:
     """Join the parts of one pane that a frame bar, a curtain's edge or something in front splits (a
     mullion, a transom, a pole, a branch), in place: each part passed the window tests alone, while an
@@ -2149,6 +2232,8 @@ def propose(ctx: Context) -> list[Group]:
             li = f[3]
             taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] |= li.mask
         _floor_ends(found, dev_all, B & ~taken, p)
+    if p.window_frame_ends and found:
+        found = _frame_ends(ctx, found, dev_all, p)
     found = _join_split_panes(ctx, found, dev_all, p)
     if p.window_min_width_m > 0:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
