@@ -1079,13 +1079,14 @@ def test_a_pane_found_as_its_top_band_grows_down_its_frame_to_its_rail():
     it by 1.5x) was proposed as its band: 8 of its 30 rows, mask IoU 0.27, and its bottom rail a
     window of its own (on the 2048x1024 lights street, seeds 1-2, two panes; docs/proposals.md
     "Fourteenth pass: panes found as their top part"). Its frame's side -- a 1-px line in its reveal's
-    shade -- runs on from the band down to the rail: the window grows to the rail and takes it in. A
+    shade -- runs on from the band down to the rail: the window grows to the rail and takes it in; met
+    from the rail first, the rail grows up the line to the band and joins it: one window either way. A
     band over a downpipe that meets no cross line keeps its size, and so does one over plain wall
     (the glass between not departing). ``windows._frame_ends`` on a departure map like the street's."""
     from npsim_core.proposals.core import Context, Light
     from npsim_core.proposals.windows import _frame_ends
 
-    Hh, Ww = 60, 80
+    Hh, Ww = 60, 90
     rng = np.random.default_rng(2)
     dev = rng.uniform(0.0, 0.25, (Hh, Ww))                 # wall
     labels = np.full((Hh, Ww), 11, np.uint8)
@@ -1112,10 +1113,19 @@ def test_a_pane_found_as_its_top_band_grows_down_its_frame_to_its_rail():
     dev[5:35, 50] = 5.0
     dev[33:35, 50:58] = 5.0
     plain = Light(1, 5, 50, np.ones((8, 8), bool), 0.9)
-    found += [[1, 5.0, 0.6, pipe], [1, 5.0, 0.6, plain]]
+    # the same pane again, its rail listed before its band
+    pane2 = np.zeros((Hh, Ww), bool)
+    pane2[5:35, 70:78] = True
+    dev[5:35, 71:78] = rng.uniform(0.4, 0.6, (30, 7))
+    dev[5:13, 70:78] = 4.0
+    dev[5:35, 70] = 5.0
+    dev[32:35, 70:78] = 5.0
+    rail2, band2 = Light(1, 32, 70, np.ones((3, 8), bool), 0.9), Light(1, 5, 70, np.ones((8, 8), bool), 0.9)
+    found += [[1, 5.0, 0.6, pipe], [1, 5.0, 0.6, plain], [1, 2.0, 0.6, rail2], [1, 5.0, 0.6, band2]]
     out = _frame_ends(ctx, found, dev, ProposalParams())
-    assert [f[3] for f in out] == [band, pipe, plain]       # the rail is the pane's
-    m = np.zeros((Hh, Ww), bool)
-    m[band.y0:band.y0 + band.mask.shape[0], band.x0:band.x0 + band.mask.shape[1]] = band.mask
-    assert _iou(m, pane) >= 0.95, f"IoU {_iou(m, pane):.2f}"
+    assert [id(f[3]) for f in out] == [id(band), id(pipe), id(plain), id(rail2)]  # each rail and band one window
+    for li, pn in ((band, pane), (rail2, pane2)):
+        m = np.zeros((Hh, Ww), bool)
+        m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
+        assert _iou(m, pn) >= 0.95, f"IoU {_iou(m, pn):.2f}"
     assert (pipe.y0, pipe.mask.shape) == (5, (8, 8)) and (plain.y0, plain.mask.shape) == (5, (8, 8))

@@ -1721,7 +1721,9 @@ def _frame_ends(ctx: Context, found: list, dev: np.ndarray, p) -> list:
     window then at most a pane tall (``window_tall_keep_m`` at its depth; twice its height without
     depth), and the glass between (its other columns) departs by ``window_mates_dev`` on mean; the new
     rows copy the columns of the end row. A window whose box lies in the rows added, within the
-    window's columns (the pane's rail found alone), is part of it and goes. Returns ``found``."""
+    window's columns (the pane's rail found alone), is part of it and goes; one the cross row runs into
+    (within a row), over 0.6 of the narrower's columns (the pane's band, reached from its rail), is
+    joined to it. Returns ``found``."""
     H, W = dev.shape
     B = ctx.labels == BUILDING
     fy = float(ctx.intrinsics.fy)
@@ -1772,20 +1774,36 @@ def _frame_ends(ctx: Context, found: list, dev: np.ndarray, p) -> list:
             continue
         n, down, src = best
         ny0 = li.y0 + h if down else li.y0 - n
-        # the pane's rail or sill found alone: a window inside the rows added and the window's columns
-        for j, g in enumerate(found):
-            lj = g[3]
-            if j == i or j in gone:
-                continue
-            jh, jw = lj.mask.shape
-            if lj.y0 >= ny0 - 1 and lj.y0 + jh <= ny0 + n + 1 and lj.x0 >= x0 - 1 and lj.x0 + jw <= x1 + 1:
-                gone.add(j)
+        cross = ny0 + n - 1 if down else ny0
         add = np.repeat(src[None, :], n, 0)
         if down:
             li.mask = np.concatenate([li.mask, add], 0)
         else:
             li.mask = np.concatenate([add, li.mask], 0)
             li.y0 -= n
+        # the pane's other part found alone: a window inside the rows added and the window's columns (its
+        # rail), or one the cross row runs into, over most of the narrower's columns (its band), joins it
+        for j, g in enumerate(found):
+            lj = g[3]
+            if j == i or j in gone or (lj.kind or "window") != "window":
+                continue
+            jh, jw = lj.mask.shape
+            inside = lj.y0 >= ny0 - 1 and lj.y0 + jh <= ny0 + n + 1 and lj.x0 >= x0 - 1 and lj.x0 + jw <= x1 + 1
+            ov = min(x1, lj.x0 + jw) - max(x0, lj.x0)
+            meets = lj.y0 - 1 <= cross <= lj.y0 + jh and ov >= 0.6 * min(w, jw)
+            if not (inside or meets):
+                continue
+            gone.add(j)
+            if inside:
+                continue
+            uy0, ux0 = min(li.y0, lj.y0), min(li.x0, lj.x0)
+            uy1 = max(li.y0 + li.mask.shape[0], lj.y0 + jh)
+            ux1 = max(li.x0 + li.mask.shape[1], lj.x0 + jw)
+            m = np.zeros((uy1 - uy0, ux1 - ux0), bool)
+            m[li.y0 - uy0:li.y0 - uy0 + li.mask.shape[0], li.x0 - ux0:li.x0 - ux0 + li.mask.shape[1]] |= li.mask
+            m[lj.y0 - uy0:lj.y0 - uy0 + jh, lj.x0 - ux0:lj.x0 - ux0 + jw] |= lj.mask
+            li.y0, li.x0, li.mask = uy0, ux0, m
+            li.confidence = max(li.confidence, lj.confidence)
     return [f for j, f in enumerate(found) if j not in gone]
 
 
