@@ -1094,13 +1094,19 @@ def test_a_pane_found_as_its_top_band_grows_down_its_frame_to_its_rail():
     ctx = Context(np.zeros((Hh, Ww, 3), np.uint8), labels, depth, Intrinsics(150.0, 150.0, 39.5, 29.5, Ww, Hh),
                   None, ProposalParams())
     found = []
-    # the pane: rows 5-34, columns 10-17; its band rows 5-12, frame side column 10, rail rows 33-34
-    pane = np.zeros((Hh, Ww), bool)
-    pane[5:35, 10:18] = True
-    dev[5:35, 11:18] = rng.uniform(0.4, 0.6, (30, 7))
-    dev[5:13, 10:18] = 4.0
-    dev[5:35, 10] = 5.0
-    dev[33:35, 10:18] = 5.0
+
+    def framed_pane(x0, rail0):
+        """A pane of rows 5-34, columns x0..x0+7: its band rows 5-12, frame side column x0, rail rows rail0-34,
+        the glass between barely departing."""
+        pane = np.zeros((Hh, Ww), bool)
+        pane[5:35, x0:x0 + 8] = True
+        dev[5:35, x0 + 1:x0 + 8] = rng.uniform(0.4, 0.6, (30, 7))
+        dev[5:13, x0:x0 + 8] = 4.0
+        dev[5:35, x0] = 5.0
+        dev[rail0:35, x0:x0 + 8] = 5.0
+        return pane
+
+    pane = framed_pane(10, 33)
     band = Light(1, 5, 10, np.ones((8, 8), bool), 0.9)
     rail = Light(1, 33, 10, np.ones((2, 8), bool), 0.9)
     found += [[1, 5.0, 0.6, band], [1, 2.0, 0.6, rail]]
@@ -1114,12 +1120,7 @@ def test_a_pane_found_as_its_top_band_grows_down_its_frame_to_its_rail():
     dev[33:35, 50:58] = 5.0
     plain = Light(1, 5, 50, np.ones((8, 8), bool), 0.9)
     # the same pane again, its rail listed before its band
-    pane2 = np.zeros((Hh, Ww), bool)
-    pane2[5:35, 70:78] = True
-    dev[5:35, 71:78] = rng.uniform(0.4, 0.6, (30, 7))
-    dev[5:13, 70:78] = 4.0
-    dev[5:35, 70] = 5.0
-    dev[32:35, 70:78] = 5.0
+    pane2 = framed_pane(70, 32)
     rail2, band2 = Light(1, 32, 70, np.ones((3, 8), bool), 0.9), Light(1, 5, 70, np.ones((8, 8), bool), 0.9)
     found += [[1, 5.0, 0.6, pipe], [1, 5.0, 0.6, plain], [1, 2.0, 0.6, rail2], [1, 5.0, 0.6, band2]]
     out = _frame_ends(ctx, found, dev, ProposalParams())
