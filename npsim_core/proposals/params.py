@@ -217,6 +217,11 @@ class ProposalParams:
     window_row_min_panes: int = 2
     window_row_pane_max_px: int = 3
     window_row_pane_max_h_px: int = 16
+    #: ... each piece's width judged without its edge columns under ``window_unblur_ratio`` of its
+    #: strongest column (a pane's blur into the wall beside it, the dim glass of a dark pane next to a
+    #: lit one), and kept with one such column a side at most, for ``_unblur`` to take off after the
+    #: grid (docs/proposals.md "Fifteenth pass: windows at 512x256").
+    window_row_trim_faint: bool = True
     #: ... judged on a blob kept as one window that spans at least ``window_row_min_m_per_px`` of wall
     #: (m, from its depth) per pixel column and is longer along its wall than ``window_height_m[1]``,
     #: or spans ``window_row_wall_m_per_px`` per column.

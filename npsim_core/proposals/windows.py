@@ -311,15 +311,43 @@ def _row_split(m: np.ndarray, dev: np.ndarray, p, min_h: float) -> list[tuple[in
     pieces = _gap_split(m, dev, c, axis=0, min_len=3)
     if len(pieces) < p.window_row_min_panes:
         return []
+    judged = pieces
+    if p.window_row_trim_faint:
+        r = float(p.window_unblur_ratio)
+        judged = [_faint_sides_off(py, px, pm, dev, r, 0) for py, px, pm in pieces]
+        # one faint column a side stays for _unblur to take off after the grid: left free, the lattice
+        # would propose a cell on that blur
+        pieces = [_faint_sides_off(py, px, pm, dev, r, 1) for py, px, pm in pieces]
     if any(pm.shape[1] > p.window_row_pane_max_px or not min_h <= pm.shape[0] <= p.window_row_pane_max_h_px
-           for _, _, pm in pieces):
+           for _, _, pm in judged):
         return []  # not far panes: a pane taller than that shows its own frame and mullions as dips
     # the wall between two such panes is a pixel or two: a wider dip is the inside of one pane (a
     # curtain, a dark middle between a light frame's sides)
-    xs = sorted((px, px + pm.shape[1]) for _, px, pm in pieces)
+    xs = sorted((px, px + pm.shape[1]) for _, px, pm in judged)
     if any(b[0] - a[1] > 2 for a, b in zip(xs, xs[1:])):
         return []
     return pieces
+
+
+def _faint_sides_off(py: int, px: int, pm: np.ndarray, dev: np.ndarray, r: float,
+                     keep: int = 0) -> tuple[int, int, np.ndarray]:
+    """A piece (``pm`` at (py, px) in ``dev``'s frame; ``dev``: departure from the wall in window
+    thresholds) without its edge columns whose mean departure is under ``r`` x its strongest column's,
+    taken off from either side while they are, but for the ``keep`` nearest its strong columns on each
+    side: what a pane's blur or a dark pane's dim glass adds to a lit 1-2 px pane beside it
+    (docs/proposals.md "Fifteenth pass: windows at 512x256"). At least the strongest column stays."""
+    h, w = pm.shape
+    if w < 2 or r <= 0:
+        return py, px, pm
+    cnt = pm.sum(0)
+    prof = np.where(cnt > 0, (dev[py:py + h, px:px + w] * pm).sum(0) / np.maximum(cnt, 1), 0.0)
+    strong = np.flatnonzero(prof >= r * float(prof.max()))
+    a, b = max(int(strong[0]) - keep, 0), min(int(strong[-1]) + keep, w - 1)
+    if a == 0 and b == w - 1:
+        return py, px, pm
+    sub = pm[:, a:b + 1]
+    ys = np.flatnonzero(sub.any(1))
+    return py + int(ys[0]), px + a, sub[ys[0]:ys[-1] + 1]
 
 
 def _unblur(li: Light, dev: np.ndarray, p) -> None:
