@@ -715,3 +715,32 @@ def test_a_far_cabin_slivers_pillar_blurred_with_its_glass_still_parts_the_panes
         assert max(_iou(m, t) for _, m, _ in parts) == 1.0
     img[:, 2] = glass + 6  # a reflection a few levels lighter: still glass
     assert not _pane_parts(img, band, end, paint, 20.0)[1]
+
+
+def test_the_ceiling_measures_a_lamps_departure_from_its_cars_paint_not_from_the_colour_bled_around_it():
+    """``benchmarks.vehicle_lamps --ceiling`` (docs/proposals.md, "Fifteenth pass: vehicle lamps"): a true lamp's
+    departure is the largest channel difference from the median paint of its own car 2-4 px around it -- not
+    from the pixel of blur right beside it, nor from another car or another light's pixels; a lamp whose car
+    shows no paint around it departs 0 (nothing to see it against)."""
+    from benchmarks.vehicle_lamps import departure
+
+    img = np.zeros((30, 40, 3), np.uint8)
+    img[:] = (90, 90, 90)                     # the road
+    inst = np.zeros((30, 40), np.int32)
+    inst[5:25, 5:35] = 26001                  # the car, blue paint
+    img[5:25, 5:35] = (40, 60, 140)
+    inst[5:25, 30:35] = 26002                 # a red car in front of its right end
+    img[5:25, 30:35] = (200, 30, 30)
+    gt = np.zeros((30, 40), np.int32)
+    gt[12:14, 12:16] = 4001                   # its lamp: 8 px, 25 levels redder than the paint
+    img[12:14, 12:16] = (65, 60, 140)
+    img[11, 11:17] = (52, 60, 140)            # the lamp's colour bled a pixel above it
+    gt[12:14, 20:24] = 4002                   # a second lamp, far off the paint, within 4 px of neither
+    img[12:14, 20:24] = (250, 250, 250)
+    n, mx, med = departure(img, gt, inst, 4001)
+    assert n == 8 and mx == 25.0 and med == 25.0
+    # Its car hidden all around it (a lamp seen through a gap): nothing to measure it against.
+    inst2 = inst.copy()
+    inst2[8:18, 8:20] = 26002
+    inst2[12:14, 12:16] = 26001
+    assert departure(img, gt, inst2, 4001)[1:] == (0.0, 0.0)
