@@ -1170,3 +1170,59 @@ def test_a_receding_row_is_cut_into_its_panes_when_a_pane_blurs_into_two_columns
     for i, w in wins.items():
         over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
         assert len(over) <= 1, f"window {i} spans panes {over}"
+
+
+def _floor_with_merged_panes(strip: bool):
+    """A wall facing the camera at 40 m (0.27 m a pixel): four 2-px panes every 3 px on the upper floor,
+    two on the lower one and then, in the next three bays, three panes whose 1-px piers took their
+    blur (0.45 x the wall: departing 0.7 as much as the glass) -- or, with ``strip``, a dark strip
+    over those three bays (a wall strip, a band of glazing without piers). Returns the scene and the
+    true panes of the three bays (none for the strip)."""
+    img, labels, depth, noise = _canvas()
+    z = 40.0
+    _wall(img, labels, depth, -6.0, 6.0, 12.0, z)
+    vv = np.arange(H)
+    u_first = int(round(_u(-4.0, z)))
+
+    def pane(u: int, width: int, sill: float) -> np.ndarray:
+        m = np.zeros((H, W), bool)
+        m[(vv >= _v(sill + 1.6, z)) & (vv < _v(sill, z)), u:u + width] = True
+        img[m] = GLASS
+        return m
+
+    for b in range(4):
+        pane(u_first + 3 * b, 2, 7.0)
+    for b in range(2):
+        pane(u_first + 3 * b, 2, 3.6)
+    u2 = u_first + 6
+    if strip:
+        pane(u2, 8, 3.6)
+        return (img, labels, depth, noise), {}, u2
+    gt = {b: pane(u2 + 3 * b, 2, 3.6) for b in range(3)}
+    for b in (0, 1):
+        pier = np.zeros((H, W), bool)
+        pier[:, u2 + 3 * b + 2] = gt[b][:, u2 + 3 * b]
+        img[pier] = (0.45 * np.array(WALL, float)).astype(np.uint8)
+    return (img, labels, depth, noise), gt, u2
+
+
+def test_far_panes_merged_by_their_blur_are_cut_at_their_floors_pitch_a_wall_strip_is_not():
+    """Three panes of a floor whose piers took their blur are one blob 8 px wide, four times its
+    floor-mates' width: the 1.5x rule dropped it and the lattice, fitted to the panes found, gave cells
+    only over the bays it knew -- the floor lost its third pane (512x256: far panes merged in one blob,
+    docs/proposals.md "Fifteenth pass: windows at 512x256 -- far panes merged in one blob"). Its
+    floor-mates give a pane's width (2 px) and the bay pitch (3 px); the blob dips at that pitch: one
+    window per pane. A dark strip as large without dips is no row of panes: nothing is cut from it
+    beyond the lattice's bays, and no window spans two bays."""
+    scene, gt, u2 = _floor_with_merged_panes(strip=False)
+    wins, _ = _windows(_run(*scene))
+    for k, g in gt.items():
+        assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
+    for i, w in wins.items():
+        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
+        assert len(over) <= 1, f"window {i} spans panes {over}"
+    scene, _, u2 = _floor_with_merged_panes(strip=True)
+    wins, _ = _windows(_run(*scene))
+    on = [w for w in wins.values() if w[:, u2:u2 + 8].any()]
+    assert not any(w[:, u2 + 5:u2 + 8].any() for w in on), "a pane cut from the strip's third bay"
+    assert all(np.ptp(np.nonzero(w)[1]) + 1 <= 2 for w in on), "a window over the strip spans two bays"

@@ -387,6 +387,10 @@ class ProposalParams:
     #: A window larger than ``window_max_median_ratio`` x its wall's median is cut where its departure
     #: from the wall over a column (row) dips below this fraction of the peaks either side (0: never).
     window_oversized_gap_contrast: float = 0.6
+    #: A window the 1.5x rule drops is replaced by its panes where it dips at its floor's bay pitch and its
+    #: floor-mates -- windows of its floor at its depth within this share -- say what a pane is: far panes
+    #: merged by their blur (windows._pitch_cut; 0: off).
+    window_pitch_cut_depth_tol: float = 0.15
     #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
     #: window_confidence.score_terms: first confidence, log-luminance and chroma contrast to the wall in a
     #: ring around it over the window thresholds, clipped at 3, height in m clipped at 2.5, ln of its

@@ -1241,6 +1241,20 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         taken = list(box.values())
         for y0, x0, m in rejected.get(b_id, []):
             y1, x1 = y0 + m.shape[0] - 1, x0 + m.shape[1] - 1
+            if ctx.depth is not None and p.window_pitch_cut_depth_tol > 0:
+                # a receding row of far panes a pixel apart, too long for one window: its panes where it
+                # dips at its floor's pitch (_pitch_cut), those no window holds yet
+                rl = Light(WINDOW_BUILDING, y0, x0, m, 0.6)
+                pcs = [q for q in _pitch_cut(ctx, [b_id, fl_level(ctx, rl), p.window_floor_tol_m, rl], wins,
+                                             0.0, np.inf, ratio, chroma)
+                       if not any(min(q[3].x0 + q[3].mask.shape[1] - 1, b[3]) >= max(q[3].x0, b[2]) and
+                                  min(q[3].y0 + q[3].mask.shape[0] - 1, b[1]) >= max(q[3].y0, b[0]) for b in taken)]
+                if pcs:
+                    for q in pcs:
+                        taken.append((q[3].y0, q[3].y0 + q[3].mask.shape[0] - 1, q[3].x0,
+                                      q[3].x0 + q[3].mask.shape[1] - 1))
+                    kept.extend(pcs)
+                    continue
             xc = (x0 + x1) / 2.0
             cs = [c for c in all_cols if min(c[1], x1) - max(c[0], x0) + 1 >= 0.5 * (c[1] - c[0] + 1)]
             rs = [(top(xc), bot(xc)) for top, bot, fl in lines if len(fl) >= 2
@@ -1347,10 +1361,12 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         # panes merged across a strip of wall: cut there before the rule drops them as too large
         kept = _split_oversized(ctx, kept, fm, t_wall, ratio, chroma)
         n0 = {id(f): f for f in kept}
-        kept = _median_rule(ctx, kept, fm, t_wall)  # before the grid: the cells stand in for what it drops
+        # before the grid: the cells stand in for what it drops (a window it cuts into panes, _pitch_cut, too)
+        kept = _median_rule(ctx, kept, fm, t_wall, ratio, chroma)
         dropped = [n0[k][3] for k in set(n0) - {id(f) for f in kept}]
-        # the lattice from whole panes: a pane's visible part has another centre and width
-        fit = [i for i, f in enumerate(kept) if not f[3].cut]
+        # the lattice from whole panes: a pane's visible part has another centre and width; a piece
+        # _pitch_cut made of a dropped window is placed by its floor-mates' pitch, not evidence of it
+        fit = [i for i, f in enumerate(kept) if not f[3].cut and id(f) in n0]
         cells, merged = lattice_cells(ctx, fm, [kept[i] for i in fit], ratio, chroma, dropped, t_wall)
         merged = {fit[j] for j in merged}
         if cells:
@@ -1405,14 +1421,17 @@ def _wall_areas(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
     return np.asarray(area, float), whole
 
 
-def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None) -> list:
+def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float] | None,
+                 ratio: np.ndarray | None = None, chroma: np.ndarray | None = None) -> list:
     """Drop the windows larger than ``window_max_median_ratio`` x the median window of their wall
     (``fm``, HxW bool; ``window_median_min_count`` windows at least) and of their floor (three windows
     at least; a window with one or two whole mates on its floor is judged against those mates, not
     itself: a floor of larger panes has mates of its size): a merged
     row, a gable or an awning, never one pane.
     Areas on the wall: :func:`_wall_areas`, the window judged one pixel smaller across and down
-    (quantisation), the median over its wall's whole windows at their full pixel area."""
+    (quantisation), the median over its wall's whole windows at their full pixel area. With ``ratio``
+    and ``chroma`` (the window features' departure from the wall) a window dropped is replaced by its
+    panes where its floor says it is a row of them (:func:`_pitch_cut`)."""
     p = ctx.params
     if len(wins) < p.window_median_min_count or ctx.depth is None:
         return wins
@@ -1449,6 +1468,92 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
         if z is not None and float(ctx.height_above_ground(li.y0 - 0.5, z)) <= p.window_shop_max_top_m:
             li.kind = "shop"  # ground-floor glazing larger than the windows above: a shop front
             out.append(f)
+        elif ratio is not None and chroma is not None:
+            # far panes of the floor merged by their blur: its panes, where its dips fall at the floor's pitch
+            out.extend(_pitch_cut(ctx, f, wins, float(ai), p.window_max_median_ratio * ref, ratio, chroma))
+    return out
+
+
+def _pitch_cut(ctx: Context, f: list, wins: list, area: float, limit: float, ratio: np.ndarray,
+               chroma: np.ndarray) -> list:
+    """The panes of a window ``f`` ([wall id, level, tol, Light]) that the 1.5x rule drops (``area``, m^2 on
+    the wall, over ``limit``), or of a blob too large for one window (regularise's rejects; ``limit``
+    inf), where its floor says what a pane is: a row of far panes merged by their blur into one blob
+    that :func:`_row_split` did not cut (its depth gave too short a length along the wall for a row).
+    Its floor-mates -- the windows of ``wins`` (its wall) at its depth (within
+    ``window_pitch_cut_depth_tol``) on its floor (levels within its tolerance; where fewer than two of
+    its floor were found, the nearest floor's: bays run up a facade), the four nearest it, two at
+    least -- give a pane's width (their median, a pixel more: a pane 1.5 px wide shows as 1 or 2 px),
+    its floor's band (their tallest) and the bay pitch (their median centre distance between
+    neighbours on one side of it). The blob is cut across its columns where its departure from the
+    wall (window thresholds, from ``ratio`` and ``chroma``) dips (:func:`_gap_split` at
+    ``window_row_gap_contrast``); the pieces are the floor's panes when there are two or more and each,
+    without its faint edge columns (:func:`_faint_sides_off`), is no wider than that and narrower than
+    the pitch (wall between panes), no taller than 1.5x the band, at least a pane's least height
+    (``window_height_m``) and ``window_min_area_px``, under ``limit`` on the wall, its centre 0.5-1.5
+    pitches from the next one's. Else [] (dropped): a wall strip or a shop front shows no such dips,
+    or its floor no such panes. The pieces keep one faint column a side, as :func:`_row_split`'s, for
+    :func:`_unblur` (docs/proposals.md "Fifteenth pass: windows at 512x256 -- far panes merged in one
+    blob")."""
+    p = ctx.params
+    tol = float(p.window_pitch_cut_depth_tol)
+    li = f[3]
+    h, w = li.mask.shape
+    z = _median_depth(ctx, li)
+    if tol <= 0 or w < 3 or z is None:
+        return []
+    cx = li.x0 + (w - 1) / 2.0
+    near = []  # the wall's windows at its depth: (level, centre column, width, height)
+    for q in wins:
+        if q is f or (q[3].kind or "window") != "window":
+            continue
+        zq = _median_depth(ctx, q[3])
+        if zq is not None and abs(zq - z) <= tol * z:
+            near.append((q[1], q[3].x0 + (q[3].mask.shape[1] - 1) / 2.0, q[3].mask.shape[1], q[3].mask.shape[0]))
+    # its floor's, or where fewer than two of its floor were found (a floor whose panes merged, a floor
+    # the frame cuts), the nearest floor's: bays run up the facade, a floor's panes have its neighbours' width
+    levels = sorted({m[0] for m in near}, key=lambda v: abs(v - f[1]))
+    mates = []
+    for v in levels:
+        mates = [m[1:] for m in near if abs(m[0] - v) <= f[2]]
+        if len(mates) >= 2:
+            break
+    mates = sorted(mates, key=lambda m: abs(m[0] - cx))[:4]
+    if len(mates) < 2:
+        return []
+    # a pane's width: their median (a mate merged with its neighbour's blur or a strip of wall is not
+    # the pane) and a pixel (a pane 1.5 px wide is 1 or 2 px); its floor's band: their tallest (a mate
+    # cut by something in front shows less than the pane)
+    mw, mh = int(np.ceil(np.median([m[1] for m in mates]))) + 1, max(m[2] for m in mates)
+    sides = ([m[0] for m in mates if m[0] < cx], [m[0] for m in mates if m[0] > cx])
+    steps = [b - a for side in sides for a, b in zip(sorted(side), sorted(side)[1:])]
+    if not steps:
+        return []
+    pitch = float(np.median(steps))
+    tl = -np.log(p.window_dark_ratio)
+    box = (slice(li.y0, li.y0 + h), slice(li.x0, li.x0 + w))
+    dev = np.maximum(np.abs(ratio[box]) / tl, chroma[box] / p.window_chroma_delta)
+    pieces = _gap_split(li.mask, dev, float(p.window_row_gap_contrast), axis=0, min_len=3)
+    if len(pieces) < 2:
+        return []
+    r = float(p.window_unblur_ratio)
+    min_h = p.window_height_m[0] * float(ctx.intrinsics.fy) / z
+    judged = [_faint_sides_off(py, px, pm, dev, r, 0) for py, px, pm in pieces]
+    for _, _, pm in judged:
+        if pm.shape[1] > mw or pm.shape[1] >= pitch or pm.shape[0] > 1.5 * mh or pm.shape[0] < min_h:
+            return []
+    centres = sorted(px + (pm.shape[1] - 1) / 2.0 for _, px, pm in judged)
+    if any(not 0.5 * pitch <= b - a <= 1.5 * pitch for a, b in zip(centres, centres[1:])):
+        return []
+    n = float(li.mask.sum())
+    out = []
+    for py, px, pm in (_faint_sides_off(py, px, pm, dev, r, 1) for py, px, pm in pieces):
+        if pm.sum() < p.window_min_area_px or area * pm.sum() / n > limit:
+            return []
+        nl = Light(li.class_id, li.y0 + py, li.x0 + px, pm, li.confidence)
+        nl.kind = "window"
+        nl.cut = li.cut
+        out.append([f[0], fl_level(ctx, nl), f[2], nl])
     return out
 
 
