@@ -366,6 +366,9 @@ class ProposalParams:
     #: most this many bays beyond the panes found, toward the vanishing point.
     window_cell_max_px: int = 3
     window_cell_max_extra_bays: int = 4
+    #: A window within a lattice cell's columns and under this share of the cell's pixels is a
+    #: fragment of the cell's pane (its top rows, a fleck of it): the cell replaces it (0: off).
+    window_cell_fragment_share: float = 0.6
     #: No window larger than this many times the median window of its wall (area on the wall).
     window_max_median_ratio: float = 1.5
     #: ... judged on walls with at least this many windows (fewer give no reliable median).

@@ -8,6 +8,7 @@ import warnings
 import cv2
 import numpy as np
 
+from .ads import _union
 from .core import Context, Group, Light, components
 
 BUILDING, VEGETATION, SKY = 11, 21, 23
@@ -1376,13 +1377,44 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
             for ya, xa, m in cells:
                 yb, xb = ya + m.shape[0] - 1, xa + m.shape[1] - 1
                 if have[max(ya, 0):max(yb + 1, 0), max(xa, 0):max(xb + 1, 0)].any():
-                    continue
+                    # a pane found as a fragment of its cell (its top rows above a dim lower part, a
+                    # fleck): the lattice of its floor-mates says where the whole pane is
+                    frag = _cell_fragments(kept, ya, xa, m, p.window_cell_fragment_share)
+                    if not frag:
+                        continue
+                    for j in frag:  # the cell and its fragments (a fragment may reach a pixel past it)
+                        ya, xa, m = _union((ya, xa, m), (kept[j][3].y0, kept[j][3].x0, kept[j][3].mask))
+                    kept = [f for j, f in enumerate(kept) if j not in frag]
+                    have[ya:ya + m.shape[0], xa:xa + m.shape[1]] = True
                 nl = Light(WINDOW_BUILDING, ya, xa, m, 0.55)
                 nl.kind = "window"
                 kept.append([b_id, fl_level(ctx, nl), p.window_floor_tol_m if ctx.depth is not None
                              else max(2.0, m.shape[0] / 2.0), nl])
         kept = _small_rule(ctx, kept, fm, t_wall)
         out.extend(_cap_lit(p, kept, float(fm.sum())) + other)
+    return out
+
+
+def _cell_fragments(wins: list, ya: int, xa: int, m: np.ndarray, share: float) -> set[int]:
+    """Indices of ``wins`` ([wall id, level, tolerance, Light]) that are fragments of the lattice cell
+    (``ya``, ``xa``, local mask ``m``): every window whose box meets the cell's box must be a whole
+    window (not cut by the frame or something in front) of kind "window" within the cell's columns
+    and rows (a pixel either side allowed: the lattice is often a pixel off) and under ``share`` of
+    the cell's pixels; else (a window of another size or place holds the cell, or none does) the
+    empty set."""
+    if share <= 0:
+        return set()
+    yb, xb = ya + m.shape[0] - 1, xa + m.shape[1] - 1
+    out = set()
+    for j, f in enumerate(wins):
+        li = f[3]
+        y1, x1 = li.y0 + li.mask.shape[0] - 1, li.x0 + li.mask.shape[1] - 1
+        if y1 < ya or li.y0 > yb or x1 < xa or li.x0 > xb:
+            continue
+        if (li.cut or (li.kind or "window") != "window" or li.x0 < xa - 1 or x1 > xb + 1
+                or li.y0 < ya - 1 or y1 > yb + 1 or li.mask.sum() >= share * m.sum()):
+            return set()
+        out.add(j)
     return out
 
 
