@@ -76,6 +76,11 @@ class ProposalParams:
     vehicle_face_from_depth: bool = True
     vehicle_face_tol_m: float = 0.3
     vehicle_face_tol_rel: float = 0.02
+    #: A vehicle's end face lies at its nearer end only where its two ends' predicted depths differ by more
+    #: than max(``vehicle_face_tol_m``, this fraction of depth); else at the end away from the principal
+    #: point, as for a vehicle parallel to the street (a far car's side face blurs into its end face in
+    #: predicted depth: ends 1-2 % apart; docs/proposals.md, "Fifteenth pass: vehicle lamps at 512x256").
+    vehicle_side_tie_rel: float = 0.025
     #: Width (m) of a car and of a truck or bus: the extent of the end face the camera sees.
     vehicle_width_m: tuple[float, float] = (1.8, 2.5)
     #: Lamp box on the end face without depth, as fractions of the body face: rows from the body top,

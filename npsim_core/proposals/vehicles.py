@@ -514,8 +514,9 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     not cut by the image border: no lamps are proposed on it).
 
     Columns: the end face is a vertical plane across the vehicle, so it starts at the silhouette's
-    nearer side (with depth: the side whose columns are nearer; without: the side away from the
-    image centre, as for vehicles parallel to the street) and spans the vehicle's width
+    nearer side (with depth: the side whose columns are nearer, by more than
+    ``vehicle_face_tol_m`` / ``vehicle_side_tie_rel`` of depth; without, or within that: the side away
+    from the image centre, as for vehicles parallel to the street) and spans the vehicle's width
     (``vehicle_width_m`` at that depth; without depth 1.2 silhouette heights). Rows: the body
     rows, where the silhouette fills at least 95 % of its fullest row over the face (the cabin
     above is narrower and set back, the wheels below are apart); failing that, the lower 60 %.
@@ -530,7 +531,7 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     ys, xs = np.nonzero(m)
     sil_h = int(ys.max() - ys.min() + 1)
     z = None
-    left_side = x0 + w / 2.0 < W / 2.0
+    left_side = x0 + (w - 1) / 2.0 < float(ctx.intrinsics.cx)  # left of the principal point: face on the left
     if ctx.depth is not None:
         d = np.where(m, ctx.depth[y0:y0 + h, x0:x0 + w], np.inf)
         col = d.min(0)
@@ -539,7 +540,11 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
             k = max(1, w // 5)
             a_, b_ = col[:k][np.isfinite(col[:k])], col[-k:][np.isfinite(col[-k:])]
             if a_.size and b_.size:
-                left_side = float(np.median(a_)) <= float(np.median(b_))
+                za, zb = float(np.median(a_)), float(np.median(b_))
+                # Ends within the face's own depth tolerance are one depth to predicted depth (a far car's
+                # side face blurs into its end face): the side away from the image centre, as without depth.
+                if abs(za - zb) > max(p.vehicle_face_tol_m, p.vehicle_side_tie_rel * min(za, zb)):
+                    left_side = za <= zb
             near = col[:k] if left_side else col[-k:]
             near = near[np.isfinite(near)]
             z = float(np.percentile(near if near.size else col[ok], 50))
@@ -557,9 +562,7 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     cut = not 0 <= outer_g < W
     at_border = cut
     if not cut and ctx.depth is not None and z is not None:
-        beside = ctx.depth[y0 + r0:y0 + r1 + 1, outer_g]
-        beside = beside[np.isfinite(beside)]
-        cut = bool(beside.size and np.median(beside) < z - 0.3)
+        cut = _nearer_beside(ctx, y0 + r0, y0 + r1, outer_g, z)
     outer = 0 if left_side else w - 1
     inner = None
     if p.vehicle_face_from_depth and z is not None:
@@ -573,7 +576,12 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
                     if e_ - s_ > abs(run_end - (idx[0] if left_side else idx[-1])):
                         run_end = e_ if left_side else s_
                 # Cut by the car in front or the frame's border, only a strip of the end face may show
-                if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut else 0.3) * face_w:
+                # A run ending at the silhouette's other end where a nearer object stands too (the car
+                # ahead in our lane beside a parked car the car in front cuts) ends at no edge of the face.
+                far_g = x0 + run_end + (1 if left_side else -1)
+                other_cut = (cut and not at_border and run_end == (w - 1 if left_side else 0)
+                             and 0 <= far_g < W and _nearer_beside(ctx, y0 + r0, y0 + r1, far_g, z))
+                if abs(run_end - outer) + 1 >= (p.vehicle_cut_min_strip if cut else 0.3) * face_w and not other_cut:
                     inner = run_end
                     if cut and not at_border:
                         inner = _pillar_edge(ctx, y0, x0, m, r0, r1, inner, face_w, left_side, z)
@@ -601,6 +609,14 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     if not at_border and w < p.vehicle_min_face_share * face_w:
         placed = False
     return r0, r1, c0, c1, z, placed
+
+
+def _nearer_beside(ctx: Context, ya: int, yb: int, g: int, z: float) -> bool:
+    """Whether image column ``g`` over rows ``ya``..``yb`` holds a nearer object than depth ``z`` (m): its
+    median depth more than 0.3 m nearer (the car in front beside a face)."""
+    beside = ctx.depth[ya:yb + 1, g]
+    beside = beside[np.isfinite(beside)]
+    return bool(beside.size and np.median(beside) < z - 0.3)
 
 
 def _pillar_edge(ctx: Context, y0: int, x0: int, m: np.ndarray, r0: int, r1: int, inner: int, face_w: int,
@@ -676,6 +692,26 @@ def _unblur(blob: np.ndarray, lamp_h: float, lamp_w: float) -> np.ndarray:
     return out
 
 
+def _lamp_core_widened(blob: np.ndarray, lamp_w: float, ok: np.ndarray) -> np.ndarray:
+    """A far lamp snapped to fewer columns than it spans: the blob's rows over the columns whose centres lie
+    within half the lamp's width (``lamp_w`` px, its metric 0.30 m) of the blob's middle, on the pixels
+    ``ok`` (the car's, clear of the plate zone); the blob itself when it is no more than the blur (1.4 px, as
+    :func:`_unblur`) narrower than the lamp, or when no such pixel is ``ok``. By day a far lamp departs from
+    the paint by the snap's 40 levels only in its brightest column or two (a lens lit at its middle, or a
+    rim): the label holds the whole lens (512x256 hard seed 2, a 3 x 2-px lamp snapped to its middle
+    column, and its mate mirrored from it -- docs/proposals.md, "Fifteenth pass: vehicle lamps at
+    512x256")."""
+    cols = np.flatnonzero(blob.any(0))
+    if cols.size == 0 or cols[-1] - cols[0] + 1 >= lamp_w - 1.4:
+        return blob
+    mid = float(cols.mean())
+    a, b = _centres_in(mid - lamp_w / 2.0, mid + lamp_w / 2.0)
+    wide = np.zeros_like(blob)
+    wide[blob.any(1), max(a, 0):b + 1] = True
+    wide &= ok
+    return wide if wide.any() else blob
+
+
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
     """The connected part of ``mask`` nearest to (row r, column c) (a lamp, not the shading beside it)."""
     import cv2
@@ -713,7 +749,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     not stand out mirrors the one that does (each snapped to the blob nearest its box); a lamp mostly off the
     silhouette (``vehicle_lamp_min_visible``: hidden, or beyond the border) is dropped. Empty boxes
     are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
-    snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`). A blob is
+    snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`), and one narrower
+    than the lamp by more than that blur (its brightest column) widened to the lamp's width about its middle
+    (:func:`_lamp_core_widened`). A blob is
     taken when it holds at least a third of the box's pixels not hidden by a nearer object
     (:func:`_hidden`); for boxes of ``OPEN_LAMP_PX`` rows or more, from the off-paint pixels after a 3x3
     opening (the 1-px seam a car in front bleeds along the silhouette's edge joined the lamp).
@@ -789,6 +827,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                 if small:
                     inside = _unblur(cand, 0.15 * ppm, 0.30 * ppm) & m
                     cand = inside if inside.any() else cand
+                    cand = _lamp_core_widened(cand, 0.30 * ppm, m & off_plate[None, :])
                 ys, xs = np.nonzero(cand)
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
                 snapped, blob = True, cand
