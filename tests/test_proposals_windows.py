@@ -1253,3 +1253,18 @@ def test_a_pane_found_as_a_fragment_of_its_lattice_cell_is_proposed_as_the_cell(
     for i, w in wins.items():
         over = [k for k, m in gt.items() if (m & w).sum() >= 0.3 * m.sum()]
         assert len(over) <= 1, f"window {i} spans panes {over}"
+
+
+def test_the_facade_lattice_is_not_a_period_as_long_as_the_wall_that_puts_its_windows_on_two_bays():
+    """Twelve bays 4 px apart (centres a pixel or so off, as at 512x256) and two windows far down the
+    wall: on the old code the best-scoring period was the distance to the far pair (~180 px), every
+    centre loosely on one bay and the far pair on the next -- a lattice of two bays that gave no cell
+    between found mates (hard street seed 2, 512x256: 60 windows, none of its cells in view; docs/
+    proposals.md "Fifteenth pass: windows at 512x256 -- panes in no blob between found mates"). A
+    lattice puts its windows on three bays at least: the 4-px pitch now."""
+    from npsim_core.proposals.windows import _fit_lattice
+    rng = np.random.default_rng(0)
+    for c in (np.arange(12) * 4.0, np.repeat(np.arange(6) * 4.0, 2)):  # one floor; two floors
+        c = np.r_[c + rng.uniform(-0.4, 0.4, c.size), 200.0, 201.0]
+        fit = _fit_lattice(c, 2.0)
+        assert fit is not None and abs(fit[0] - 4.0) < 0.3, f"period {fit and fit[0]}"

@@ -2667,7 +2667,9 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
     of its bay); each is scored by how close the centres lie to its lattice (sum of
     max(0, 1 - (r / ``tol``)^2), r the distance in periods: a finer lattice halves the tolerance in
     pixels, so it does not win by fitting everything loosely), the best refined by least squares.
-    None without three centres on it.
+    A period whose centres on it occupy fewer than three bays is no lattice of bays (one as long as
+    the wall fits every centre loosely: docs/proposals.md "Fifteenth pass: windows at 512x256 --
+    panes in no blob between found mates"). None without three centres on three bays of it.
     """
     n = c.size
     if n < 3:
@@ -2683,12 +2685,21 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
         r = r - np.round(r)
         return np.maximum(0.0, 1.0 - (r / tol) ** 2), r
 
+    def bays(P, phi, sc):
+        # bays the centres on the lattice occupy: a period as long as the wall fits every centre
+        # loosely on one or two bays (a vanishing column next to the wall's far end stretches w there)
+        return np.unique(np.round((c[sc > 0] - phi) / P)).size
+
     best = None
     for P in d:
         phi = np.angle(np.exp(2j * np.pi * c / P).mean()) * P / (2 * np.pi)
         sc, _ = score(P, phi)
+        if bays(P, phi, sc) < 3:
+            continue
         if best is None or sc.sum() > best[0]:
             best = (float(sc.sum()), P, phi)
+    if best is None:
+        return None
     _, P, phi = best
     for _ in range(2):
         sc, r = score(P, phi)
@@ -2700,6 +2711,8 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
             P, phi = np.polyfit(k, c[inl], 1)
     sc, _ = score(P, phi)
     if (sc > 0).sum() < max(3, 0.5 * n):
+        return None
+    if bays(P, phi, sc) < 3:
         return None
     return float(P), float(phi), float(sc.sum())
 
