@@ -787,3 +787,43 @@ def test_a_far_cars_face_whose_ends_predicted_depth_cannot_tell_apart_lies_away_
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     for t in truth:
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5
+
+
+def _lamp_with_rim(rim: float, outside: float):
+    """A car at 10 m (blue paint) whose lamps (15 x 7 px) depart from the paint by 60 levels inside, by
+    ``rim`` of that on their own outermost pixels and by ``outside`` on the pixels just around them, as
+    the day render's antialiasing and edge blur leave a lamp. Returns the lamps' proposals and truths."""
+    import cv2
+
+    img, lab, depth, inst, intr = _frame()
+    paint = np.array((60, 70, 90), np.float32)
+    lamp = paint + (60, -50, -60)
+    truth = _car(img, lab, depth, inst, 55, 145, 1, paint=tuple(int(v) for v in paint))
+    k = np.ones((3, 3), np.uint8)
+    for t in truth:
+        t8 = t.astype(np.uint8)
+        inner = cv2.erode(t8, k).astype(bool)
+        around = cv2.dilate(t8, k).astype(bool) & ~t
+        for where, share in ((inner, 1.0), (t & ~inner, rim), (around, outside)):
+            img[where] = np.round(paint + share * (lamp - paint)).astype(np.uint8)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    return ann, lamps, truth
+
+
+def test_a_lamp_is_proposed_with_its_antialiased_rim_not_a_pixel_short_on_every_side():
+    """A lamp of 60 levels on its paint whose outermost pixels depart by 0.45 of that (28 levels: half
+    covered, under the snap's 40) and the pixels around it by 0.2 (512x256 hard seeds 0-1, red lamps of
+    70-96 px at 10-12 m): each lamp is proposed with its rim (IoU >= 0.9). The old code snapped to the
+    pixels 40 levels off, a pixel short on every side (IoU 0.62), a touch-up at the slider's 0.7."""
+    ann, lamps, truth = _lamp_with_rim(0.45, 0.2)
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.9
+
+
+def test_a_lamp_whose_blur_already_reaches_the_snap_is_not_grown_past_its_edge():
+    """The same lamp blurred wider (its rim 0.75 of its departure, the pixels around it 0.55: a lamp in
+    shade, whose light is the blurred ambient -- 512x256 default seed 2 and lights seed 0): the snap
+    already holds the rim, and the pixels around, themselves a mix, are not added (IoU >= 0.9)."""
+    ann, lamps, truth = _lamp_with_rim(0.75, 0.55)
+    for t in truth:
+        assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.9

@@ -100,6 +100,10 @@ class ProposalParams:
     vehicle_kerb_m: float = 1.0
     #: Share of a lamp box that must be on the vehicle's silhouette (else hidden: not proposed).
     vehicle_lamp_min_visible: float = 0.6
+    #: A lamp snapped to the pixels 40 levels off the paint also takes the pixels of its 1-px rim departing by
+    #: at least this share of the lamp's own departure (its 90th percentile): part lamp, part paint (its edge's
+    #: antialiasing); see ``vehicles._with_rim``.
+    vehicle_lamp_rim_share: float = 0.4
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3

@@ -59,6 +59,11 @@ RED_LAMP_H_M = (0.5, 1.1)
 # a sliver of its cabin): there a pane is a column or two, and 1-column runs count (docs/proposals.md,
 # "Thirteenth pass: vehicle panes at 512x256").
 PANE_MIN_COLS = 2
+#: A snapped lamp's pixel at this share of the lamp's departure from the paint or more is all lamp
+#: (:func:`_with_rim`); a pixel beside one departing by at most ``RIM_MIXED`` of it (and
+#: ``vehicle_lamp_rim_share`` at least) is its antialiased rim, part lamp and part paint.
+RIM_FULL = 0.85
+RIM_MIXED = 0.8
 #: ... and in such a band a column departing from the paint by less than this share of the glass on both
 #: sides of it (the band's most departing column either side) is a pillar the blur has mixed with the glass.
 PILLAR_DIP = 0.85
@@ -712,6 +717,29 @@ def _lamp_core_widened(blob: np.ndarray, lamp_w: float, ok: np.ndarray) -> np.nd
     return wide if wide.any() else blob
 
 
+def _with_rim(blob: np.ndarray, dep: np.ndarray, ok: np.ndarray, share: float) -> np.ndarray:
+    """A lamp snapped to the pixels departing from the paint by the snap's 40 levels, with its rim.
+
+    ``dep``: per pixel the largest channel difference from the paint; the lamp's own departure is its
+    90th percentile over ``blob``. A lamp's edge pixel holds part lamp and part paint (antialiasing): one
+    whose centre the lamp covers departs by about half the lamp's departure, and the label holds it. So
+    the pixels 8-adjacent to the blob's full pixels (``RIM_FULL`` of the departure or more), ``ok`` (the
+    car's, clear of the plate zone) and departing by ``share`` to ``RIM_MIXED`` of it are added. A blob
+    whose own edge is already such a mix (a lamp blurred wider: in shade its light is the day render's
+    ambient, blurred over 3x3 at edges, and the snap holds its rim) has no full pixel beside the pixels
+    around it, and is left as it is. Without it a lamp of 60 levels whose rim departs 28-45 was proposed
+    a pixel short on every side (512x256 hard seeds 0-1: 70-96-px red lamps at IoU 0.57-0.69, touch-ups
+    at the slider) -- docs/proposals.md, "Fifteenth pass: vehicle lights at 512x256 -- the touch-ups"."""
+    import cv2
+
+    if not blob.any():
+        return blob
+    top = float(np.percentile(dep[blob], 90))
+    full = blob & (dep >= RIM_FULL * top)
+    ring = cv2.dilate(full.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & ~blob & ok
+    return blob | (ring & (dep >= share * top) & (dep <= RIM_MIXED * top))
+
+
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
     """The connected part of ``mask`` nearest to (row r, column c) (a lamp, not the shading beside it)."""
     import cv2
@@ -751,7 +779,7 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
     snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`), and one narrower
     than the lamp by more than that blur (its brightest column) widened to the lamp's width about its middle
-    (:func:`_lamp_core_widened`). A blob is
+    (:func:`_lamp_core_widened`); a larger lamp's blob takes its antialiased rim (:func:`_with_rim`). A blob is
     taken when it holds at least a third of the box's pixels not hidden by a nearer object
     (:func:`_hidden`); for boxes of ``OPEN_LAMP_PX`` rows or more, from the off-paint pixels after a 3x3
     opening (the 1-px seam a car in front bleeds along the silhouette's edge joined the lamp).
@@ -788,7 +816,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     axis = (c0 + c1) / 2.0
     cols = np.arange(w)
     off_plate = np.abs(cols + 0.5 - (axis + 0.5)) > plate            # columns clear of the plate zone
-    diff = np.abs(img - paint).max(-1) > 40.0
+    dep = np.abs(img - paint).max(-1)
+    diff = dep > 40.0
     if (lr1 - lr0 + 1) >= OPEN_LAMP_PX:
         # A lamp this tall survives a 3x3 opening; the 1-px seams of colour bled from a car in front along
         # the silhouette's edge do not, and no longer join a lamp beside the cut (2048x1024 hard seed 0).
@@ -828,6 +857,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                     inside = _unblur(cand, 0.15 * ppm, 0.30 * ppm) & m
                     cand = inside if inside.any() else cand
                     cand = _lamp_core_widened(cand, 0.30 * ppm, m & off_plate[None, :])
+                else:
+                    cand = _with_rim(cand, dep, m & off_plate[None, :], p.vehicle_lamp_rim_share)
                 ys, xs = np.nonzero(cand)
                 br0, br1, bc0, bc1 = int(ys.min()), int(ys.max()), int(xs.min()), int(xs.max())
                 snapped, blob = True, cand
