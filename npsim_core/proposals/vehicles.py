@@ -61,7 +61,8 @@ RED_LAMP_H_M = (0.5, 1.1)
 PANE_MIN_COLS = 2
 #: A snapped lamp's pixel at this share of the lamp's departure from the paint or more is all lamp
 #: (:func:`_with_rim`); a pixel beside one departing by at most ``RIM_MIXED`` of it (and
-#: ``vehicle_lamp_rim_share`` at least) is its antialiased rim, part lamp and part paint.
+#: ``vehicle_lamp_rim_share`` at least) is its antialiased rim, part lamp and part paint; an outermost pixel
+#: beside none, under ``RIM_MIXED``, is the blur beyond the lamp's edge.
 RIM_FULL = 0.85
 RIM_MIXED = 0.8
 #: ... and in such a band a column departing from the paint by less than this share of the glass on both
@@ -718,26 +719,35 @@ def _lamp_core_widened(blob: np.ndarray, lamp_w: float, ok: np.ndarray) -> np.nd
 
 
 def _with_rim(blob: np.ndarray, dep: np.ndarray, ok: np.ndarray, share: float) -> np.ndarray:
-    """A lamp snapped to the pixels departing from the paint by the snap's 40 levels, with its rim.
+    """A lamp snapped to the pixels departing from the paint by the snap's 40 levels, trimmed to its edge:
+    its full pixels and the rim beside them.
 
     ``dep``: per pixel the largest channel difference from the paint; the lamp's own departure is its
-    90th percentile over ``blob``. A lamp's edge pixel holds part lamp and part paint (antialiasing): one
-    whose centre the lamp covers departs by about half the lamp's departure, and the label holds it. So
-    the pixels 8-adjacent to the blob's full pixels (``RIM_FULL`` of the departure or more), ``ok`` (the
-    car's, clear of the plate zone) and departing by ``share`` to ``RIM_MIXED`` of it are added. A blob
-    whose own edge is already such a mix (a lamp blurred wider: in shade its light is the day render's
-    ambient, blurred over 3x3 at edges, and the snap holds its rim) has no full pixel beside the pixels
-    around it, and is left as it is. Without it a lamp of 60 levels whose rim departs 28-45 was proposed
-    a pixel short on every side (512x256 hard seeds 0-1: 70-96-px red lamps at IoU 0.57-0.69, touch-ups
-    at the slider) -- docs/proposals.md, "Fifteenth pass: vehicle lights at 512x256 -- the touch-ups"."""
+    90th percentile over ``blob``, and its full pixels those at ``RIM_FULL`` of that or more. A lamp's
+    edge pixel holds part lamp and part paint (antialiasing, and the day render's 3x3 blur of the ambient
+    light at edges), so the label's outermost pixels are those beside a full pixel, and the blur's reach
+    beyond them departs less again:
+    * the pixels 8-adjacent to a full pixel, ``ok`` (the car's, clear of the plate zone) and departing by
+      ``share`` to ``RIM_MIXED`` of the lamp are added -- a sharp edge half covering its pixel departs
+      by about half, under the snap's 40 levels on a lamp of 60-90 (512x256 hard seeds 0-1: 70-96-px red
+      lamps proposed a pixel short on every side, IoU 0.57-0.69);
+    * the blob's own outermost pixels beside no full pixel and under ``RIM_MIXED`` of the lamp are
+      dropped -- a bright lamp's blur past its edge departs by half of 110 levels, over the 40 (512x256
+      default seed 4, hard seed 3: 8 x 4-px lamps a pixel too large on every side, IoU 0.57-0.58).
+    A blob the trim would empty is kept whole. docs/proposals.md, "Fifteenth pass: vehicle lights at
+    512x256 -- the touch-ups"."""
     import cv2
 
     if not blob.any():
         return blob
     top = float(np.percentile(dep[blob], 90))
     full = blob & (dep >= RIM_FULL * top)
-    ring = cv2.dilate(full.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) & ~blob & ok
-    return blob | (ring & (dep >= share * top) & (dep <= RIM_MIXED * top))
+    near = cv2.dilate(full.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    out = blob | (near & ~blob & ok & (dep >= share * top) & (dep <= RIM_MIXED * top))
+    edge = blob & ~cv2.erode(blob.astype(np.uint8), np.ones((3, 3), np.uint8),
+                             borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+    kept = out & ~(edge & ~near & (dep < RIM_MIXED * top))
+    return kept if kept.any() else out
 
 
 def _blob_at(mask: np.ndarray, r: float, c: float) -> np.ndarray:
@@ -833,9 +843,12 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         win = np.zeros_like(m)
         # Faces are placed to a lamp's width; their top to a row or two (the cabin's 0.1 m inset is a pixel
         # or two on a far car, and hidden where the car in front cuts the face): the window reaches at
-        # least two rows beyond the box.
+        # least two rows beyond the box. Not stopped at the face's last row r1: that is where its fill drops,
+        # and a car in front hiding the face's other side from some row down drops it there too, while the
+        # lamp on the side still seen runs on below (512x256 default seed 0: a 15 x 8-px lamp snapped to its
+        # upper 5 rows, IoU 0.52). The window keeps to the silhouette (``m``) as before.
         pad_r, pad_c = max(2, (br1 - br0 + 1) // 2), max(1, bc1 - bc0 + 1)
-        wr0, wr1 = max(r0, br0 - pad_r, 0), min(r1, br1 + pad_r, h - 1)
+        wr0, wr1 = max(r0, br0 - pad_r, 0), min(br1 + pad_r, h - 1)
         wc0, wc1 = max(cc0, bc0 - pad_c, 0), min(cc1, bc1 + pad_c, w - 1)
         snapped = False
         blob = None
