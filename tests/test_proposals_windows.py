@@ -1268,3 +1268,39 @@ def test_the_facade_lattice_is_not_a_period_as_long_as_the_wall_that_puts_its_wi
         c = np.r_[c + rng.uniform(-0.4, 0.4, c.size), 200.0, 201.0]
         fit = _fit_lattice(c, 2.0)
         assert fit is not None and abs(fit[0] - 4.0) < 0.3, f"period {fit and fit[0]}"
+
+
+
+def test_a_window_left_a_sliver_by_a_light_painted_before_it_keeps_the_tiny_windows_cap():
+    """The proposals are painted in order, earlier lights owning contested pixels: a window whose mask a
+    sign (or a lamp, or another window) proposed before it covers for the most part kept the confidence
+    its whole mask earned on the old code (512x256: 1-4 px slivers at 0.96-1.00 over signs, each an X at
+    the slider). Under ``window_min_painted_share`` of its pixels, or under ``window_tiny_px``, it keeps at
+    most ``window_tiny_max_confidence``: still proposed (under the slider), its group whole; a window that
+    keeps half its pixels or more keeps its confidence."""
+    from npsim_core.proposals.core import Group, Light
+
+    shape = (40, 60)
+    sign = Light(10, 10, 10, np.ones((10, 8), bool), 0.95)
+    covered = Light(1, 12, 12, np.ones((6, 7), bool), 0.97)     # 42 px, 6 of them free (x 18)
+    half_cut = Light(1, 12, 17, np.ones((6, 4), bool), 0.93)    # x 17-20, past the sign and x 18: 12 of 24 px
+    clear = Light(1, 12, 30, np.ones((6, 3), bool), 0.91)
+    p = ProposalParams()
+    out = _assemble_windows(shape, [sign, Group(13, [covered, half_cut, clear], 0.9)], p)
+    ann = out.annotation
+    areas = ann.areas()
+    got = sorted((int(areas[i]), round(out.confidence[i], 2)) for i in ann.instance_ids() if i // 1000 == 1)
+    assert got == [(6, p.window_tiny_max_confidence), (12, 0.93), (18, 0.91)]
+    (g,) = ann.groups.values()
+    assert len(g.members) == 3
+    # a sliver of 5 px keeps the cap even where it is over half its mask
+    small = Light(1, 12, 17, np.ones((5, 2), bool), 0.97)        # x 17-18: 5 of 10 px free
+    out = _assemble_windows(shape, [sign, small], p)
+    (wid,) = [i for i in out.annotation.instance_ids() if i // 1000 == 1]
+    assert out.confidence[wid] <= p.window_tiny_max_confidence
+
+
+def _assemble_windows(shape, items, p):
+    from npsim_core.proposals.core import _assemble
+
+    return _assemble(shape, items, p.window_min_painted_share, p.window_tiny_px, p.window_tiny_max_confidence)

@@ -201,8 +201,15 @@ def _check_inputs(image, labels, depth, intrinsics, instances) -> Context:
     return Context(image, labels, depth, intrinsics, instances, ProposalParams())
 
 
-def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightProposals:
-    """Paint lights in order (earlier proposals own contested pixels) and number ids per class."""
+def _assemble(shape: tuple[int, int], items: list[Light | Group], window_min_share: float = 0.0,
+              window_tiny_px: int = 0, window_tiny_conf: float = 1.0) -> LightProposals:
+    """Paint lights in order (earlier proposals own contested pixels) and number ids per class.
+
+    A building window (class 1) that the lights painted before it (a sign, a car's lamp, an overlapping
+    window) leave under ``window_min_share`` of its pixels, or under ``window_tiny_px`` of them, keeps at
+    most ``window_tiny_conf``: its confidence was judged on its whole mask, and what is proposed is a sliver
+    of it (``ProposalParams.window_min_painted_share``, the tiny windows' cap; docs/proposals.md "Fifteenth
+    pass: windows at 512x256 -- the touch-ups and the false windows")."""
     m = np.zeros(shape, np.int32)
     counters: dict[int, int] = {}
     conf: dict[int, float] = {}
@@ -230,11 +237,16 @@ def _assemble(shape: tuple[int, int], items: list[Light | Group]) -> LightPropos
         free = sub & (region == 0)
         if not free.any():
             return None
+        n_free, n_all = int(free.sum()), int(sub.sum())
+        sliver = li.class_id == 1 and n_free < n_all and (n_free < window_min_share * n_all
+                                                          or n_free < window_tiny_px)
         lid = new_id(li.class_id)
         if lid is None:
             return None
         region[free] = lid
         conf[lid] = float(np.clip(li.confidence, 0.0, 1.0))
+        if sliver:
+            conf[lid] = min(conf[lid], window_tiny_conf)
         if li.colour:
             colours[str(lid)] = li.colour
         if li.kind:
@@ -304,7 +316,8 @@ def propose_lights(image: np.ndarray, labels: np.ndarray, depth: np.ndarray | No
     for name, fn in known.items():  # fixed order: small, sure lights first own contested pixels
         if name in params.categories:
             items.extend(fn(ctx))
-    return _assemble(ctx.shape, items)
+    return _assemble(ctx.shape, items, params.window_min_painted_share, params.window_tiny_px,
+                     params.window_tiny_max_confidence)
 
 
 def propose_for_scene(scene, params: ProposalParams = ProposalParams(), depth: np.ndarray | None = None

@@ -176,6 +176,11 @@ class ProposalParams:
     #: the editor's slider at 0.7 or 0.9: a few pixels say little).
     window_tiny_px: int = 6
     window_tiny_max_confidence: float = 0.6
+    #: A window that keeps under this share of its pixels (or under ``window_tiny_px``) when the proposals
+    #: are painted (the lights proposed before it -- signs, vehicle lamps, an overlapping window -- own
+    #: contested pixels) keeps at most ``window_tiny_max_confidence``: what is proposed is a sliver its
+    #: score was not judged on (0, with the tiny rule, caps only slivers under ``window_tiny_px``).
+    window_min_painted_share: float = 0.5
     #: Fill of the window blob's bounding box (rectangularity) below which it is rejected.
     window_min_fill: float = 0.55
     #: ... counting only the box's pixels not hidden by something in front (not building, not sky).
