@@ -62,9 +62,11 @@ PANE_MIN_COLS = 2
 #: A snapped lamp's pixel at this share of the lamp's departure from the paint or more is all lamp
 #: (:func:`_with_rim`); a pixel beside one departing by at most ``RIM_MIXED`` of it (and
 #: ``vehicle_lamp_rim_share`` at least) is its antialiased rim, part lamp and part paint; an outermost pixel
-#: beside none, under ``RIM_MIXED``, is the blur beyond the lamp's edge.
+#: beside none, under ``RIM_MIXED`` and ``RIM_STEP`` of it under a pixel inside it, is the blur beyond the
+#: lamp's edge.
 RIM_FULL = 0.85
 RIM_MIXED = 0.8
+RIM_STEP = 0.15
 #: ... and in such a band a column departing from the paint by less than this share of the glass on both
 #: sides of it (the band's most departing column either side) is a pillar the blur has mixed with the glass.
 PILLAR_DIP = 0.85
@@ -734,19 +736,24 @@ def _with_rim(blob: np.ndarray, dep: np.ndarray, ok: np.ndarray, share: float) -
     * the blob's own outermost pixels beside no full pixel and under ``RIM_MIXED`` of the lamp are
       dropped -- a bright lamp's blur past its edge departs by half of 110 levels, over the 40 (512x256
       default seed 4, hard seed 3: 8 x 4-px lamps a pixel too large on every side, IoU 0.57-0.58).
-    A blob the trim would empty is kept whole. docs/proposals.md, "Fifteenth pass: vehicle lights at
+    The trimmed pixel must lie outside a pixel of the blob's inside departing ``RIM_STEP`` of the lamp more
+    than it does (the edge's ramp falling outward: a dim lamp between brighter paint, whose strong pixels are the blob's ends, is
+    left alone -- 2048x1024 hard seed 5, a 3 x 7-px lamp), and a blob the trim would empty is kept whole.
+    docs/proposals.md, "Fifteenth pass: vehicle lights at
     512x256 -- the touch-ups"."""
     import cv2
 
     if not blob.any():
         return blob
+    k3 = np.ones((3, 3), np.uint8)
     top = float(np.percentile(dep[blob], 90))
     full = blob & (dep >= RIM_FULL * top)
-    near = cv2.dilate(full.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    near = cv2.dilate(full.astype(np.uint8), k3).astype(bool)
     out = blob | (near & ~blob & ok & (dep >= share * top) & (dep <= RIM_MIXED * top))
-    edge = blob & ~cv2.erode(blob.astype(np.uint8), np.ones((3, 3), np.uint8),
-                             borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
-    kept = out & ~(edge & ~near & (dep < RIM_MIXED * top))
+    inner = cv2.erode(blob.astype(np.uint8), k3, borderType=cv2.BORDER_CONSTANT, borderValue=0).astype(bool)
+    # the blur past the edge: an outermost pixel beside no full pixel, clearly weaker than the rim inside it
+    rim_in = cv2.dilate(np.where(inner, dep, 0.0).astype(np.float32), k3) >= dep + RIM_STEP * top
+    kept = out & ~(blob & ~inner & ~near & rim_in & (dep < RIM_MIXED * top))
     return kept if kept.any() else out
 
 
