@@ -80,6 +80,16 @@ def _iou(a, b):
     return (a & b).sum() / max((a | b).sum(), 1)
 
 
+def _assert_one_window_per_pane(gt, wins, keys=None):
+    """Each pane of ``gt`` (key -> mask; those in ``keys`` when given) is matched by exactly one window at
+    IoU >= 0.5, and no window covers 30 % of two panes."""
+    for k in (gt if keys is None else keys):
+        assert sum(_iou(gt[k], w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
+    for i, w in wins.items():
+        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
+        assert len(over) <= 1, f"window {i} spans panes {over}"
+
+
 def _run(img, labels, depth, noise):
     img = np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8)
     return propose_lights(img, labels, depth, K, None, PARAMS)
@@ -256,11 +266,7 @@ def test_two_merged_panes_of_a_wall_without_a_lattice_are_two_windows():
     merged neighbours). Cut where the wall shows through it, each pane is one window."""
     img, labels, depth, noise, gt, z = _irregular_wall(merge=True, fleck=False)
     wins, _ = _windows(_run(img, labels, depth, noise))
-    for key in ((0, 2), (0, 5)):
-        assert sum(_iou(gt[key], w) >= 0.5 for w in wins.values()) == 1, f"pane {key} not one window"
-    for i, w in wins.items():
-        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
-        assert len(over) <= 1, f"window {i} spans panes {over}"
+    _assert_one_window_per_pane(gt, wins, keys=((0, 2), (0, 5)))
 
 
 def test_fragment_far_smaller_than_the_walls_windows_is_not_a_window():
@@ -531,11 +537,7 @@ def test_panes_of_a_receding_row_merged_by_their_blur_are_one_window_each():
     across its columns where the wall shows through (``_row_split``): one window per pane."""
     scene, gt = _receding_row()
     wins, _ = _windows(_run(*scene))
-    for k, g in gt.items():
-        assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
-    for i, w in wins.items():
-        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
-        assert len(over) <= 1, f"window {i} spans panes {over}"
+    _assert_one_window_per_pane(gt, wins)
 
 
 
@@ -1165,11 +1167,7 @@ def test_a_receding_row_is_cut_into_its_panes_when_a_pane_blurs_into_two_columns
         gt[k] = np.zeros((H, W), bool)
         gt[k][rows, u0 + a:u0 + b] = True
     wins, _ = _windows(_run(img, labels, depth, noise))
-    for k, g in gt.items():
-        assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
-    for i, w in wins.items():
-        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
-        assert len(over) <= 1, f"window {i} spans panes {over}"
+    _assert_one_window_per_pane(gt, wins)
 
 
 def _floor_with_merged_panes(strip: bool):
@@ -1216,11 +1214,7 @@ def test_far_panes_merged_by_their_blur_are_cut_at_their_floors_pitch_a_wall_str
     beyond the lattice's bays, and no window spans two bays."""
     scene, gt, u2 = _floor_with_merged_panes(strip=False)
     wins, _ = _windows(_run(*scene))
-    for k, g in gt.items():
-        assert sum(_iou(g, w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
-    for i, w in wins.items():
-        over = [k for k, g in gt.items() if (g & w).sum() >= 0.3 * g.sum()]
-        assert len(over) <= 1, f"window {i} spans panes {over}"
+    _assert_one_window_per_pane(gt, wins)
     scene, _, u2 = _floor_with_merged_panes(strip=True)
     wins, _ = _windows(_run(*scene))
     on = [w for w in wins.values() if w[:, u2:u2 + 8].any()]
@@ -1248,11 +1242,7 @@ def test_a_pane_found_as_a_fragment_of_its_lattice_cell_is_proposed_as_the_cell(
     img[low] = (0.84 * np.array(WALL, float)).astype(np.uint8)  # faint glass (a curtain, a dim room)
     img[rows[2], g[rows[2]]] = WALL                                # the transom
     wins, _ = _windows(_run(img, labels, depth, noise))
-    for k, m in gt.items():
-        assert sum(_iou(m, w) >= 0.5 for w in wins.values()) == 1, f"pane {k} not one window"
-    for i, w in wins.items():
-        over = [k for k, m in gt.items() if (m & w).sum() >= 0.3 * m.sum()]
-        assert len(over) <= 1, f"window {i} spans panes {over}"
+    _assert_one_window_per_pane(gt, wins)
 
 
 def test_the_facade_lattice_is_not_a_period_as_long_as_the_wall_that_puts_its_windows_on_two_bays():
