@@ -132,3 +132,21 @@ def test_a_sign_whose_top_a_tree_hides_is_held_to_half_the_height():
     assert len(ads) == 1
     ys, xs = np.nonzero(ann.mask(ads[0]))
     assert ys.min() == 40 and xs.min() == 45 and 0.5 <= props.confidence[ads[0]] < 0.9
+
+
+def test_a_small_sign_in_a_shops_fascia_band_is_a_sure_sign():
+    """A red panel 1.6 x 0.5 m (0.8 m^2, under the 1 m^2 minimum: a one-bay shop's sign) whose bottom edge
+    is 3.05 m above the ground, in a shop's fascia band, is proposed as sure as a sign that meets the size
+    rules (the old proposer held it at 0.4, under the slider: a review or a draw); the same panel on an
+    upper floor (bottom 5.2 m up) is still held at 0.4, and so is a 0.1 m fleck on open wall in the band
+    (under half the minimum height: a letter or a piece of a sign)."""
+    img, lab, depth, intr = _facade()
+    img[29:34, 40:56] = (200, 30, 25)                          # bottom edge at row 33.5: 3.05 m up
+    img[8:13, 120:136] = (200, 30, 25)                         # bottom edge at row 12.5: 5.2 m up
+    img[26, 150:166] = (200, 30, 25)                           # 0.1 m tall, bottom 3.4 m up
+    props = propose_lights(img, lab, depth, intr, params=ADS)
+    ann, ads = _only(props, (10,), threshold=0.0)
+    assert len(ads) == 3
+    by_col = sorted(ads, key=lambda i: np.nonzero(ann.mask(i))[1].min())
+    assert [props.confidence[i] >= 0.9 for i in by_col] == [True, False, False]
+    assert max(props.confidence[i] for i in by_col[1:]) < 0.5

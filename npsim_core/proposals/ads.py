@@ -126,8 +126,11 @@ def propose(ctx: Context) -> list[Light]:
     the wall, :func:`_width_on_wall`: a sign on a facade receding along the street is foreshortened);
     one whose top or bottom runs along an object in front (:func:`_hidden_edge`) is held to half the
     height alone; one under these rules is proposed at 0.4, under the render's and the editor's
-    thresholds, so that the windows proposer does not take a small sign for a window. Two blobs that
-    something in front cuts apart are one panel (:func:`_across_occluder`).
+    thresholds, so that the windows proposer does not take a small sign for a window -- unless its
+    bottom edge lies in a shop's fascia band (``ad_fascia_m`` above the ground) and it is at least half
+    ``ad_min_height_m`` tall or along an object in front: a shop sign, as sure as a panel that meets the
+    rules (docs/proposals.md, fifteenth pass). Two blobs that something in front cuts apart are one
+    panel (:func:`_across_occluder`).
     Confidence 0.7, +0.25 x how uniform the hue of its saturated core is, -0.2 when it is kept only by
     the half height (seeds 0-5 of the synthetic streets, 512x256: all 44 proposed at >= 0.9 match their
     sign at IoU >= 0.7; docs/proposals.md, eleventh pass).
@@ -187,6 +190,14 @@ def propose(ctx: Context) -> list[Light]:
                 # Kept only because something in front may hide the rest of it: less sure. A panel that
                 # meets the full rules anyway is as sure as any (its mask is what shows, as an annotator's).
                 relaxed = small
+                # A small panel whose bottom edge lies in a shop's fascia band (over the glazing and the
+                # awning, under the first floor) is a shop sign: a one-bay shop's sign far away, or the
+                # strip of one that shows over an awning. As sure as one that meets the size rules -- if
+                # it is at least half the height, or something in front hides the rest of it: a fleck
+                # thinner than that on open wall is a letter or a piece of a sign, not a sign.
+                if (small and (hidden or height_m >= 0.5 * p.ad_min_height_m)
+                        and p.ad_fascia_m[0] <= float(ctx.height_above_ground(y0 + h - 0.5, z)) <= p.ad_fascia_m[1]):
+                    under = relaxed = False
         # The hue of the saturated core: the rim's pixels mix in the wall's.
         hue = hsv[cy:cy + core.shape[0], cx:cx + core.shape[1], 0][core].astype(np.float32) * (2 * np.pi / 256.0)
         spread = 1.0 - float(np.hypot(np.cos(hue).mean(), np.sin(hue).mean()))  # circular variance

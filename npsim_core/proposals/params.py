@@ -433,3 +433,7 @@ class ProposalParams:
     ad_min_height_m: float = 0.3
     #: ... and the share of its convex hull it fills (a panel is a quadrilateral in the image).
     ad_min_hull_fill: float = 0.7
+    #: Height above the ground (m) of a shop's fascia band, where a panel's bottom edge may lie to make it
+    #: a shop sign under the size rules: over the shop front's glazing (2.2-3 m) and its awning, under
+    #: the first floor's sills (docs/proposals.md "Fifteenth pass: shop signs on the lights street").
+    ad_fascia_m: tuple[float, float] = (2.4, 4.5)
