@@ -545,7 +545,7 @@ def main(argv: list[str] | None = None) -> int:
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         print("\n".join(lit_list))
     print(f"\nload after: {os.getloadavg()[0]:.2f}")
-    if pic is None and sizes:
+    if pic is None and sizes and args.picture:
         scene, inst = frame(*sizes[-1], seeds[0], variants[-1])
         pic = (scene, propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst))
     if pic is not None and args.picture:
