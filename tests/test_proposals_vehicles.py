@@ -853,3 +853,44 @@ def test_a_lamp_runs_on_below_the_row_where_the_car_in_front_starts_hiding_the_f
     lab[front], img[front], depth[front], inst[front] = CAR, (200, 200, 200), 7.0, CAR * 1000 + 2
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.95
+
+
+def _far_lamp_at_the_cut(peak: float):
+    """A dark car at 25 m (a lamp 6 x 3 px) in a row parked left of the road: the car in front (24 m) hides
+    its face but for 6 px and 4 px of side face -- its face is not placed -- and the inner lamp shows 4 x 3 px
+    beside the cut, as a far lamp's blur leaves it on the photo (2048x1024 hard seed 2, a red lamp on a black
+    car at 115 m): its middle row ``peak`` levels off the paint in its two middle pixels, 30 in the rest of the
+    lamp and 16-27 in the rim the blur spreads a pixel around it. Returns the frame and the visible lamp."""
+    z, cut = 25.0, 130
+    img, lab, depth, inst, intr = _frame(cx=160.0)
+    paint = np.array((29.0, 21.0, 27.0))
+    for s in ((slice(_row(0.9, z), _row(0.3, z)), slice(100, 136)), (slice(_row(1.4, z), _row(0.9, z)), slice(102, 134))):
+        lab[s], img[s], depth[s], inst[s] = CAR, paint, z, CAR * 1000 + 1
+    side = (slice(_row(0.9, z), _row(0.3, z)), slice(136, 140))
+    lab[side], img[side], inst[side] = CAR, (24, 18, 22), CAR * 1000 + 1
+    depth[side] = z + 0.3 * (np.arange(136, 140) - 135)
+    front = (slice(40, 120), slice(0, cut))
+    lab[front], img[front], depth[front], inst[front] = CAR, (180, 150, 60), 24.0, CAR * 1000 + 2
+    dep = np.array([[18, 26, 26, 18, 10], [21, 30, 30, 21, 18], [30, peak, peak, 30, 27], [20, 30, 30, 21, 18],
+                    [18, 26, 27, 18, 10]])
+    top = _row(0.83, z)
+    img[top - 1:top + 4, cut:cut + 5] = np.clip(paint + dep[..., None] * np.array((1.0, 0.1, 0.2)), 0, 255)
+    visible = np.zeros(lab.shape, bool)
+    visible[top:_row(0.68, z), cut:cut + 4] = True
+    return img, lab, depth, inst, intr, visible
+
+
+def test_a_far_lamp_beside_the_cut_only_its_middle_row_forty_levels_off_the_paint_is_proposed_at_its_blur():
+    """A far lamp beside the car in front whose blur leaves only its middle row's two middle pixels over the
+    sliver's 40 levels (42; the rest of it 30, its rim 16-27) is proposed: the pixels off the paint by half that
+    peak, less the rim above and below (IoU >= 0.7 with the 4 x 3 px that show). The old code wanted a part over
+    40 levels as tall as a lamp's 0.07 m (2 px) and proposed nothing on the car (2048x1024 hard seeds 0, 2: two
+    such 12-px lamps at 115 m missed). A lamp whose middle row stays under the 40 levels is not proposed."""
+    img, lab, depth, inst, intr, visible = _far_lamp_at_the_cut(42.0)
+    assert visible.sum() == 12
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
+    assert max((_iou(ann.mask(i), visible) for i in on_car), default=0.0) >= 0.7
+    img, lab, depth, inst, intr, visible = _far_lamp_at_the_cut(36.0)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    assert not [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]

@@ -104,6 +104,13 @@ class ProposalParams:
     #: at least this share of the lamp's own departure (its 90th percentile): part lamp, part paint (its edge's
     #: antialiasing); see ``vehicles._with_rim``.
     vehicle_lamp_rim_share: float = 0.4
+    #: A lamp beside the cut whose pixels over the sliver's 40 levels are fewer rows than a lamp's (a far
+    #: lamp's blur) is the connected pixels departing from the paint by at least this share of its peak
+    #: departure (a fraction of its 8-bit levels), less the bled rim; 0 or 1: off (``vehicles._sliver_grown``).
+    vehicle_sliver_grow_share: float = 0.5
+    #: ... on vehicles whose whole lamp (0.15 m) is under this many pixels tall (a taller lamp's rows are
+    #: clear of the 3x3 blur: a single row over 40 levels there is a seam's or an edge's).
+    vehicle_sliver_grow_max_px: float = 4.0
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3

@@ -1021,11 +1021,59 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
         if lo_h <= bh <= hi_h and bw <= 0.3 * ppm + 1 and beside[q] > best_n:
             best, best_n = q, int(beside[q])
     if best is None:
-        return None
+        return _sliver_grown(lab, stats, beside, win, box, sub, paint, ppm, (lo_h, hi_h),
+                             p.vehicle_sliver_grow_share, p.vehicle_sliver_grow_max_px)
     x, y, bw, bh = (int(v) for v in stats[best, :4])
     out = np.zeros_like(m)
     out[y:y + bh, x:x + bw] = True
     return out & win
+
+
+def _sliver_grown(lab: np.ndarray, stats: np.ndarray, beside: np.ndarray, win: np.ndarray, box: tuple,
+                  sub: np.ndarray, paint: np.ndarray, ppm: float, rows: tuple[int, int],
+                  share: float, max_px: float) -> np.ndarray | None:
+    """A far lamp beside the cut whose pixels over ``SLIVER_DIFF`` are fewer rows than a lamp's (``rows``,
+    :func:`_sliver_lamp`'s lo_h..hi_h), or None: on a vehicle whose whole lamp (0.15 m at ``ppm`` pixels per
+    metre) is under ``max_px`` tall the photo's 3x3 blur leaves only the lamp's middle row that far off the
+    paint (2048x1024 hard seeds 0, 2: 4 x 3-px lamps at 115 m, 41-42 levels in two pixels of their middle
+    row, 27-30 in the rest, 16-26 in the rim the blur spreads a pixel around them).
+
+    Such a part (``lab``'s, by the cut: ``beside`` > 0) is grown to the connected pixels of the window ``win``
+    departing from the paint by at least ``share`` of its own peak. That blob must show the blur's rim above
+    and below the lamp (at least 1.4 px more rows than the lamp, and 3: else it is a seam's or an edge's
+    pixels), and is trimmed of it (:func:`_unblur`); what is left must be a lamp's rows, at most a lamp wide
+    (0.3 m + 1 px), with the part in its middle -- not on its top or bottom row: the blur of a lamp falls off
+    about its middle (a seam's run of colour, 2048x1024 hard seed 5, does not). Of such parts the one with
+    most pixels by the cut. ``box``: the window's box, ``sub`` the image there, ``paint`` the window's paint
+    (local to the vehicle's box as ``win``). docs/proposals.md, "Sixteenth pass: vehicle lamps at 2048x1024
+    on the hard street"."""
+    import cv2
+
+    if share <= 0 or share >= 1 or 0.15 * ppm >= max_px:
+        return None
+    lo_h, hi_h = rows
+    dev = np.zeros(win.shape, np.float32)
+    dev[box] = np.abs(sub - paint).max(-1)
+    best, best_n = None, 0
+    for q in range(1, stats.shape[0]):
+        if int(stats[q, cv2.CC_STAT_HEIGHT]) >= lo_h or beside[q] <= best_n:
+            continue
+        part = lab == q
+        region = (win & (dev >= share * float(dev[part].max()))).astype(np.uint8)
+        _, rl = cv2.connectedComponents(region, connectivity=8)
+        grown = np.isin(rl, np.unique(rl[part & (rl > 0)]))
+        g_rows = np.flatnonzero(grown.any(1))
+        if g_rows[-1] - g_rows[0] + 1 < max(3.0, 0.15 * ppm + 1.4):
+            continue  # no blur above and below it: a seam's or an edge's pixels, not a lamp's
+        lamp = _unblur(grown, 0.15 * ppm, 0.30 * ppm) & win
+        ys, xs = np.nonzero(lamp)
+        if ys.size == 0 or not lo_h <= ys.max() - ys.min() + 1 <= hi_h or xs.max() - xs.min() + 1 > 0.3 * ppm + 1:
+            continue
+        p_rows = np.flatnonzero(part.any(1))
+        if not ys.min() < p_rows[0] <= p_rows[-1] < ys.max():
+            continue  # its strong pixels not its middle row: the blur is not a lamp's about them
+        best, best_n = lamp, int(beside[q])
+    return best
 
 
 def _red_lamps(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float) -> list[np.ndarray]:
