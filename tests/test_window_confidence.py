@@ -249,6 +249,37 @@ def _receding_pane(h=40, w=24, slant=14):
     return m
 
 
+def test_edge_contrast_reads_a_receding_pane_along_its_mask_and_a_ragged_blob_along_its_box():
+    """A dark receding pane (a parallelogram: its top and bottom edges fall 8 rows across its 24 columns)
+    on a light wall stands out on all four sides; its box's top and bottom rows are mostly wall inside and
+    out (the default and lights streets' seed 2 pane at 26 m: weakest side 0.07-0.17, 0.898 under the
+    slider at IoU 0.99). Read along its mask's own edge it is the pane's full contrast; a blob filling
+    under ``window_edge_mask_min_fill`` of its box (an L of shade beside a dark object, default seed 3 at
+    0.92 with it) keeps its box's reading, and so does every mask with the rule off."""
+    from npsim_core.proposals.window_confidence import edge_contrast
+
+    p = ProposalParams()
+    t = -np.log(p.window_dark_ratio)
+    m = _receding_pane(slant=8)
+    feat = np.zeros((80, 50, 3), np.float32)
+    feat[..., 0] = np.log(0.5)
+    y0, x0 = 10, 12
+    feat[y0:y0 + m.shape[0], x0:x0 + m.shape[1], 0][m] = np.log(0.1)
+    h, w = m.shape
+    assert m.mean() >= p.window_edge_mask_min_fill
+    assert edge_contrast(feat, y0, x0, h, w, p) < 0.05  # the box: wall against wall above and below
+    assert abs(edge_contrast(feat, y0, x0, h, w, p, m) - np.log(5) / t) < 1e-5
+    assert edge_contrast(feat, y0, x0, h, w, replace(p, window_edge_mask_min_fill=1.01), m) < 0.05
+    ell = np.zeros((20, 8), bool)  # an L: fill 0.4
+    ell[:, 5:] = True
+    ell[:3, :] = True
+    feat[...] = 0.0
+    feat[..., 0] = np.log(0.5)
+    feat[40:60, 30:38, 0][ell] = np.log(0.1)
+    assert ell.mean() < p.window_edge_mask_min_fill
+    assert edge_contrast(feat, 40, 30, 20, 8, p, ell) == edge_contrast(feat, 40, 30, 20, 8, p) < 0.05
+
+
 def test_a_receding_pane_the_frame_top_cuts_is_judged_on_its_fill_beyond_the_frame():
     """The lowest 21 rows of a receding pane, the frame's top cutting it (the lights street's seed 0 pane at
     40 m): its box is filled 0.70 where the whole pane's is 0.74; judged beyond the frame to a pane's least

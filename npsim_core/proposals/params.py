@@ -415,6 +415,11 @@ class ProposalParams:
     #: floor-mates -- windows of its floor at its depth within this share -- say what a pane is: far panes
     #: merged by their blur (windows._pitch_cut; 0: off).
     window_pitch_cut_depth_tol: float = 0.15
+    #: The score's weakest side (window_confidence.edge_contrast) is read along the window mask's own edge,
+    #: not its box's outer rows and columns, for a mask filling at least this share of its box: a receding
+    #: pane is a parallelogram, its box's outer rows mostly wall (docs/proposals.md "Sixteenth pass: windows
+    #: at 512x256"; over 1: always the box's).
+    window_edge_mask_min_fill: float = 0.75
     #: A window's final confidence (window_confidence.window_confidence): 0.5 + 0.5 sigmoid(bias + weights .
     #: window_confidence.score_terms: first confidence, log-luminance and chroma contrast to the wall in a
     #: ring around it over the window thresholds, clipped at 3, height in m clipped at 2.5, ln of its

@@ -164,7 +164,7 @@ def grid_mates(boxes: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.nda
     return row, col, adj
 
 
-def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> float:
+def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p, mask: np.ndarray | None = None) -> float:
     """How well the weakest side of a window's box stands out (docs/proposals.md "Eleventh pass: the
     slider"): per side of the box ``y0, x0, h, w`` (px) inside the image, the medians of the proposer's
     features (``feat``: log luminance, Lab a, b) along its outermost row (column) inside and the one just
@@ -172,7 +172,10 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> floa
     their chroma distance over ``window_chroma_delta``, whichever is larger; the smallest over the sides,
     0 when no side lies inside the image. A pane traced whole stands out on all four sides; one traced
     short (half a pane, its glass continuing past the cut) or long (its frame and a strip of wall) has a
-    side inside glass or wall of its own colour."""
+    side inside glass or wall of its own colour. With ``mask`` (the window's mask in its box) filling at
+    least ``window_edge_mask_min_fill`` of its box, each side is read along the mask's own edge
+    (:func:`_mask_edge_pairs`): a receding pane is a parallelogram, and its box's outer rows are mostly
+    wall on both sides of them; a ragged blob's edge is where the thresholds cut it, which says nothing."""
     H, W = feat.shape[:2]
     y1, x1 = y0 + h, x0 + w
     pairs = []
@@ -184,6 +187,9 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> floa
         pairs.append((feat[y0:y1, x0], feat[y0:y1, x0 - 1]))
     if x1 < W:
         pairs.append((feat[y0:y1, x1 - 1], feat[y0:y1, x1]))
+    if mask is not None and mask.shape == (h, w) and mask.any() \
+            and mask.sum() >= p.window_edge_mask_min_fill * h * w:
+        pairs = _mask_edge_pairs(feat, y0, x0, mask)
     t = -np.log(p.window_dark_ratio)
     out = []
     for a, b in pairs:
@@ -193,6 +199,30 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p) -> floa
         out.append(max(abs(float(ma[0] - mb[0])) / t,
                        float(np.hypot(ma[1] - mb[1], ma[2] - mb[2])) / p.window_chroma_delta))
     return float(min(out)) if out else 0.0
+
+
+def _mask_edge_pairs(feat: np.ndarray, y0: int, x0: int, mask: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per side of a window (top, bottom, left, right), its mask's edge pixels and the pixels just outside
+    them (docs/proposals.md "Sixteenth pass: windows at 512x256"): per column its first (last) mask row
+    and the row above (below), per row its first (last) mask column and the column left (right) of it,
+    where that lies inside the image. A side with none is left out. ``feat`` (H, W, 3); ``mask`` (h, w)
+    bool at (``y0``, ``x0``)."""
+    H, W = feat.shape[:2]
+    h, w = mask.shape
+    pairs = []
+    cols = np.flatnonzero(mask.any(0))
+    rows = np.flatnonzero(mask.any(1))
+    top = np.argmax(mask[:, cols], axis=0)
+    bot = h - 1 - np.argmax(mask[::-1, cols], axis=0)
+    left = np.argmax(mask[rows, :], axis=1)
+    right = w - 1 - np.argmax(mask[rows, ::-1], axis=1)
+    for ins_y, ins_x, dy, dx in ((y0 + top, x0 + cols, -1, 0), (y0 + bot, x0 + cols, 1, 0),
+                                 (y0 + rows, x0 + left, 0, -1), (y0 + rows, x0 + right, 0, 1)):
+        oy, ox = ins_y + dy, ins_x + dx
+        ok = (oy >= 0) & (oy < H) & (ox >= 0) & (ox < W)
+        if ok.any():
+            pairs.append((feat[ins_y[ok], ins_x[ok]], feat[oy[ok], ox[ok]]))
+    return pairs
 
 
 def frame_cut_fill(mask: np.ndarray, y0: int, H: int, min_h_px: float) -> float:
@@ -253,7 +283,7 @@ def confidence_features(ctx: Context, feat: np.ndarray, B: np.ndarray, li: Light
             "fill": frame_cut_fill(li.mask, li.y0, ctx.shape[0], ctx.params.window_height_m[0]
                                    * float(ctx.intrinsics.fy) / z if z else float("nan")),
             "fill_seen": float(li.mask.sum()) / float(h * w),
-            "edge": edge_contrast(feat, li.y0, li.x0, h, w, ctx.params),
+            "edge": edge_contrast(feat, li.y0, li.x0, h, w, ctx.params, li.mask),
             "n_group": float(n_group), "kind": li.kind or "window", "cut": bool(li.cut),
             "y0": li.y0, "x0": li.x0}
 
