@@ -1,7 +1,7 @@
 """Window groups against the synthetic street's true windows_groups, with and without the regrouping.
 
     .venv/bin/python -m benchmarks.window_groups [--size 2048x1024] [--seeds 0,1,2]
-                                                 [--variants default,hard,lights] [--slider [--ceiling]]
+                                                 [--variants default,hard,lights] [--slider [--ceiling] [--detail]]
 
 Per true windows_group (one floor of one building), from the proposed windows that match its panes at
 mask IoU >= 0.5 (``benchmarks.annotation_actions.match_lights``, as its oracle column accepts them):
@@ -18,15 +18,18 @@ docs/proposals.md "Window groups"); the lights and their confidences are the sam
 why the true floors cost a group action at the slider"): every proposal (``propose_for_scene``) accepted
 as ``benchmarks.annotation_actions`` does at the slider's default (0.9, then the Shift+A review and the
 stroke accept), and per true windows_group why it costs a group action (:func:`slider_causes`).
-``--ceiling`` adds the mean actions a frame at the slider with the proposals as they are and with the
-windows matched at IoU >= 0.5 regrouped by their true floor (the rest kept in their proposed groups):
-what any grouping of these windows could save.
+``--detail`` lists the grouping errors proper (every pane accepted, the floor merged or split:
+:func:`grouping_errors`) with the proposed groups that hold them. ``--ceiling`` adds the mean actions a
+frame at the slider with the proposals as they are and with the windows matched at IoU >= 0.5 regrouped by
+their true floor (the rest kept in their proposed groups): what any grouping of these windows could save.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+
+import numpy as np
 import time
 from dataclasses import replace
 
@@ -111,6 +114,59 @@ def slider_causes(gt, ann, proposals) -> dict[str, int]:
     return res
 
 
+def grouping_errors(gt, ann, proposals, depth=None) -> list[dict]:
+    """The grouping errors proper of :func:`slider_causes` (every pane of a true windows_group accepted, the
+    group ``merged`` or ``split``), one dict each: the true group id, its kind, its panes' box (x0, x1, y0, y1),
+    their median depth (``depth``: m, optional), and per proposed group (``proposals``) holding one of its matched
+    panes: its id, its members' box, how many of them match this floor and which other true floors the rest
+    match (with their boxes). For ``--detail``: sorting the errors by cause."""
+    from benchmarks.annotation_actions import match_lights
+
+    match = match_lights(gt, ann)
+    owner = {b: a for a, (b, _) in match.items()}
+    pmatch = match_lights(gt, proposals)
+    powner = {b: a for a, (b, _) in pmatch.items()}
+    tg = {m: gid for gid, g in gt.groups.items() for m in g.members}
+    gof = ann.group_index()
+    pgof = proposals.group_index()
+
+    def box(amap, ids):
+        m = np.isin(amap, list(ids))
+        ys, xs = np.nonzero(m)
+        return (int(xs.min()), int(xs.max()) + 1, int(ys.min()), int(ys.max()) + 1) if ys.size else None
+
+    out = []
+    for gid, g in gt.groups.items():
+        if gid // 1000 != 13:
+            continue
+        have = {match[a][0] for a in g.members if a in match}
+        groups = {gof.get(p) for p in have}
+        held = {q for k in groups - {None} for q in ann.groups[k].members if q in owner}
+        merged = any(tg.get(owner[q]) != gid for q in held)
+        split = len(groups) > 1 or None in groups
+        if len(have) < len(g.members) or not (split or merged):
+            continue
+        row = dict(gid=gid, kind=("merged+split" if merged and split else "merged" if merged else "split"),
+                   n=len(g.members), box=box(gt.instance_map, g.members), parts=[])
+        if depth is not None:
+            m = np.isin(gt.instance_map, list(g.members)) & np.isfinite(depth)
+            row["z"] = float(np.median(depth[m])) if m.any() else float("nan")
+        held_by = {pgof.get(pmatch[a][0]) for a in g.members if a in pmatch}
+        for k in sorted(held_by, key=lambda k: -1 if k is None else k):
+            if k is None:
+                row["parts"].append(dict(pid=None, n=sum(pgof.get(pmatch[a][0]) is None for a in g.members)))
+                continue
+            mem = proposals.groups[k].members
+            others = sorted({tg.get(powner[q]) for q in mem if q in powner} - {gid}, key=lambda x: x or 0)
+            row["parts"].append(dict(pid=k, box=box(proposals.instance_map, mem), n=len(mem),
+                                     mine=sum(tg.get(powner.get(q)) == gid for q in mem),
+                                     false=sum(q not in powner for q in mem),
+                                     others=[(o, box(gt.instance_map, gt.groups[o].members) if o in gt.groups else None)
+                                             for o in others]))
+        out.append(row)
+    return out
+
+
 def regrouped_by_truth(gt, props):
     """``props`` with its windows matched at IoU >= 0.5 regrouped by their true windows_group (one group each),
     the other windows left in their proposed groups (restricted to them); for the ceiling of ``--slider``."""
@@ -142,7 +198,7 @@ def regrouped_by_truth(gt, props):
     return LightProposals(replace(ann, groups=groups), conf)
 
 
-def slider_actions(scene, props, causes: dict[str, int] | None = None) -> int:
+def slider_actions(scene, props, causes: dict[str, int] | None = None, errors: list | None = None) -> int:
     """The editor benchmark's actions at the slider's default on ``scene`` with ``props`` (its default model:
     ``benchmarks.annotation_actions.main``); ``causes``: when given, :func:`slider_causes` of the state before
     the finish by hand are added to it."""
@@ -164,6 +220,8 @@ def slider_actions(scene, props, causes: dict[str, int] | None = None) -> int:
     if causes is not None:
         for key, v in slider_causes(gt, s.ann, props.annotation).items():
             causes[key] = causes.get(key, 0) + v
+    if errors is not None:
+        errors.extend(grouping_errors(gt, s.ann, props.annotation, getattr(scene, "depth_gt", None)))
     aa.finish_by_hand(s, gt, counts, {})
     aa.check_equal(gt, s.ann)
     s.shutdown()
@@ -189,7 +247,13 @@ def _main_slider(args) -> int:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
             sc = street_scene(w, h, seed, variant)
             props = propose_for_scene(sc)
-            acts.append(slider_actions(sc, props, causes))
+            errs: list = []
+            acts.append(slider_actions(sc, props, causes, errs if args.detail else None))
+            for e in errs:
+                print(f"{variant} s{seed} floor {e['gid']} {e['kind']} panes {e['n']} box {e['box']} "
+                      f"z {e.get('z', float('nan')):.0f}", flush=True)
+                for p in e["parts"]:
+                    print(f"    proposed {p}", flush=True)
             if args.ceiling:
                 ceil.append(slider_actions(sc, regrouped_by_truth(sc.lights, props)))
         rows.append((variant, causes, acts, ceil))
@@ -214,6 +278,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="why each true window group costs a group action at the editor's slider (module doc)")
     ap.add_argument("--ceiling", action="store_true",
                     help="with --slider: also the actions with the matched windows regrouped by their true floor")
+    ap.add_argument("--detail", action="store_true",
+                    help="with --slider: list the grouping errors proper (every pane accepted, merged or split)")
     args = ap.parse_args(argv)
     if args.slider:
         return _main_slider(args)

@@ -166,6 +166,56 @@ def test_narrow_panes_split_where_the_wall_is_blank_on_every_floor_and_its_shade
     _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
 
 
+def test_narrow_panes_split_at_a_building_end_in_one_colour_by_the_image_columns():
+    # Two blocks on one plane in ONE colour (no shade change across the gap), panes 2 px wide: the old rule for
+    # narrow panes wants a change of shade. The gap is over twice the neighbouring steps in image columns on
+    # every floor and blank on the other floor: a building's end (docs/proposals.md, "Sixteenth pass: window
+    # groups at 512x256").
+    img, labels, depth = _street()
+    left = _building(img, labels, depth, -12.0, -0.4, (172, 152, 128),
+                     [-11.0, -9.6, -8.2, -6.8, -5.4, -4.0, -2.6], width=0.35)
+    right = _building(img, labels, depth, -0.4, 11.5, (172, 152, 128),
+                      [1.4, 2.8, 4.2, 5.6, 7.0, 8.4, 9.8], width=0.35)
+    _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
+
+
+def test_a_join_over_a_part_of_the_floor_finds_the_building_end_beside_that_part():
+    # A join may pass over a part of the floor that did not join (its panes in the gap then read as a bay, which
+    # allows any step up to HIDDEN_STEPS): the building's end between the two blocks lies beside that part, not at
+    # the join's own gap, and _end_between finds it there; within one block it finds none.
+    from npsim_core.proposals import core, windows
+    from npsim_core.proposals import window_groups as wg
+
+    img, labels, depth = _street()
+    _building(img, labels, depth, -12.0, -0.4, (172, 152, 128), [-11.0, -9.6, -8.2, -6.8, -5.4, -4.0, -2.6], width=0.35)
+    _building(img, labels, depth, -0.4, 11.5, (172, 152, 128), [1.4, 2.8, 4.2, 5.6, 7.0, 8.4, 9.8], width=0.35)
+    ctx = core._check_inputs(img, labels, depth, K, None)
+    ctx.params = PARAMS
+    feat = windows._features(ctx)
+    regroup = wg.regroup_windows
+    wg.regroup_windows = lambda ctx, groups, feat=None: groups  # the windows proposer's own groups
+    try:
+        groups = windows.propose(ctx)
+    finally:
+        wg.regroup_windows = regroup
+    lights = [li for g in groups for li in g.members]
+    t = wg._window_table(ctx, lights, feat)
+    first = np.concatenate([[0], np.cumsum([len(g.members) for g in groups])])
+    floors = [np.arange(first[g], first[g + 1]) for g in range(len(groups))]
+    floors = [f[np.argsort(t["cu"][f])] for f in floors]
+    low = max(floors, key=lambda f: t["cv"][f].mean())  # the lower floor, both blocks
+    assert low.size == 14, low.size
+    colour = np.nanmedian(t["wall"][low], axis=0)
+    args = (float(np.median(t["level"][low])), PARAMS.window_floor_tol_m, floors, colour, PARAMS.window_block_lum,
+            PARAMS.window_block_chroma, 0.05)
+    # the left block and the right block's last five panes: the right block's first two lie between them
+    both = np.concatenate([low[:7], low[9:]])
+    assert wg._end_between(ctx, feat, t, int(low[6]), int(low[9]), both, *args)
+    # within the left block over its own two middle panes: no end
+    both = np.concatenate([low[:2], low[4:7]])
+    assert not wg._end_between(ctx, feat, t, int(low[1]), int(low[4]), both, *args)
+
+
 def test_narrow_panes_stay_one_group_across_a_pane_missing_on_one_floor():
     # One block, one pane missing downstairs only (upstairs it is there), and a shadow's edge down the wall
     # beside it: the same step and shade change as above, but the bay goes on upstairs, so it is a missed

@@ -224,6 +224,11 @@ class ProposalParams:
     window_blob_mode_step: float = 0.5
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
+    #: Window groups (window_groups._building_end): a floor's step between neighbouring panes at least this many
+    #: times its neighbouring steps, in image columns (a ratio, no unit), over a gap of visible wall blank on
+    #: the other floors where their steps are as many times theirs, is a building's end: the floor is cut
+    #: there and not joined across it (docs/proposals.md "Sixteenth pass: window groups at 512x256"; inf: never).
+    window_end_px_ratio: float = 2.0
     #: A blob too large or ragged for one window is cut where its mean departure from the wall over a
     #: column (row, for a tall blob) dips below this fraction of the peaks either side (0: never, the
     #: default: it gains 2 % recall at 512x256 on the hard street and loses 2 % at 2048x1024).

@@ -162,14 +162,15 @@ def _spacing(pos: np.ndarray, idx: np.ndarray, cu: np.ndarray) -> float:
 
 
 def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, idx: np.ndarray,
-                     lum: float, chroma: float, tol: float) -> list[np.ndarray]:
+                     lum: float, chroma: float, tol: float, floors: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """Cut one group's windows (sorted along the row) between two buildings: where the wall colour
     around neighbouring windows changes (``lum`` / ``chroma``), or where the step to the next window
     is over ``SPLIT_STEPS`` x the group's median step over wall that shows (nothing in front; the
     blank wall between two blocks of one plane and colour, which an occluder's gap does not show;
     panes under ``SPLIT_MIN_PX`` wide are too quantised to tell alone: their step is cut only where the
     gap is ``BLANK_MIN_GAP_PX`` wide, blank on the other floors too (:func:`_blank_column`) and the wall's
-    luminance changes across it by ``BLANK_WALL_LUM``)."""
+    luminance changes across it by ``BLANK_WALL_LUM``); and, with ``floors`` (every proposed floor's panes), at
+    a building's end seen in the image columns (:func:`_building_end`)."""
     if idx.size < 2:
         return [idx]
     o = idx[np.argsort(t["cu"][idx])]
@@ -177,6 +178,11 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
     dl = np.abs(np.diff(c[:, 0]))
     dc = np.hypot(*np.diff(c[:, 1:], axis=0).T)
     cut = (dl > lum) | (dc > chroma)  # NaN (no wall seen) compares False: no cut
+    if floors is not None and idx.size >= 3:
+        for k in range(o.size - 1):
+            if not cut[k] and _building_end(t, o, k, floors, idx, tol, ctx.params.window_end_px_ratio):
+                _, shown = _gap_is_wall(ctx, feat, t, int(o[k]), int(o[k + 1]), c[k], lum, chroma, tol)
+                cut[k] = shown >= VISIBLE_SHARE
     if idx.size >= 4:
         wide = np.median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX
         step = np.hypot(*np.diff(pos[o], axis=0).T)
@@ -189,6 +195,70 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
             cut[k] |= shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, idx, tol)
     ends = np.nonzero(cut)[0] + 1
     return np.split(o, ends)
+
+
+def _px_step_ratio(cu: np.ndarray, k: int) -> float:
+    """Step ``k`` between neighbouring centre columns ``cu`` (sorted) against the median of the steps either side
+    of it (NaN without one)."""
+    d = np.diff(cu)
+    nb = [d[m] for m in (k - 1, k + 1) if 0 <= m < d.size]
+    return float(d[k] / np.median(nb)) if nb and np.median(nb) > 0 else float("nan")
+
+
+def _building_end(t: dict, o: np.ndarray, k: int, floors: list[np.ndarray], idx: np.ndarray, tol: float,
+                  ratio: float) -> bool:
+    """Whether the step between the panes ``o[k]`` and ``o[k + 1]`` of a floor (``o``: its panes sorted along it)
+    is the end of one building and the start of the next on one plane and in one colour: the gap is
+    ``BLANK_MIN_GAP_PX`` wide at least, ``ratio`` (``window_end_px_ratio``) x the floor's neighbouring steps in
+    image columns (a ratio of columns, not of metres: a receding wall's depth drifts), blank on the building's
+    other floors (:func:`_blank_column`) and ``ratio`` x their neighbouring steps there too (the median over the
+    other proposed floors -- ``floors``: the windows proposer's groups, each sorted along it -- whose step spans
+    the gap's middle column between two panes on the wall's plane). A pane missing on one floor leaves a bay
+    on the others; a building's end leaves its margins, 0.75 m and more of blank wall either side, on every
+    floor."""
+    i, j = int(o[k]), int(o[k + 1])
+    if t["x0"][j] - t["x1"][i] < BLANK_MIN_GAP_PX or not _px_step_ratio(t["cu"][o], k) >= ratio:
+        return False
+    gap = _other_floors_panes(t, i, j, idx, tol)
+    if gap is None or not _blank_column(t, i, j, idx, tol):
+        return False
+    other, a, b, _ = gap
+    mid = 0.5 * (a + b)
+    ratios = []
+    for f in floors:
+        if f.size < 3:
+            continue
+        cu = t["cu"][f]
+        m = int(np.searchsorted(cu, mid)) - 1
+        if 0 <= m < f.size - 1 and other[f[m]] and other[f[m + 1]]:
+            r = _px_step_ratio(cu, m)
+            if np.isfinite(r):
+                ratios.append(r)
+    return bool(ratios) and float(np.median(ratios)) >= ratio
+
+
+def _end_between(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, both: np.ndarray, level: float,
+                 level_tol: float, floors: list[np.ndarray], colour: np.ndarray, lum: float, chroma: float,
+                 tol: float) -> bool:
+    """Whether a building's end (:func:`_building_end`, over wall that shows) lies between panes ``i`` (left) and
+    ``j`` of a join of the panes ``both``: along the floor made of ``both`` and the panes between ``i`` and ``j``
+    at its level (within ``level_tol`` of ``level``) on the wall's plane -- a join may pass over a part of the
+    floor that did not join, and the end may lie on either side of it."""
+    gap = _other_floors_panes(t, i, j, both, tol)
+    if gap is None:
+        return False
+    other, a, b, _ = gap
+    cu = t["cu"]
+    btw = np.nonzero(other & (cu > a) & (cu < b) & (np.abs(t["level"] - level) <= level_tol))[0]
+    u = np.concatenate([both, btw])
+    u = u[np.argsort(cu[u], kind="stable")]
+    ki, kj = int(np.nonzero(u == i)[0][0]), int(np.nonzero(u == j)[0][0])
+    for k in range(ki, kj):
+        if _building_end(t, u, k, floors, u, tol, ctx.params.window_end_px_ratio):
+            _, shown = _gap_is_wall(ctx, feat, t, int(u[k]), int(u[k + 1]), colour, lum, chroma, tol)
+            if shown >= VISIBLE_SHARE:
+                return True
+    return False
 
 
 def _blank_column(t: dict, i: int, j: int, idx: np.ndarray, tol: float) -> bool:
@@ -402,9 +472,11 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
     parts: list[np.ndarray] = []
     cls: list[int] = []
     first = np.concatenate([[0], np.cumsum([len(g.members) for g in groups])])
+    floors = [np.arange(first[g], first[g + 1]) for g in range(len(groups))]
+    floors = [f[np.argsort(t["cu"][f])] for f in floors]
     for g in range(len(groups)):
         members = np.nonzero(gof0 == g)[0] if pairwise else np.arange(first[g], first[g + 1])
-        for part in _split_at_blanks(ctx, feat, t, pos, members, lum, chroma, tol):
+        for part in _split_at_blanks(ctx, feat, t, pos, members, lum, chroma, tol, floors):
             parts.append(part)
             cls.append(groups[g].class_id)
     n = len(parts)
@@ -489,6 +561,10 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         blank = shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, both, tol)
         if d > (BLANK_STEPS if blank else HIDDEN_STEPS) * step:
             continue
+        if both.size >= 3 and _end_between(ctx, feat, t, i, j, both, 0.5 * (lev_l + lev_r),
+                                           floor_tol if floor_tol is not None else half_pane, floors,
+                                           (ca + cb) / 2.0, lum, chroma, tol):
+            continue  # a building's end between the two (the split's cut), maybe beside a part passed over
         parent[rb] = ra
         idx_of[ra] = both
         col_of[ra] = _median_colour(t["wall"][both])
