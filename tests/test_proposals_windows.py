@@ -1294,3 +1294,56 @@ def _assemble_windows(shape, items, p):
     from npsim_core.proposals.core import _assemble
 
     return _assemble(shape, items, p.window_min_painted_share, p.window_tiny_px, p.window_tiny_max_confidence)
+
+
+def _upper_pane_beside_a_strip(monkeypatch):
+    """Two floors of five 1.4 x 2.0 m panes on a wall at 25 m, and beside the middle upper pane's right side,
+    over its lower 1.2 m, a 0.8 m strip of the wall itself that the wall reference takes for different (as
+    on the hard street at 512x256 seed 0, x 413-422: a 5-px strip of plain wall joined a pane's blob where
+    the reference steps between two walls, proposed with it at 0.95, IoU 0.49)."""
+    import npsim_core.proposals.windows as wm
+
+    img, labels, depth, noise = _canvas()
+    z = 25.0
+    _wall(img, labels, depth, -9.0, 9.0, 9.0, z)
+    gt = {}
+    for f, sill in enumerate((3.6, 6.4)):
+        for b in range(5):
+            x = -7.0 + 3.0 * b
+            _pane(img, gt, (f, b), x, x + 1.4, sill, sill + 2.0, z)
+    uu, vv = np.arange(W)[None, :], np.arange(H)[:, None]
+    x1 = -1.0 + 1.4
+    strip = (uu >= _u(x1, z)) & (uu < _u(x1 + 0.8, z)) & (vv >= _v(6.4 + 1.2, z)) & (vv < _v(6.4, z))
+    strip &= ~gt[(1, 2)]
+    real = wm.wall_reference
+
+    def pulled(feat, building, params):
+        ref = real(feat, building, params).copy()
+        ref[strip, 0] -= 2.0 * -np.log(params.window_dark_ratio)
+        return ref
+
+    monkeypatch.setattr(wm, "wall_reference", pulled)
+    return (img, labels, depth, noise), gt, strip
+
+
+def test_an_upper_panes_blob_with_a_strip_of_wall_beside_it_is_trimmed_to_the_pane(monkeypatch):
+    """An upper floor's blob of a pane and a strip of the wall beside it (the strip of the wall's own colour
+    around the blob, windows._wall_coloured): trimmed to its one part of another colour when that part
+    holds at least ``window_trim_upper_share`` of the blob (``window_trim_any_floor``); without the rule
+    the window holds the strip (IoU under 0.8)."""
+    scene, gt, strip = _upper_pane_beside_a_strip(monkeypatch)
+    wins = {i: w for i, w in _wins(_run(*scene))}
+    best = max(wins.values(), key=lambda w: _iou(gt[(1, 2)], w))
+    assert _iou(gt[(1, 2)], best) >= 0.85
+    assert (best & strip).sum() <= 0.2 * strip.sum()
+    off = PARAMS.__class__(**{**PARAMS.__dict__, "window_trim_any_floor": False})
+    img, labels, depth, noise = scene
+    old = propose_lights(np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8), labels, depth, K, None, off)
+    old_wins = {i: w for i, w in _wins(old)}
+    best = max(old_wins.values(), key=lambda w: _iou(gt[(1, 2)], w))
+    assert _iou(gt[(1, 2)], best) < 0.8 and (best & strip).sum() > 0.5 * strip.sum()
+
+
+def _wins(props):
+    m = props.above(0.5).instance_map
+    return [(int(i), m == i) for i in np.unique(m) if i // 1000 == 1]

@@ -335,6 +335,13 @@ class ProposalParams:
     #: filling ``window_trim_min_fill`` of their box are judged instead (1: no test).
     window_trim_wall_share: float = 0.2
     window_trim_min_fill: float = 0.8
+    #: ... on an upper floor too (the rule above is a shop front's on the ground floor), but there only when
+    #: what is not wall is one such part holding at least ``window_trim_upper_share`` (a share of the blob's
+    #: pixels) of it: a pane and a strip of plain wall beside it that the reference steps under (hard street
+    #: 512x256 seed 0, x 413-422: 0.95, IoU 0.49), not a pane whose reflection takes the wall's colour over
+    #: most of it (docs/proposals.md "Sixteenth pass: windows at 512x256 -- a strip of wall beside a pane").
+    window_trim_any_floor: bool = True
+    window_trim_upper_share: float = 0.5
     #: Shop fronts: glazing whose bottom is at most this high (m above the ground) and at least this tall (m).
     window_shop_max_sill_m: float = 1.0
     window_shop_min_h_m: float = 1.6

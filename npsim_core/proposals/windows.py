@@ -2327,14 +2327,17 @@ def propose(ctx: Context) -> list[Group]:
                     found.pop()
                     stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in pieces)
                     continue
+        ground = why is None and min(m.shape) >= 8 and _on_ground_floor(ctx, y0, x0, m)
         if why is None and p.window_trim_wall_share < 1 and depth_ <= p.window_split_steps \
-                and min(m.shape) >= 8 and _on_ground_floor(ctx, y0, x0, m):
+                and min(m.shape) >= 8 and (ground or p.window_trim_any_floor):
             # shop glazing and a strip of the wall beside it (an awning or a fascia over it, a pier): the
             # parts of other colours than the wall around it, each a pane's rectangle, judged instead
             wall = _wall_coloured(feat, B, y0, x0, m, p)
             if wall.sum() >= p.window_trim_wall_share * m.sum():
                 parts = [(py, px, pm) for py, px, pm, _ in components(m & ~wall, p.window_min_area_px, connectivity=4)
                          if _hull_fill(pm) >= p.window_trim_min_fill]
+                if not ground and (len(parts) != 1 or parts[0][2].sum() < p.window_trim_upper_share * m.sum()):
+                    parts = []
                 if parts:
                     whole = found.pop()
                     n = len(found)
@@ -2343,7 +2346,7 @@ def propose(ctx: Context) -> list[Group]:
                     # the glass is most of what is not wall: a fleck of another colour is not
                     if sum(int(f[3].mask.sum()) for f in found[n:]) >= int((m & ~wall).sum()) / 3.0:
                         for f in found[n:]:
-                            f[3].shop_front = True  # ground-floor glazing under its fascia: a shop front
+                            f[3].shop_front = ground  # ground-floor glazing under its fascia: a shop front
                         continue
                     del found[n:]
                     found.append(whole)
