@@ -380,3 +380,33 @@ def test_slider_causes_tell_why_each_true_floor_costs_a_group_action():
     del ann.groups[13103]
     c = slider_causes(gt, ann, props)
     assert c["not proposed, rest broken"] == 1 and c["not proposed"] == 0 and c["merged"] == 2, c
+
+
+def test_a_single_pane_left_inside_its_floor_joins_the_group_whose_bay_it_fills():
+    # A pane whose neighbours on both sides joined first across it (its level read from its one depth reading 0.5-1
+    # m off, the join order) is left alone in the middle of its floor, and a join over an overlap is refused:
+    # _join_inside_panes joins it to the group whose gap it fills on the group's row line in the image
+    # (docs/proposals.md "Sixteenth pass: single panes inside their floor"); a pane one floor up, one past the
+    # group's end, one over a neighbour's columns or one in a gap of several bays stays alone.
+    from npsim_core.proposals import window_groups as wg
+
+    cu = np.array([10.0, 20.0, 40.0, 50.0, 30.0, 30.0, 60.0, 21.0])
+    cv = np.array([50.0, 50.5, 51.5, 52.0, 51.0, 40.0, 52.5, 51.0])  # the floor's row line leans 0.05 row a column
+    t = dict(cu=cu, cv=cv, x0=cu - 2.0, x1=cu + 2.0, y0=cv - 4.0, y1=cv + 4.0, z=np.full(cu.size, np.nan),
+             wall=np.tile([0.0, 1.0, 1.0], (cu.size, 1)))
+    idx_of = {0: np.array([0, 1, 2, 3]), 4: np.array([4]), 5: np.array([5]), 6: np.array([6]), 7: np.array([7])}
+    col_of = {k: np.array([0.0, 1.0, 1.0]) for k in idx_of}
+    args = (PARAMS.window_inside_row_tol, PARAMS.window_block_lum, PARAMS.window_block_chroma, 0.05, False)
+    assert wg._join_inside_panes(t, idx_of, col_of, sorted(idx_of), *args) == {4: 0}
+    # in a gap of several bays (the cluster's panes far apart there): not one bay it fills, alone
+    t["cu"] = cu.copy()
+    t["cu"][2:4] += 40.0
+    t["x0"], t["x1"] = t["cu"] - 2.0, t["cu"] + 2.0
+    assert wg._join_inside_panes(t, idx_of, col_of, sorted(idx_of), *args) == {}
+    t["cu"], t["x0"], t["x1"] = cu, cu - 2.0, cu + 2.0
+    # in another wall colour: alone
+    col_of[0] = np.array([1.0, 1.0, 1.0])
+    assert wg._join_inside_panes(t, idx_of, col_of, sorted(idx_of), *args) == {}
+    # 0: never
+    col_of[0] = np.array([0.0, 1.0, 1.0])
+    assert wg._join_inside_panes(t, idx_of, col_of, sorted(idx_of), 0.0, *args[1:]) == {}

@@ -229,6 +229,12 @@ class ProposalParams:
     #: the other floors where their steps are as many times theirs, is a building's end: the floor is cut
     #: there and not joined across it (docs/proposals.md "Sixteenth pass: window groups at 512x256"; inf: never).
     window_end_px_ratio: float = 2.0
+    #: Window groups (window_groups._join_inside_panes): a single pane left inside another group's span along
+    #: its floor (in the gap between two neighbouring panes of it) joins that group when its centre row lies
+    #: within this share of the neighbouring panes' median height (rows) of the straight line through their
+    #: centres in the image, in their wall colour and on their plane (docs/proposals.md "Sixteenth pass: single
+    #: panes inside their floor"; 0: never).
+    window_inside_row_tol: float = 0.3
     #: A blob too large or ragged for one window is cut where its mean departure from the wall over a
     #: column (row, for a tall blob) dips below this fraction of the peaks either side (0: never, the
     #: default: it gains 2 % recall at 512x256 on the hard street and loses 2 % at 2048x1024).

@@ -341,6 +341,10 @@ HIDDEN_STEPS = 4.0
 #: panes nearest the gap (``END_PANES`` of each side): along a long wall the level read from depth drifts.
 LEVEL_GATE = 2.0
 END_PANES = 2
+#: A single pane inside a cluster's span fills a bay of it (:func:`_join_inside_panes`) when its steps to its two
+#: neighbours are at most this many times the cluster's other steps along the floor (image columns): one bay, or
+#: two beside a pane nobody proposed.
+INSIDE_STEPS = 2.0
 
 
 def _bay_of_wall(step: np.ndarray, colour: np.ndarray, x0: np.ndarray, x1: np.ndarray, xa: float, xb: float,
@@ -392,6 +396,65 @@ def _ends(t: dict, idx: np.ndarray) -> tuple[int, float, int, float, float]:
     return (int(idx[np.argmax(t["x1"][idx])]), float(np.median(t["level"][r])),
             int(idx[np.argmin(t["x0"][idx])]), float(np.median(t["level"][q])),
             0.5 * float(np.median(t["y1"][idx] - t["y0"][idx])))
+
+
+def _single_on_row_line(t: dict, part: np.ndarray, pane: int, share: float) -> bool:
+    """Whether the pane ``pane`` lies on the floor of ``part`` (two panes or more) in the image: its centre row
+    within ``share`` of the part's median pane height (rows) of the straight line fit through the part's pane
+    centres (row against column; a level floor is a straight line in the image, whatever the depth reads)."""
+    if part.size < 2 or share <= 0:
+        return False
+    cu, cv = t["cu"][part], t["cv"][part]
+    if np.ptp(cu) <= 0:
+        return False
+    b, a = np.polyfit(cu, cv, 1)
+    h = float(np.median(t["y1"][part] - t["y0"][part]))
+    return bool(abs(a + b * float(t["cu"][pane]) - float(t["cv"][pane])) <= share * h)
+
+
+def _join_inside_panes(t: dict, idx_of: dict[int, np.ndarray], col_of: dict[int, np.ndarray], roots: list[int],
+                       share: float, lum: float, chroma: float, tol: float, has_depth: bool) -> dict[int, int]:
+    """The single panes left inside another cluster's span along the floor, and the cluster each joins: a join
+    over an overlap is refused (two walls one behind the other, or two floors), so a pane whose neighbours on
+    both sides joined first across it (the level read from one pane's depth off by 0.5-1 m, the join order) is
+    left alone in the middle of its floor. It joins the cluster (``idx_of``: its windows per root in ``roots``)
+    whose bay it fills: in the gap between two neighbouring panes of it (no column shared with either, its steps
+    to them at most ``INSIDE_STEPS`` x the cluster's other steps in image columns: a cluster of three panes at
+    least), on the
+    straight row line through them and their outer neighbours (:func:`_single_on_row_line`, ``share``), in the
+    cluster's wall colour (``col_of``) and on its plane; of several, the one whose two panes' mean centre row
+    is nearest. Returns {single pane's root: the cluster's root}."""
+    res: dict[int, int] = {}
+    for r in roots:
+        if idx_of[r].size != 1:
+            continue
+        q = int(idx_of[r][0])
+        best, best_d = None, np.inf
+        for r2 in roots:
+            ib = idx_of[r2]
+            if r2 == r or ib.size < 2:
+                continue
+            o = ib[np.argsort(t["cu"][ib])]
+            m = int(np.searchsorted(t["cu"][o], t["cu"][q])) - 1
+            if not (0 <= m < o.size - 1 and t["x1"][o[m]] <= t["x0"][q] and t["x1"][q] <= t["x0"][o[m + 1]]):
+                continue
+            # it fills a bay: its steps to the two at most INSIDE_STEPS x the cluster's other steps (image columns)
+            cu = t["cu"][o]
+            rest = np.delete(np.diff(cu), m)
+            if not rest.size or max(t["cu"][q] - cu[m], cu[m + 1] - t["cu"][q]) > INSIDE_STEPS * float(np.median(rest)):
+                continue
+            if not _single_on_row_line(t, o[max(0, m - 1):m + 3], q, share):
+                continue
+            if not _same_colour(t["wall"][q], col_of[r2], lum, chroma):
+                continue
+            if has_depth and not _on_one_plane(t, np.concatenate([ib, [q]]), tol):
+                continue
+            dv = abs(float(t["cv"][q]) - 0.5 * float(t["cv"][o[m]] + t["cv"][o[m + 1]]))
+            if dv < best_d:
+                best, best_d = r2, dv
+        if best is not None:
+            res[r] = best
+    return res
 
 
 def _fails_as_split(ends: np.ndarray, pos: np.ndarray, a: np.ndarray, b: np.ndarray, x0: np.ndarray,
@@ -573,6 +636,11 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         pristine[ra] = pristine[rb] = False
         if not pairwise:
             ends_of[ra] = _ends(t, both)
+    if p.window_inside_row_tol > 0:
+        roots = sorted({root(k) for k in range(n)})
+        for r, r2 in _join_inside_panes(t, idx_of, col_of, roots, p.window_inside_row_tol, lum, chroma, tol,
+                                        has_depth).items():
+            parent[r] = r2
     clusters: dict[int, list[int]] = {}
     for k in range(n):
         clusters.setdefault(root(k), []).append(k)
