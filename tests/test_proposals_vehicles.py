@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from npsim_core.annotation import class_of
@@ -149,6 +151,23 @@ def test_a_far_lamp_pair_seen_one_row_apart_is_laid_out_on_the_pixel_centres_of_
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     for t in truth:
         assert max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.7
+
+
+def test_a_far_cars_body_top_edge_standing_out_of_the_paint_is_not_taken_for_its_lamps():
+    """A car 40 m away (body top 0.9 m; lamps 4 x 2 px in the paint's colour, nothing to snap to) whose
+    body's top row stands out of the paint over the lamps' columns (the deck's or the cabin seam's edge
+    by day; 512x256 default seed 0, a 3-px false lamp two rows above a lamp): the lamps are laid out under
+    the body top (IoU >= 0.5), not snapped to that row. The old code snapped both to it (IoU 0)."""
+    img, lab, depth, inst, intr = _frame()
+    truth = _far_car(img, lab, depth, inst, 40.0, 0.9, (40, 60, 140), (40, 60, 140))
+    body = _centres((0.3, 0.9), (-0.9, 0.9), 40.0, lab.shape)
+    top = int(np.nonzero(body.any(1))[0].min())
+    for t in truth:
+        xs = np.flatnonzero(t.any(0))
+        img[top, xs.min():xs.max() + 1] = (200, 200, 200)
+    for params, hit in ((FLAT, True), (replace(FLAT, vehicle_small_lamp_top_m=0.0), False)):
+        ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=params))
+        assert all((max((_iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5) == hit for t in truth)
 
 
 def test_a_car_of_fifty_pixels_gets_its_rear_window():

@@ -104,6 +104,10 @@ class ProposalParams:
     #: at least this share of the lamp's own departure (its 90th percentile): part lamp, part paint (its edge's
     #: antialiasing); see ``vehicles._with_rim``.
     vehicle_lamp_rim_share: float = 0.4
+    #: A lamp under 3 px tall is not snapped to off-paint pixels none of whose pixel centres lies this far (m)
+    #: below the body's top edge (a lamp's top is 0.07 m below it; above that, the body's top edge, the deck
+    #: or the cabin seam, stands out by day); 0: off (``vehicles._lamp_pair``).
+    vehicle_small_lamp_top_m: float = 0.07
     #: A lamp beside the cut whose pixels over the sliver's 40 levels are fewer rows than a lamp's (a far
     #: lamp's blur) is the connected pixels departing from the paint by at least this share of its peak
     #: departure (a fraction of its 8-bit levels), less the bled rim; 0 or 1: off (``vehicles._sliver_grown``).

@@ -796,7 +796,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
     are never returned. A lamp under ``SMALL_LAMP_PX`` tall is laid out by pixel centres and a blob it
     snaps to is trimmed of the colour bled around it (:func:`_centres_in`, :func:`_unblur`), and one narrower
     than the lamp by more than that blur (its brightest column) widened to the lamp's width about its middle
-    (:func:`_lamp_core_widened`); a larger lamp's blob takes its antialiased rim (:func:`_with_rim`). A blob is
+    (:func:`_lamp_core_widened`), and it is never snapped to pixels none of which lies as low as a lamp's top
+    (``vehicle_small_lamp_top_m`` under the body top: the body's top edge stands out by day); a larger lamp's
+    blob takes its antialiased rim (:func:`_with_rim`). A blob is
     taken when it holds at least a third of the box's pixels not hidden by a nearer object
     (:func:`_hidden`); for boxes of ``OPEN_LAMP_PX`` rows or more, from the off-paint pixels after a 3x3
     opening (the 1-px seam a car in front bleeds along the silhouette's edge joined the lamp).
@@ -872,6 +874,12 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
             n = int(cand.sum())
             rows = np.flatnonzero(cand.any(1))
             tall = rows.size and rows[-1] - rows[0] + 1 > LAMP_TALL_RATIO * (br1 - br0 + 1) + 2
+            top_m = p.vehicle_small_lamp_top_m
+            if small and top_m > 0 and rows.size and rows[-1] - top < top_m * ppm:
+                # No pixel centre as low as a lamp's top (0.07 m under the body top): the body's top edge (the
+                # deck's, the cabin seam's) by day (512x256 default seed 0: a 3-px false lamp on the body's top
+                # row, two rows above the lamp).
+                n = 0
             if n >= max(1, full // 3) and n <= 3 * full and not tall:
                 if small:
                     inside = _unblur(cand, 0.15 * ppm, 0.30 * ppm) & m
