@@ -6,11 +6,11 @@
                                                       [--no-stroke-select] [--no-stroke-group] [--no-review]
                                                       [--no-tool-switches] [--class-order]
                                                       [--no-hover-delete] [--no-vehicle-groups]
-                                                      [--no-stroke-accept]
+                                                      [--no-stroke-accept] [--review-first]
                                                       [--compare [active-group|stroke-select|stroke-group|
                                                                   review|ninth-pass|tool-switches|
                                                                   class-order|tool-keys|hover-delete|
-                                                                  vehicle-groups|stroke-accept]]
+                                                                  vehicle-groups|stroke-accept|stroke-first]]
 
 Unlike the estimate in ``benchmarks.proposals`` (Table 3), this replays the work in the editor's
 own model: an :class:`~npsim_gui.editor.session.EditorSession` holding the annotation, the
@@ -67,11 +67,15 @@ An **action** is one key press or one mouse gesture (click, drag, rubber band) o
   Select tool's (with the drawing tool a Shift+drag erases superpixels): V to it and S back, 2 per trip
   -- one trip per group whose drawn lights come first, one shared by all the groups that need no draw --
   and the band is taken only where it saves more than that;
-* **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, a
-  pending proposal group worth it is accepted with Shift+A over it, 1 each (:func:`review_pending`);
-  then the good pending proposals left (their group holds false lights) are accepted by Ctrl+drags that
-  start on one of them, 1 per path (*stroke accept*, issue #26's thirteenth pass; :func:`stroke_accept_pending`;
-  ``--no-stroke-accept``: without);
+* **review** (issue #26's ninth pass; ``--no-review``: without): after accepting above the slider, the
+  good pending proposals are accepted by Ctrl+drags that start on one of them, 1 per path (*stroke accept*,
+  issue #26's thirteenth pass; :func:`stroke_accept_pending`; ``--no-stroke-accept``: without), then a
+  pending proposal group worth it with Shift+A over it, 1 each (:func:`review_pending`), then the good
+  pending proposals left by stroke accept again. A stroke takes good lights of several groups in one drag
+  (a car's panes with the windows and a street lamp beside them), where a Shift+A first would take the
+  car alone and leave the rest of the path not worth a drag; so the strokes come first since issue #26's
+  sixteenth pass (``--review-first``: the order before, Shift+A first; ``--compare stroke-first``). Both
+  gestures are the editor's; only the order the replayed annotator uses them in changed;
 * with proposals: "accept all above the slider": 1 (Ctrl+Shift+A), + 1 when the threshold is not
   the slider's default (``npsim_gui.editor.proposals.DEFAULT_ACCEPT_THRESHOLD``, 0.90); "Propose lights"
   itself: 1.
@@ -476,8 +480,8 @@ def review_pending(session, book, gt, counts: dict[str, int], by_category: dict 
 
 
 def stroke_accept_pending(session, book, gt, counts: dict[str, int], by_category: dict | None = None) -> None:
-    """After :func:`review_pending`: the pending proposals that match a ground-truth light not yet annotated
-    (mask IoU >= 0.5) and that a Shift+A was not worth (their group holds false lights) are accepted by
+    """Before and after :func:`review_pending`: the pending proposals that match a ground-truth light not yet
+    annotated (mask IoU >= 0.5) are accepted by
     Ctrl+drags that start on one of them (the editor's *stroke accept*, ``npsim_gui.editor.tools``: every
     pending proposal the path passes over, with its proposed group restricted to those, one undo step):
     the paths of :func:`stroke_paths` over the pending proposals' map, through those lights only (a
@@ -577,10 +581,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-stroke-accept", action="store_true",
                     help="accept pending proposals by Shift+A over their groups only, not also by Ctrl+drags over "
                          "them (the model before; module doc)")
+    ap.add_argument("--review-first", action="store_true",
+                    help="Shift+A over the pending groups worth it before the stroke accepts, not after the "
+                         "first ones (the order before issue #26's sixteenth pass; module doc)")
     ap.add_argument("--compare", nargs="?", const="active-group",
                     choices=("active-group", "stroke-select", "stroke-group", "review", "ninth-pass",
                              "tool-switches", "class-order", "tool-keys", "hover-delete", "vehicle-groups",
-                             "stroke-accept"),
+                             "stroke-accept", "stroke-first"),
                     help="also replay every frame without the active group (or without stroke select and stroke "
                          "group, or without stroke group) on the same proposals (a same-tree before/after) and "
                          "print its summary")
@@ -620,15 +627,16 @@ def main(argv: list[str] | None = None) -> int:
     rows, rows_before = [], []
     # (active group, stroke select, stroke group, review, tool switches, class in hand, hover delete)
     names = ("active", "stroke", "stroke_group", "review", "switches", "in_hand", "hover_delete", "vehicle_groups",
-             "stroke_accept")
+             "stroke_accept", "stroke_first")
     now = dict(zip(names, (not args.no_active_group, not args.no_stroke_select,
                            not (args.no_stroke_select or args.no_stroke_group), not args.no_review,
                            not args.no_tool_switches, not args.class_order, not args.no_hover_delete,
-                           not args.no_vehicle_groups, not (args.no_review or args.no_stroke_accept))))
+                           not args.no_vehicle_groups, not (args.no_review or args.no_stroke_accept),
+                           not (args.no_review or args.no_stroke_accept or args.review_first))))
     off = {"active-group": ("active",), "stroke-select": ("stroke", "stroke_group"), "stroke-group": ("stroke_group",),
            "review": ("review",), "ninth-pass": ("stroke", "stroke_group", "review"), "tool-switches": ("switches",),
            "class-order": ("in_hand",), "tool-keys": ("switches", "in_hand"), "hover-delete": ("hover_delete",), "vehicle-groups": ("vehicle_groups",),
-           "stroke-accept": ("stroke_accept",)}
+           "stroke-accept": ("stroke_accept", "stroke_first"), "stroke-first": ("stroke_first",)}
     models = [now] + ([{**now, **dict.fromkeys(off[args.compare], False)}] if args.compare else [])
     for variant in [v for v in args.variants.split(",") if v]:
         for seed in [int(s) for s in args.seeds.split(",") if s]:
@@ -650,6 +658,8 @@ def main(argv: list[str] | None = None) -> int:
                         book.accept_above(s, 0.5 if t == ORACLE else t)
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
                         if m["review"] and t != ORACLE:  # (the oracle accepted every good proposal already)
+                            if m["stroke_first"]:
+                                stroke_accept_pending(s, book, gt, counts, by_cat)
                             review_pending(s, book, gt, counts, by_cat, remove_cost=1 if m["hover_delete"] else 2)
                             if m["stroke_accept"]:
                                 stroke_accept_pending(s, book, gt, counts, by_cat)
@@ -674,6 +684,8 @@ def main(argv: list[str] | None = None) -> int:
                   ", stroke select (Ctrl+drag), no stroke group" if args.no_stroke_group else
                   ", stroke select and stroke group (Ctrl+drag, Ctrl+Shift+drag)")
         model += (", no review" if args.no_review else ", pending groups reviewed (Shift+A)" if args.no_stroke_accept
+                  else ", pending groups reviewed (Shift+A) after and before strokes accepting pending proposals "
+                       "(Ctrl+drag)" if not args.review_first
                   else ", pending groups reviewed (Shift+A) and pending proposals stroke-accepted (Ctrl+drag)")
         model += ", bands without tool keys" if args.no_tool_switches else ", tool keys counted"
         model += ", groups drawn in class order" if args.class_order else ", groups start with the class in hand"
@@ -705,7 +717,8 @@ def main(argv: list[str] | None = None) -> int:
                 "tool-keys": "--no-tool-switches --class-order (the model before the tool keys were counted)",
                 "hover-delete": "--no-hover-delete (a wrong light removed by right-click + Delete)",
                 "vehicle-groups": "--no-vehicle-groups (every car's lights grouped by hand)",
-                "stroke-accept": "--no-stroke-accept (pending proposals accepted by Shift+A over their groups only)"
+                "stroke-accept": "--no-stroke-accept (pending proposals accepted by Shift+A over their groups only)",
+                "stroke-first": "--review-first (Shift+A over the pending groups before the stroke accepts)",
                 }[args.compare]
         print(f"\nThe same frames and proposals with {what}, mean actions:\n")
         print("| variant | without proposals | " + " | ".join(f"accept {_label(t, '≥ ')}" for t in thresholds)

@@ -378,6 +378,44 @@ def test_a_ctrl_drag_from_a_pending_proposal_accepts_what_it_passes_over(editor,
     assert sorted(editor.pending_proposals()) == [1002, 1003, 1004, 1005]
 
 
+def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_groups_in_one_drag(qtbot):
+    """``benchmarks.annotation_actions``: the stroke accept before the Shift+A review (the order since issue
+    #26's sixteenth pass). A pending proposed group of two true windows lies in a row with two ungrouped true
+    windows, one of them a touch-up (IoU 0.67). Shift+A first takes the group (worth it) and leaves the two
+    not worth a drag (2 saved draws, less the drag and the touch-up): 1 review + 2 draws. A Ctrl+drag first
+    takes all four in one gesture: 1 review + 1 touch-up."""
+    from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending, stroke_accept_pending
+    from npsim_core.annotation import GroupInstance, LightAnnotation
+    from npsim_core.proposals import LightProposals
+    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    gt_map = np.zeros((40, 80), np.int32)
+    for k in range(4):
+        gt_map[10:16, 10 + 12 * k:16 + 12 * k] = 1001 + k
+    gt = LightAnnotation(gt_map, {13001: GroupInstance(13001, (1001, 1002))})
+    p_map = gt_map.copy()
+    p_map[14:16, 34:40] = 0                                          # 1003 proposed without its last two rows
+    props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002))}),
+                           {i: 0.6 for i in (1001, 1002, 1003, 1004, 13001)})
+    for stroke_first, want in ((True, (0, 1, 1)), (False, (2, 0, 1))):
+        s = EditorSession(superpixels=False)
+        s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+        book = ProposalBook(props)
+        assert book.accept_above(s, 0.9) == []
+        counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up",
+                                "ungroup"), 0)
+        if stroke_first:
+            stroke_accept_pending(s, book, gt, counts)
+        review_pending(s, book, gt, counts)
+        stroke_accept_pending(s, book, gt, counts)
+        assert sorted(book.pending(s.existing_ids())) == ([] if stroke_first else [1003, 1004])
+        finish_by_hand(s, gt, counts)
+        check_equal(gt, s.ann)
+        assert (counts["draw"], counts["touch up"], counts["review"]) == want
+        s.shutdown()
+
+
 def test_action_benchmark_stroke_accepts_a_floor_whose_group_holds_false_windows(qtbot):
     """``benchmarks.annotation_actions.stroke_accept_pending``: a pending proposed group of a floor's three
     true windows and two false ones elsewhere is not worth a Shift+A (3 draws saved, less the key and 2
