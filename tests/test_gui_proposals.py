@@ -378,6 +378,19 @@ def test_a_ctrl_drag_from_a_pending_proposal_accepts_what_it_passes_over(editor,
     assert sorted(editor.pending_proposals()) == [1002, 1003, 1004, 1005]
 
 
+def _all_pending(props):
+    """An 80x40 editor session with ``props`` proposed, none above the slider (all pending), and zero counts."""
+    from npsim_gui.editor.proposals import ProposalBook
+    from npsim_gui.editor.session import EditorSession
+
+    s = EditorSession(superpixels=False)
+    s.load(np.zeros((40, 80, 3), np.uint8), None, None)
+    book = ProposalBook(props)
+    assert book.accept_above(s, 0.9) == []
+    return s, book, dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up",
+                                   "ungroup"), 0)
+
+
 def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_groups_in_one_drag(qtbot):
     """``benchmarks.annotation_actions``: the stroke accept before the Shift+A review (the order since issue
     #26's sixteenth pass). A pending proposed group of two true windows lies in a row with two ungrouped true
@@ -387,8 +400,6 @@ def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_
     from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending, stroke_accept_pending
     from npsim_core.annotation import GroupInstance, LightAnnotation
     from npsim_core.proposals import LightProposals
-    from npsim_gui.editor.proposals import ProposalBook
-    from npsim_gui.editor.session import EditorSession
 
     gt_map = np.zeros((40, 80), np.int32)
     for k in range(4):
@@ -399,12 +410,7 @@ def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_
     props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002))}),
                            {i: 0.6 for i in (1001, 1002, 1003, 1004, 13001)})
     for stroke_first, want in ((True, (0, 1, 1)), (False, (2, 0, 1))):
-        s = EditorSession(superpixels=False)
-        s.load(np.zeros((40, 80, 3), np.uint8), None, None)
-        book = ProposalBook(props)
-        assert book.accept_above(s, 0.9) == []
-        counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up",
-                                "ungroup"), 0)
+        s, book, counts = _all_pending(props)
         if stroke_first:
             stroke_accept_pending(s, book, gt, counts)
         review_pending(s, book, gt, counts)
@@ -425,8 +431,6 @@ def test_action_benchmark_stroke_accepts_a_floor_whose_group_holds_false_windows
     from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending, stroke_accept_pending
     from npsim_core.annotation import GroupInstance, LightAnnotation
     from npsim_core.proposals import LightProposals
-    from npsim_gui.editor.proposals import ProposalBook
-    from npsim_gui.editor.session import EditorSession
 
     gt_map = np.zeros((40, 80), np.int32)
     for k in range(3):
@@ -438,12 +442,7 @@ def test_action_benchmark_stroke_accepts_a_floor_whose_group_holds_false_windows
     props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002, 1003, 1004, 1005))}),
                            {i: 0.6 for i in (1001, 1002, 1003, 1004, 1005, 13001)})
     for stroke_accept, want in ((True, (0, 0, 1)), (False, (3, 1, 0))):
-        s = EditorSession(superpixels=False)
-        s.load(np.zeros((40, 80, 3), np.uint8), None, None)
-        book = ProposalBook(props)
-        assert book.accept_above(s, 0.9) == []
-        counts = dict.fromkeys(("draw", "class keys", "group", "review", "remove", "class fix", "touch up",
-                                "ungroup"), 0)
+        s, book, counts = _all_pending(props)
         review_pending(s, book, gt, counts)
         assert counts["review"] == 0                                 # Shift+A is not worth it
         if stroke_accept:

@@ -9,6 +9,7 @@ front where a test needs one.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from npsim_core.camera import Intrinsics
 from npsim_core.proposals import ProposalParams, propose_lights
@@ -153,28 +154,17 @@ def test_single_panes_across_a_tree_take_the_bay_of_the_floor_above():
     assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
 
 
-def test_narrow_panes_split_where_the_wall_is_blank_on_every_floor_and_its_shade_changes():
-    # Two blocks on one plane, the second a shade darker (ln luminance -0.15: under the colour cut's
-    # window_block_lum), panes 2 px wide (too narrow for the blank step alone, SPLIT_MIN_PX). The
-    # wall between them is blank on both floors and changes shade: a building's end, not a missed pane
-    # (docs/proposals.md, "Tenth pass: window groups at 512x256").
+@pytest.mark.parametrize("right_colour", [(161, 142, 120), (172, 152, 128)], ids=["shade-changes", "one-colour"])
+def test_narrow_panes_split_at_a_building_end(right_colour):
+    # Two blocks on one plane, panes 2 px wide (too narrow for the blank step alone, SPLIT_MIN_PX), the wall
+    # between them blank on both floors. shade-changes: the second block a shade darker (ln luminance -0.15:
+    # under the colour cut's window_block_lum), a building's end by its shade ("Tenth pass: window groups at
+    # 512x256"). one-colour: no shade change, but the gap is over twice the neighbouring steps in image columns
+    # on every floor and blank on the other floor ("Sixteenth pass: window groups at 512x256"; docs/proposals.md).
     img, labels, depth = _street()
     left = _building(img, labels, depth, -12.0, -0.4, (172, 152, 128),
                      [-11.0, -9.6, -8.2, -6.8, -5.4, -4.0, -2.6], width=0.35)
-    right = _building(img, labels, depth, -0.4, 11.5, (161, 142, 120),
-                      [1.4, 2.8, 4.2, 5.6, 7.0, 8.4, 9.8], width=0.35)
-    _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
-
-
-def test_narrow_panes_split_at_a_building_end_in_one_colour_by_the_image_columns():
-    # Two blocks on one plane in ONE colour (no shade change across the gap), panes 2 px wide: the old rule for
-    # narrow panes wants a change of shade. The gap is over twice the neighbouring steps in image columns on
-    # every floor and blank on the other floor: a building's end (docs/proposals.md, "Sixteenth pass: window
-    # groups at 512x256").
-    img, labels, depth = _street()
-    left = _building(img, labels, depth, -12.0, -0.4, (172, 152, 128),
-                     [-11.0, -9.6, -8.2, -6.8, -5.4, -4.0, -2.6], width=0.35)
-    right = _building(img, labels, depth, -0.4, 11.5, (172, 152, 128),
+    right = _building(img, labels, depth, -0.4, 11.5, right_colour,
                       [1.4, 2.8, 4.2, 5.6, 7.0, 8.4, 9.8], width=0.35)
     _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)  # old code: one over both
 
