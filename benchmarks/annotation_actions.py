@@ -513,6 +513,19 @@ def stroke_accept_pending(session, book, gt, counts: dict[str, int], by_category
             by_category[key] = by_category.get(key, 0) + 1
 
 
+def review(session, book, gt, counts: dict[str, int], by_category: dict | None = None, remove_cost: int = 1,
+           stroke_accept: bool = True, stroke_first: bool = True) -> None:
+    """The annotator's review of the proposals pending after "accept above the slider" (module doc): stroke
+    accepts (:func:`stroke_accept_pending`; with ``stroke_first``, since issue #26's sixteenth pass), the Shift+A
+    review of the pending groups worth it (:func:`review_pending`), then stroke accepts over what is left
+    (``stroke_accept``)."""
+    if stroke_accept and stroke_first:
+        stroke_accept_pending(session, book, gt, counts, by_category)
+    review_pending(session, book, gt, counts, by_category, remove_cost=remove_cost)
+    if stroke_accept:
+        stroke_accept_pending(session, book, gt, counts, by_category)
+
+
 def _left_whole(book, gt, prop_match: dict[int, tuple[int, float]], gid: int) -> bool:
     """Whether accepting the whole proposal group ``gid`` (Shift+A over it: its accepted and pending
     lights become one group) gives a ground-truth group exactly: every light of the group matched (IoU
@@ -658,11 +671,8 @@ def main(argv: list[str] | None = None) -> int:
                         book.accept_above(s, 0.5 if t == ORACLE else t)
                         counts["accept"] = accept_actions(t)  # propose, accept above (+ move the slider)
                         if m["review"] and t != ORACLE:  # (the oracle accepted every good proposal already)
-                            if m["stroke_first"]:
-                                stroke_accept_pending(s, book, gt, counts, by_cat)
-                            review_pending(s, book, gt, counts, by_cat, remove_cost=1 if m["hover_delete"] else 2)
-                            if m["stroke_accept"]:
-                                stroke_accept_pending(s, book, gt, counts, by_cat)
+                            review(s, book, gt, counts, by_cat, remove_cost=1 if m["hover_delete"] else 2,
+                                   stroke_accept=m["stroke_accept"], stroke_first=m["stroke_first"])
                     finish_by_hand(s, gt, counts, by_cat, per_member_grouping=args.per_member_grouping,
                                    active_group=m["active"], stroke_select=m["stroke"],
                                    stroke_group=m["stroke_group"], tool_switches=m["switches"],

@@ -397,7 +397,7 @@ def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_
     windows, one of them a touch-up (IoU 0.67). Shift+A first takes the group (worth it) and leaves the two
     not worth a drag (2 saved draws, less the drag and the touch-up): 1 review + 2 draws. A Ctrl+drag first
     takes all four in one gesture: 1 review + 1 touch-up."""
-    from benchmarks.annotation_actions import check_equal, finish_by_hand, review_pending, stroke_accept_pending
+    from benchmarks.annotation_actions import check_equal, finish_by_hand, review
     from npsim_core.annotation import GroupInstance, LightAnnotation
     from npsim_core.proposals import LightProposals
 
@@ -409,12 +409,9 @@ def test_action_benchmark_strokes_before_the_review_take_good_lights_of_several_
     p_map[14:16, 34:40] = 0                                          # 1003 proposed without its last two rows
     props = LightProposals(LightAnnotation(p_map, {13001: GroupInstance(13001, (1001, 1002))}),
                            {i: 0.6 for i in (1001, 1002, 1003, 1004, 13001)})
-    for stroke_first, want in ((True, (0, 1, 1)), (False, (2, 0, 1))):
+    for stroke_first, want in ((True, (0, 1, 1)), (False, (2, 0, 1))):  # True: review()'s default
         s, book, counts = _all_pending(props)
-        if stroke_first:
-            stroke_accept_pending(s, book, gt, counts)
-        review_pending(s, book, gt, counts)
-        stroke_accept_pending(s, book, gt, counts)
+        review(s, book, gt, counts, **({} if stroke_first else {"stroke_first": False}))  # the default order first
         assert sorted(book.pending(s.existing_ids())) == ([] if stroke_first else [1003, 1004])
         finish_by_hand(s, gt, counts)
         check_equal(gt, s.ann)
