@@ -53,6 +53,14 @@ def _nanmedian(a: np.ndarray, axis: int | None = None):
     return out
 
 
+def _unique_rows(a: np.ndarray, **kw):
+    """Distinct rows of a 2-D float32 array (``np.unique(a, axis=0, **kw)``, rows compared bytewise: a
+    -0.0 and a 0.0 stay apart), several times faster than numpy's row-wise unique."""
+    a = np.ascontiguousarray(a)
+    u, *rest = np.unique(a.view(f"V{a.shape[1] * a.itemsize}").ravel(), **kw)
+    return (u.view(a.dtype).reshape(-1, a.shape[1]), *rest)
+
+
 _LABEL_SETS: dict[tuple[int, ...], np.ndarray] = {}
 
 
@@ -279,8 +287,12 @@ def _open2(m: np.ndarray) -> np.ndarray:
 
 def _features(ctx: Context) -> np.ndarray:
     """HxWx3 float32: log linear luminance, Lab a and b (OpenCV 8-bit Lab, centred)."""
-    lab = cv2.cvtColor(ctx.image, cv2.COLOR_RGB2Lab).astype(np.float32)
-    return np.dstack([np.log(np.maximum(ctx.lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
+    lab = cv2.cvtColor(ctx.image, cv2.COLOR_RGB2Lab)
+    out = np.empty(lab.shape, np.float32)  # written in place: no float copy of Lab, no stacking copy
+    np.log(np.maximum(ctx.lum, np.float32(1e-4)), out=out[..., 0])
+    np.subtract(lab[..., 1], np.float32(128.0), out=out[..., 1])
+    np.subtract(lab[..., 2], np.float32(128.0), out=out[..., 2])
+    return out
 
 
 def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float,
@@ -877,8 +889,8 @@ def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarra
     t = -np.log(p.window_dark_ratio)
     # features come from 8-bit colours: a blob and its ring hold few distinct ones, so each distinct
     # pair is compared once (the share of ring samples alike: a count over the same total)
-    bu, inv = np.unique(bf, axis=0, return_inverse=True)
-    ru, cnt = np.unique(rs, axis=0, return_counts=True)
+    bu, inv = _unique_rows(bf, return_inverse=True)
+    ru, cnt = _unique_rows(rs, return_counts=True)
     same = (np.abs(bu[:, None, 0] - ru[None, :, 0]) <= t) & \
         (np.hypot(bu[:, None, 1] - ru[None, :, 1], bu[:, None, 2] - ru[None, :, 2]) <= p.window_chroma_delta)
     out[m] = ((same @ cnt) / len(rs))[inv.ravel()] >= like
@@ -1243,13 +1255,29 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
     out = []
     for f in found:
         f[3].kind = _kind(ctx, f[3])
-    _, reg_lab, reg_st, _ = cv2.connectedComponentsWithStats(B.astype(np.uint8), connectivity=4)
+    from scipy import ndimage
 
-    def _region_area(fm: np.ndarray) -> float:
-        """Pixels of the connected building region holding most of the wall ``fm``."""
-        lab = reg_lab[fm]
+    wall_boxes = ndimage.find_objects(bld)
+    regs: list = []  # the connected building regions, labelled when first needed
+
+    def wall_mask(b_id: int) -> tuple[np.ndarray, tuple[slice, slice]]:
+        """``bld == b_id`` (HxW) compared on the wall's box only, and that box."""
+        sl = wall_boxes[b_id - 1] if 0 < b_id <= len(wall_boxes) else None
+        if sl is None:
+            return bld == b_id, (slice(0, H), slice(0, W))
+        fm = np.zeros((H, W), bool)
+        fm[sl] = bld[sl] == b_id
+        return fm, sl
+
+    def _region_area(b_id: int) -> float:
+        """Pixels of the connected building region holding most of the wall ``b_id``."""
+        if not regs:
+            regs.extend(cv2.connectedComponentsWithStats(B.astype(np.uint8), connectivity=4)[1:3])
+        reg_lab, reg_st = regs
+        fm, sl = wall_mask(b_id)
+        lab = reg_lab[sl][fm[sl]]
         lab = lab[lab > 0]
-        return float(reg_st[int(np.bincount(lab).argmax()), cv2.CC_STAT_AREA]) if lab.size else float(fm.sum())
+        return float(reg_st[int(np.bincount(lab).argmax()), cv2.CC_STAT_AREA]) if lab.size else float(fm[sl].sum())
 
     regions: dict[int, list] = {}
     for f in found:
@@ -1265,7 +1293,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         if len(wins) < 3:
             # too few windows to tell a wall from a piece of one (a facade cut by a tree or a depth
             # step): capped on the connected building region around it, not on the piece
-            out.extend(_cap_lit(p, wins, _region_area(bld == b_id)) + other)
+            out.extend(_cap_lit(p, wins, _region_area(b_id)) + other)
             continue
         box = {id(f): (f[3].y0, f[3].y0 + f[3].mask.shape[0] - 1, f[3].x0, f[3].x0 + f[3].mask.shape[1] - 1)
                for f in wins}
@@ -1414,7 +1442,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl.kind = "window"
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have[r0:r1 + 1, a0:a1 + 1] = True
-        fm = bld == b_id
+        fm, _ = wall_mask(b_id)
         t_wall = _wall_direction(ctx, fm) if len(kept) >= 3 else None
         # panes merged across a strip of wall: cut there before the rule drops them as too large
         kept = _split_oversized(ctx, kept, fm, t_wall, ratio, chroma)
@@ -1503,9 +1531,10 @@ def _wall_areas(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
         n = max(float(li.mask.sum()) * (w - 1) * (h - 1) / float(w * h), 1.0) if shrink else float(li.mask.sum())
         area.append(n * z * z / (float(K.fx) * float(K.fy)) / cos)
     H, W = fm.shape
-    B = ctx.labels == BUILDING
+    lab = ctx.labels  # compared on each box only (a full-image mask per call took ~1 ms)
     whole = np.array([li.y0 > 0 and li.x0 > 0 and li.y0 + li.mask.shape[0] < H and li.x0 + li.mask.shape[1] < W
-                      and B[li.y0 - 1:li.y0 + li.mask.shape[0] + 1, li.x0 - 1:li.x0 + li.mask.shape[1] + 1].all()
+                      and (lab[li.y0 - 1:li.y0 + li.mask.shape[0] + 1, li.x0 - 1:li.x0 + li.mask.shape[1] + 1]
+                           == BUILDING).all()
                       for li in (f[3] for f in wins)], bool)
     return np.asarray(area, float), whole
 
@@ -2278,7 +2307,7 @@ def propose(ctx: Context) -> list[Group]:
     if p.window_skip_border:  # pixels on the building's outline against sky or foliage blend with them
         soft = _in_labels(ctx.labels, (SKY, VEGETATION)).astype(np.uint8)
         inner = B & ~(cv2.dilate(soft, np.ones((3, 3), np.uint8)) > 0)
-    cand = inner & _differs(feat, ref, p)
+    cand = inner & ((np.abs(ratio) > t) | (chroma > p.window_chroma_delta))  # _differs, from ratio and chroma
     cand = _open2(cand) if min(H, W) >= 512 else cand
     bld = facades(ctx, B, feat, cand)  # wall planes: grids, floors and the lit cap are per wall
     ref2 = rereference_walls(feat, bld, cand, ref, p)
@@ -2286,7 +2315,7 @@ def propose(ctx: Context) -> list[Group]:
         ref = ref2
         ratio = feat[..., 0] - ref[..., 0]
         chroma = np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2])
-        cand = inner & _differs(feat, ref, p)
+        cand = inner & ((np.abs(ratio) > t) | (chroma > p.window_chroma_delta))
         cand = _open2(cand) if min(H, W) >= 512 else cand
     fy = float(ctx.intrinsics.fy)
     found = []  # [building id, centre height or row, floor tolerance, Light]
@@ -2446,8 +2475,9 @@ def propose(ctx: Context) -> list[Group]:
         li = f[3]
         box = (slice(li.y0, li.y0 + li.mask.shape[0]), slice(li.x0, li.x0 + li.mask.shape[1]))
         _unblur(li, np.maximum(np.abs(ratio[box]) / t, chroma[box] / p.window_chroma_delta), p)
+    dev_all = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)  # once: full-image
     if p.window_extend_dev > 0 and found:
-        dev = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)
+        dev = dev_all
         taken = np.zeros((H, W), np.int32)
         for k, f in enumerate(found, 1):
             li = f[3]
@@ -2465,7 +2495,6 @@ def propose(ctx: Context) -> list[Group]:
             _extend_ends(li, dev, free, max_h, p)
         _extend_sides(found, dev, free, p)
     found = _join_across_occluders(ctx, found, p)
-    dev_all = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)
     for f in found:
         if (f[3].kind or "window") == "window":
             _trim_ends(f[3], dev_all, p)
@@ -2564,9 +2593,10 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
     """
     p = ctx.params
     H, W = B.shape
-    n0, bld = cv2.connectedComponents(B.astype(np.uint8), connectivity=4)
-    if ctx.depth is None or n0 <= 1:
-        return bld.astype(np.int32)
+    if ctx.depth is None:
+        return cv2.connectedComponents(B.astype(np.uint8), connectivity=4)[1].astype(np.int32)
+    if not B.any():  # (the regions are not needed with depth: a full-image labelling saved)
+        return np.zeros((H, W), np.int32)
     f = max(1, W // 512)
     h, w = max(1, H // f), max(1, W // f)
     K = ctx.intrinsics
