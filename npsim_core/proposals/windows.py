@@ -151,7 +151,7 @@ def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref
     if n == 0:
         return ref
     area = np.bincount(walls.ravel(), minlength=n + 1)
-    odd = np.bincount(walls.ravel(), weights=cand.ravel().astype(np.float64), minlength=n + 1)
+    odd = np.bincount(walls[cand], minlength=n + 1).astype(np.float64)  # counts: as the 0/1-weighted sums
     bad = np.flatnonzero((odd > share * np.maximum(area, 1)) & (area >= 64))
     bad = bad[bad > 0]
     if bad.size == 0:
@@ -962,8 +962,10 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
         ya, yb, xa, xb = max(y - b, 0), min(y + h + b, H), max(x - b, 0), min(x + w + b, W)
         front = (~_in_labels(labels[ya:yb, xa:xb], (BUILDING, SKY) + GROUND)).astype(np.uint8)
         bleed = np.ones((h + 2 * b, w + 2 * b), bool)  # local, at (y - b, x - b)
-        bleed[ya - y + b:yb - y + b, xa - x + b:xb - x + b] = cv2.dilate(front, np.ones((2 * b + 1, 2 * b + 1),
-                                                                                       np.uint8)) > 0
+        # (nothing in front, the usual case: no dilation of an empty box)
+        bleed[ya - y + b:yb - y + b, xa - x + b:xb - x + b] = (cv2.dilate(front, np.ones((2 * b + 1, 2 * b + 1),
+                                                                                        np.uint8)) > 0) \
+            if front.any() else False
     sides = []
     for rows in (top, bot):
         ok = has & (rows >= 0) & (rows < H)
@@ -2266,9 +2268,17 @@ def _median_depth(ctx: Context, li: Light) -> float | None:
     if ctx.depth is None:
         return None
     h, w = li.mask.shape
+    # asked ~1400 times a frame, mostly again for the same window: memoised per context on the
+    # window's box and mask (a window grown or trimmed is another key)
+    memo = ctx.__dict__.setdefault("_window_median_depth", {})
+    key = (li.y0, li.x0, h, w, np.packbits(li.mask).tobytes())
+    if key in memo:
+        return memo[key]
     d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
     d = d[np.isfinite(d)]
-    return float(_median(d)) if d.size else None
+    z = float(_median(d)) if d.size else None
+    memo[key] = z
+    return z
 
 
 def propose(ctx: Context) -> list[Group]:
@@ -2567,9 +2577,9 @@ def _fill_nearest(ids: np.ndarray, B: np.ndarray) -> np.ndarray:
         return ids
     _, lab = cv2.distanceTransformWithLabels((ids == 0).astype(np.uint8), cv2.DIST_L2, 3,
                                              labelType=cv2.DIST_LABEL_PIXEL)
-    ys, xs = np.nonzero(ids > 0)
-    lut = np.zeros(lab.max() + 1, np.int32)
-    lut[lab[ys, xs]] = ids[ys, xs]
+    # OpenCV numbers the labelled pixels 1, 2, ... in raster order (DIST_LABEL_PIXEL): their ids in
+    # that order are the table (no coordinates of a million pixels)
+    lut = np.concatenate([np.zeros(1, np.int32), np.maximum(ids[ids != 0], 0).astype(np.int32)])
     out = ids.copy()
     out[miss] = lut[lab[miss]]
     return out
@@ -2848,10 +2858,15 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
         u = np.asarray(u, float)
         return 1.0 / (u - u_vp) if u_vp is not None else u
 
+    fits: dict = {}
+
     def lattice(u_vp):
+        if u_vp in fits:  # the fine search's centre is the coarse one's best
+            return fits[u_vp]
         wab = np.sort(to_w(edges_u, u_vp), axis=1)
         width = float(_median(wab[:, 1] - wab[:, 0]))
-        return _fit_lattice(wab.mean(1), width), width, wab
+        fits[u_vp] = (_fit_lattice(wab.mean(1), width), width, wab)
+        return fits[u_vp]
 
     # The vanishing column from depth is a few pixels off (depth is warped); the bays' regularity
     # fixes it: the column near it whose lattice fits the windows best.
