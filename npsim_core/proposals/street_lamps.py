@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core import Context, Light, components
+from .core import Context, Light, components, median
 from .params import ProposalParams
 
 POLE = 17
@@ -89,10 +89,14 @@ def propose(ctx: Context) -> list[Light]:
     fy = float(ctx.intrinsics.fy)
     # Far away the arm is thinner than a pixel and the labels lose it: the head is a separate speck of
     # pole beside the trunk's top (docs/proposals.md).
-    specks = [(y0, x0, m) for y0, x0, m, a in components(ctx.labels == POLE, p.lamp_speck_min_px)
-              if (a < p.pole_min_area_px or m.shape[0] < 4) and m.shape[1] >= m.shape[0]]
+    # One labelling of the poles serves both the specks and the trunks (each took a full-frame pass).
+    poles = list(components(ctx.labels == POLE, min(p.lamp_speck_min_px, p.pole_min_area_px)))
+    specks = [(y0, x0, m) for y0, x0, m, a in poles if a >= p.lamp_speck_min_px
+              and (a < p.pole_min_area_px or m.shape[0] < 4) and m.shape[1] >= m.shape[0]]
     taken: set[int] = set()
-    for y0, x0, mask, area in components(ctx.labels == POLE, p.pole_min_area_px):
+    for y0, x0, mask, area in poles:
+        if area < p.pole_min_area_px:
+            continue
         h, w = mask.shape
         if h < 4:
             continue
@@ -133,7 +137,7 @@ def propose(ctx: Context) -> list[Light]:
         dx = bx - trunk
         reach_r, reach_l = int(dx.max()), int(-dx.min())
         reach = max(reach_r, reach_l)
-        trunk_w = max(1, int(round(np.median(mask.sum(1)[mask.any(1)]))))
+        trunk_w = max(1, int(round(median(mask.sum(1)[mask.any(1)]))))
         if reach * mpp >= p.lamp_min_arm_m and reach > trunk_w + 1:
             sign = 1 if reach_r >= reach_l else -1
             head_w = max(2, int(round(0.8 / mpp)))
@@ -155,7 +159,7 @@ def propose(ctx: Context) -> list[Light]:
         else:
             # No arm: a lantern on a post top is wider than the post; a bare pole top is not.
             rows = in_band.sum(1)
-            head_w = float(np.median(rows[rows > 0])) if (rows > 0).any() else 0.0
+            head_w = float(median(rows[rows > 0])) if (rows > 0).any() else 0.0
             lamp = in_band
             conf = 0.65 if head_w >= p.lamp_lantern_min_widening * trunk_w and head_w * mpp >= 0.2 else 0.3
         if not lamp.any():
@@ -163,7 +167,7 @@ def propose(ctx: Context) -> list[Light]:
         trunk_px = mask & ~in_band
         if trunk_px.sum() >= 3:
             lum = ctx.lum[y0:y0 + h, x0:x0 + w]
-            ratio = float(np.median(lum[lamp])) / max(float(np.median(lum[trunk_px])), 1e-4)
+            ratio = float(median(lum[lamp])) / max(float(median(lum[trunk_px])), 1e-4)
             conf += 0.2 * float(np.clip((ratio - 1.0) / 0.5, 0.0, 1.0))
         if z is None:
             conf -= 0.15

@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Group, Light, components
+from .core import Context, Group, Light, components, median
 
 TRAFFIC_LIGHT = 19
 INFERRED = 12
@@ -74,7 +74,7 @@ def lens_cells(img: np.ndarray, mask: np.ndarray, squares: list[np.ndarray], rea
                       borderValue=0).astype(bool)
     if not inner.any():
         return [sq & mask for sq in squares]
-    paint = np.median(img[inner], axis=0)
+    paint = median(img[inner], axis=0)
     dist = np.where(inner, np.linalg.norm(img - paint, axis=-1), 0.0)
     best, best_score = (0, 0), -1.0
     for dy in range(-reach, reach + 1):

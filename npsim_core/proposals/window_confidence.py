@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Group, Light
+from .core import Context, Group, Light, median
 from .windows import BUILDING, SKY, _median_depth, _ring_contrast
 
 #: Row-mates (:func:`grid_mates`): like size -- height within this ratio, width within ``ROW_WIDTH_RATIO``
@@ -195,7 +195,7 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p, mask: n
     for a, b in pairs:
         if a.size == 0 or b.size == 0:
             continue
-        ma, mb = np.median(a, axis=0), np.median(b, axis=0)
+        ma, mb = median(a, axis=0), median(b, axis=0)
         out.append(max(abs(float(ma[0] - mb[0])) / t,
                        float(np.hypot(ma[1] - mb[1], ma[2] - mb[2])) / p.window_chroma_delta))
     return float(min(out)) if out else 0.0

@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Group, Light
+from .core import Context, Group, Light, median
 
 BUILDING = 11
 
@@ -39,7 +39,7 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
 
     def median_depth(d: np.ndarray) -> float:
         d = d[np.isfinite(d)]
-        return float(np.median(d)) if d.size else np.nan
+        return float(median(d)) if d.size else np.nan
 
     for i, li in enumerate(lights):
         h, w = li.mask.shape
@@ -53,7 +53,7 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
         ya, yb, xa, xb = max(li.y0 - r, 0), min(li.y0 + h + r, H), max(li.x0 - r, 0), min(li.x0 + w + r, W)
         sel = wall[ya:yb, xa:xb]
         if sel.any():
-            t["wall"][i] = np.median(feat[ya:yb, xa:xb][sel], axis=0)
+            t["wall"][i] = median(feat[ya:yb, xa:xb][sel], axis=0)
             if ctx.depth is not None:
                 t["wz"][i] = median_depth(ctx.depth[ya:yb, xa:xb][sel])
     return t
@@ -62,7 +62,7 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
 def _median_colour(c: np.ndarray) -> np.ndarray:
     """Median wall colour of windows (rows of ``c``; NaN rows: no wall seen around that window)."""
     ok = np.all(np.isfinite(c), axis=1)
-    return np.median(c[ok], axis=0) if ok.any() else np.full(3, np.nan)
+    return median(c[ok], axis=0) if ok.any() else np.full(3, np.nan)
 
 
 def _same_colour(a: np.ndarray, b: np.ndarray, lum: float, chroma: float) -> bool:
@@ -158,7 +158,7 @@ def _spacing(pos: np.ndarray, idx: np.ndarray, cu: np.ndarray) -> float:
     if idx.size < 2:
         return float("nan")
     o = idx[np.argsort(cu[idx])]
-    return float(np.median(np.hypot(*np.diff(pos[o], axis=0).T)))
+    return float(median(np.hypot(*np.diff(pos[o], axis=0).T)))
 
 
 def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, idx: np.ndarray,
@@ -184,9 +184,9 @@ def _split_at_blanks(ctx: Context, feat: np.ndarray, t: dict, pos: np.ndarray, i
                 _, shown = _gap_is_wall(ctx, feat, t, int(o[k]), int(o[k + 1]), c[k], lum, chroma, tol)
                 cut[k] = shown >= VISIBLE_SHARE
     if idx.size >= 4:
-        wide = np.median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX
+        wide = median(t["x1"][idx] - t["x0"][idx]) >= SPLIT_MIN_PX
         step = np.hypot(*np.diff(pos[o], axis=0).T)
-        for k in np.nonzero(step > SPLIT_STEPS * float(np.median(step)))[0]:
+        for k in np.nonzero(step > SPLIT_STEPS * float(median(step)))[0]:
             i, j = int(o[k]), int(o[k + 1])
             if not wide and not (t["x0"][j] - t["x1"][i] >= BLANK_MIN_GAP_PX and _blank_column(t, i, j, idx, tol)
                                  and _side_colour_step(t, o, k) >= BLANK_WALL_LUM):
@@ -202,7 +202,7 @@ def _px_step_ratio(cu: np.ndarray, k: int) -> float:
     of it (NaN without one)."""
     d = np.diff(cu)
     nb = [d[m] for m in (k - 1, k + 1) if 0 <= m < d.size]
-    return float(d[k] / np.median(nb)) if nb and np.median(nb) > 0 else float("nan")
+    return float(d[k] / median(nb)) if nb and median(nb) > 0 else float("nan")
 
 
 def _building_end(t: dict, o: np.ndarray, k: int, floors: list[np.ndarray], idx: np.ndarray, tol: float,
@@ -234,7 +234,7 @@ def _building_end(t: dict, o: np.ndarray, k: int, floors: list[np.ndarray], idx:
             r = _px_step_ratio(cu, m)
             if np.isfinite(r):
                 ratios.append(r)
-    return bool(ratios) and float(np.median(ratios)) >= ratio
+    return bool(ratios) and float(median(ratios)) >= ratio
 
 
 def _end_between(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, both: np.ndarray, level: float,
@@ -317,7 +317,7 @@ def _side_colour_step(t: dict, o: np.ndarray, k: int) -> float:
     sorted along it: the median wall luminance of up to three panes on each side (NaN-free; 0 without)."""
     a, b = t["wall"][o[max(0, k - 2):k + 1], 0], t["wall"][o[k + 1:k + 4], 0]
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    return float(abs(np.median(a) - np.median(b))) if a.size and b.size else 0.0
+    return float(abs(median(a) - median(b))) if a.size and b.size else 0.0
 
 
 #: A step along a floor over this many of its median steps, over visible wall, is a building's end.
@@ -355,7 +355,7 @@ def _bay_of_wall(step: np.ndarray, colour: np.ndarray, x0: np.ndarray, x1: np.nd
     other floors, whose bays repeat. NaN when no such group has two panes."""
     ok = np.isfinite(step) & (np.minimum(x1, xb) > np.maximum(x0, xa))
     ok &= (np.abs(colour[:, 0] - c[0]) <= lum) & (np.hypot(colour[:, 1] - c[1], colour[:, 2] - c[2]) <= chroma)
-    return float(np.median(step[ok])) if ok.any() else float("nan")
+    return float(median(step[ok])) if ok.any() else float("nan")
 
 
 def _candidate_pairs(level: np.ndarray, pane_h: np.ndarray, x0: np.ndarray, x1: np.ndarray,
@@ -393,9 +393,9 @@ def _ends(t: dict, idx: np.ndarray) -> tuple[int, float, int, float, float]:
     (rows; the floor tolerance without depth)."""
     r = idx[np.argsort(t["x1"][idx])[-END_PANES:]]
     q = idx[np.argsort(t["x0"][idx])[:END_PANES]]
-    return (int(idx[np.argmax(t["x1"][idx])]), float(np.median(t["level"][r])),
-            int(idx[np.argmin(t["x0"][idx])]), float(np.median(t["level"][q])),
-            0.5 * float(np.median(t["y1"][idx] - t["y0"][idx])))
+    return (int(idx[np.argmax(t["x1"][idx])]), float(median(t["level"][r])),
+            int(idx[np.argmin(t["x0"][idx])]), float(median(t["level"][q])),
+            0.5 * float(median(t["y1"][idx] - t["y0"][idx])))
 
 
 def _single_on_row_line(t: dict, part: np.ndarray, pane: int, share: float) -> bool:
@@ -408,7 +408,7 @@ def _single_on_row_line(t: dict, part: np.ndarray, pane: int, share: float) -> b
     if np.ptp(cu) <= 0:
         return False
     b, a = np.polyfit(cu, cv, 1)
-    h = float(np.median(t["y1"][part] - t["y0"][part]))
+    h = float(median(t["y1"][part] - t["y0"][part]))
     return bool(abs(a + b * float(t["cu"][pane]) - float(t["cv"][pane])) <= share * h)
 
 
@@ -441,7 +441,7 @@ def _join_inside_panes(t: dict, idx_of: dict[int, np.ndarray], col_of: dict[int,
             # it fills a bay: its steps to the two at most INSIDE_STEPS x the cluster's other steps (image columns)
             cu = t["cu"][o]
             rest = np.delete(np.diff(cu), m)
-            if not rest.size or max(t["cu"][q] - cu[m], cu[m + 1] - t["cu"][q]) > INSIDE_STEPS * float(np.median(rest)):
+            if not rest.size or max(t["cu"][q] - cu[m], cu[m + 1] - t["cu"][q]) > INSIDE_STEPS * float(median(rest)):
                 continue
             if not _single_on_row_line(t, o[max(0, m - 1):m + 3], q, share):
                 continue
@@ -543,8 +543,8 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
             parts.append(part)
             cls.append(groups[g].class_id)
     n = len(parts)
-    level = np.array([np.median(t["level"][q]) for q in parts])
-    pane_h = np.array([np.median(t["y1"][q] - t["y0"][q]) for q in parts])
+    level = np.array([median(t["level"][q]) for q in parts])
+    pane_h = np.array([median(t["y1"][q] - t["y0"][q]) for q in parts])
     width_m = np.where(np.isfinite(t["z"]), (t["x1"] - t["x0"]) * t["z"] / float(ctx.intrinsics.fx),
                        t["x1"] - t["x0"])
     parent = np.arange(n)
@@ -612,7 +612,7 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
             step = _bay_of_wall(part_step, part_col, x0, x1, min(xa0, xb0), max(xa1, xb1), (ca + cb) / 2.0,
                                 lum, chroma)
             if not np.isfinite(step):
-                step = 2.5 * float(np.median(width_m[both]))
+                step = 2.5 * float(median(width_m[both]))
         d = float(np.hypot(*(pos[i] - pos[j])))
         if not pairwise and d > max(BLANK_STEPS, HIDDEN_STEPS) * step:
             continue  # too far whatever the gap shows: the costly tests below are not needed
