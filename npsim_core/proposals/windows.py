@@ -20,8 +20,11 @@ def _median(a, axis=None):
     """``np.median(a, axis)``, the same value, for a 1-D float array (or along axis 0 of a 2-D one):
     numpy's median costs ~50 us a call whatever the size, and it is called thousands of times a frame
     on a blob's few pixels. Its two middle order statistics by one partition, averaged as numpy's mean
-    does (their sum over 2, in the array's dtype); anything else (ints, NaN, empty) goes to numpy."""
+    does (their sum from 0 over 2, in the array's dtype, float64 for integers); anything else (NaN,
+    empty, other shapes) goes to numpy."""
     a = np.asarray(a)
+    if a.dtype.kind in "iu":  # numpy's mean of integers adds them as float64: the same order statistics
+        a = a.astype(np.float64)
     if a.dtype.kind != "f" or a.size == 0 or not ((axis is None and a.ndim == 1) or (axis == 0 and a.ndim == 2)):
         return np.median(a, axis=axis)
     n = a.shape[0]
@@ -29,7 +32,8 @@ def _median(a, axis=None):
     part = np.partition(a, [k - 1, k, n - 1] if n % 2 == 0 else [k, n - 1], axis=0)
     if np.isnan(part[-1]).any():  # numpy's median is NaN then
         return np.median(a, axis=axis)
-    return part[k] if n % 2 else (part[k - 1] + part[k]) / 2
+    # + 0.0: numpy's mean sums from 0, which makes a -0.0 median 0.0
+    return part[k] + 0.0 if n % 2 else (part[k - 1] + part[k] + 0.0) / 2
 
 
 def _nanmedian(a: np.ndarray, axis: int | None = None):
@@ -48,7 +52,7 @@ def _nanmedian(a: np.ndarray, axis: int | None = None):
     n = np.count_nonzero(~np.isnan(s), axis=0)
     lo = np.take_along_axis(s, np.maximum((n - 1) // 2, 0)[None], axis=0)[0]
     hi = np.take_along_axis(s, (n // 2)[None], axis=0)[0]
-    out = (lo + hi) / 2
+    out = (lo + hi + 0.0) / 2  # + 0.0: as numpy's sum from 0 (no -0.0)
     out[n == 0] = np.nan
     return out
 
@@ -287,12 +291,8 @@ def _open2(m: np.ndarray) -> np.ndarray:
 
 def _features(ctx: Context) -> np.ndarray:
     """HxWx3 float32: log linear luminance, Lab a and b (OpenCV 8-bit Lab, centred)."""
-    lab = cv2.cvtColor(ctx.image, cv2.COLOR_RGB2Lab)
-    out = np.empty(lab.shape, np.float32)  # written in place: no float copy of Lab, no stacking copy
-    np.log(np.maximum(ctx.lum, np.float32(1e-4)), out=out[..., 0])
-    np.subtract(lab[..., 1], np.float32(128.0), out=out[..., 1])
-    np.subtract(lab[..., 2], np.float32(128.0), out=out[..., 2])
-    return out
+    lab = cv2.cvtColor(ctx.image, cv2.COLOR_RGB2Lab).astype(np.float32)
+    return np.dstack([np.log(np.maximum(ctx.lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
 
 def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float,
@@ -1037,11 +1037,9 @@ def _strip_width_m(ctx: Context, li: Light) -> float | None:
             front[~ok] = True  # the frame's edge cuts it too
         if front.mean() >= 0.5:
             return None
-    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    z = _median_depth(ctx, li)  # (memoised)
+    if z is None:
         return None
-    z = float(_median(d))
     K = ctx.intrinsics
     u = li.x0 + (w - 1) / 2.0
     widths = []
@@ -1103,11 +1101,9 @@ def _set_back(ctx: Context, li: Light) -> float | None:
     p = ctx.params
     H, W = ctx.shape
     h, w = li.mask.shape
-    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    z = _median_depth(ctx, li)  # (memoised)
+    if z is None:
         return None
-    z = float(_median(d))
     fy = float(ctx.intrinsics.fy)
     r0 = li.y0 + h + int(round(p.window_dormer_below_m[0] * fy / z))
     r1 = min(H, li.y0 + h + int(round(p.window_dormer_below_m[1] * fy / z)))
@@ -1170,11 +1166,9 @@ def _kind(ctx: Context, li: Light) -> str:
         return "shop"
     if ctx.depth is None:
         return "window"
-    d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    z = _median_depth(ctx, li)  # (memoised)
+    if z is None:
         return "window"
-    z = float(_median(d))
     h_m, w_m = h * z / float(ctx.intrinsics.fy), w * z / float(ctx.intrinsics.fx)
     bottom = float(ctx.height_above_ground(li.y0 + h - 0.5, z))
     if bottom <= p.window_shop_max_sill_m and h_m >= p.window_shop_min_h_m:
