@@ -129,7 +129,7 @@ def wall_reference(feat: np.ndarray, building: np.ndarray, params) -> np.ndarray
 
 
 def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref: np.ndarray,
-                      params) -> np.ndarray:
+                      params, boxes: list | None = None) -> np.ndarray:
     """The wall reference (HxWxC, as :func:`wall_reference`) redone on walls it calls mostly not wall.
 
     The local box estimate mixes neighbouring walls: a narrow building of its own colour between
@@ -164,7 +164,8 @@ def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref
     H, W = walls.shape
     k = max(3, int(round(params.window_wall_kernel_frac * W)) | 1)
     out = None
-    boxes = ndimage.find_objects(walls)
+    if boxes is None:  # (``boxes``: ndimage.find_objects(walls), when the caller has them)
+        boxes = ndimage.find_objects(walls)
     pad = max(1, k // 4)  # the wall pieces at a depth step are ragged: its colour a few px beyond
     for w_id in bad.tolist():
         sl = boxes[w_id - 1]
@@ -1215,7 +1216,7 @@ def _columns(boxes: list[tuple[int, int, int, int]]) -> list[tuple[float, float,
 
 
 def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray, B: np.ndarray,
-               bld: np.ndarray, rejects: list | None = None) -> list:
+               bld: np.ndarray, rejects: list | None = None, boxes: list | None = None) -> list:
     """Windows as a facade grid, per wall (:func:`facades`; docs/proposals.md "Building windows").
 
     Each window gets a kind (:func:`_kind`: shop front, office floor band or window). The windows
@@ -1253,7 +1254,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         f[3].kind = _kind(ctx, f[3])
     from scipy import ndimage
 
-    wall_boxes = ndimage.find_objects(bld)
+    wall_boxes = ndimage.find_objects(bld) if boxes is None else boxes  # each wall's box
     regs: list = []  # the connected building regions, labelled when first needed
 
     def wall_mask(b_id: int) -> tuple[np.ndarray, tuple[slice, slice]]:
@@ -1761,7 +1762,7 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
     return out
 
 
-def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> None:
+def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray, boxes: list | None = None) -> None:
     """Call ``shop`` (in place) the final windows whose top is at most ``window_shop_max_top_m`` above
     the ground and which are larger than ``window_max_median_ratio`` x the median whole window above
     the ground floor -- of their wall when it has three such windows, else of those over it (two at
@@ -1795,7 +1796,8 @@ def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray) -> N
         return
     from scipy import ndimage
 
-    boxes = ndimage.find_objects(bld)
+    if boxes is None:
+        boxes = ndimage.find_objects(bld)
     a, a_ref, whole = {}, {}, {}
 
     def measure(b_id: int) -> None:
@@ -2314,7 +2316,10 @@ def propose(ctx: Context) -> list[Group]:
     cand = inner & ((np.abs(ratio) > t) | (chroma > p.window_chroma_delta))  # _differs, from ratio and chroma
     cand = _open2(cand) if min(H, W) >= 512 else cand
     bld = facades(ctx, B, feat, cand)  # wall planes: grids, floors and the lit cap are per wall
-    ref2 = rereference_walls(feat, bld, cand, ref, p)
+    from scipy import ndimage
+
+    boxes = ndimage.find_objects(bld)  # each wall's box, found once (a full-image pass each time)
+    ref2 = rereference_walls(feat, bld, cand, ref, p, boxes)
     if ref2 is not ref:  # a narrow wall of its own colour took its neighbours' as its reference
         ref = ref2
         ratio = feat[..., 0] - ref[..., 0]
@@ -2470,7 +2475,7 @@ def propose(ctx: Context) -> list[Group]:
                     ys, xs = np.nonzero(grown)
                     gy0, gx0 = ys.min(), xs.min()
                     stack.append((y0 + gy0, x0 + gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1], depth_ + 1))
-    found = regularise(ctx, found, ratio, chroma, B, bld, rejects)
+    found = regularise(ctx, found, ratio, chroma, B, bld, rejects, boxes)
     # The grid and the lattice propose cells of their own: the same tests on every final window.
     found = [f for f in found if not _juts_out(ctx, f[3])]
     for f in found:
@@ -2515,7 +2520,7 @@ def propose(ctx: Context) -> list[Group]:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
                                           and wm < p.window_min_width_m)]
-    _shop_fronts(ctx, found, bld, B)  # the kind only: ground-floor glazing larger than the windows above
+    _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
