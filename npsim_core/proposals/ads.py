@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Light, components, median
+from .core import Context, Light, components, median, pixels
 
 BUILDING = 11
 SKY = 23
@@ -64,8 +64,8 @@ def _with_edge(lin: np.ndarray, wall: np.ndarray, y0: int, x0: int, m: np.ndarra
     wall_px = near & wall[b0:b1, a0:a1]
     if wall_px.sum() < 3:
         return y0, x0, m
-    panel = median(box[big.astype(bool)], axis=0)
-    base = median(box[wall_px], axis=0)
+    panel = median(pixels(box, big.astype(bool)), axis=0)
+    base = median(pixels(box, wall_px), axis=0)
     step = panel - base
     if float(step @ step) < 0.02 ** 2:
         return y0, x0, m
@@ -123,8 +123,8 @@ def _across_occluder(labels: np.ndarray, lin: np.ndarray, a: tuple[int, int, np.
     gap = labels[r0:r1, g0:g1]
     if ((gap != BUILDING) & (gap != SKY)).mean(0).min() < 0.8:
         return False
-    ca = median(lin[ay:ay + am.shape[0], ax:ax + am.shape[1]][am], axis=0)
-    cb = median(lin[by:by + bm.shape[0], bx:bx + bm.shape[1]][bm], axis=0)
+    ca = median(pixels(lin[ay:ay + am.shape[0], ax:ax + am.shape[1]], am), axis=0)
+    cb = median(pixels(lin[by:by + bm.shape[0], bx:bx + bm.shape[1]], bm), axis=0)
     return float(np.abs(ca - cb).max()) < 0.2 * float(max(ca.max(), cb.max()))
 
 

@@ -172,6 +172,15 @@ def median(a: np.ndarray, axis: int | None = None):
     return hi + 0.0 if n % 2 else (np.take(s, n // 2 - 1, axis) + hi + 0.0) / 2
 
 
+def pixels(img: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """``img[sel]`` for an (h, w, k) image and an (h, w) bool mask: the same (n, k) array, each pixel's k
+    values copied as one item (numpy's boolean index over a 3-D array copies value by value, 3-4x slower)."""
+    if img.ndim != 3 or img.strides[-1] != img.itemsize or img.dtype.kind not in "fiu":
+        return img[sel]
+    k = img.shape[-1]
+    return img.view(np.dtype((np.void, k * img.itemsize)))[..., 0][sel].view(img.dtype).reshape(-1, k)
+
+
 def nanmedian(a: np.ndarray, axis: int) -> np.ndarray:
     """``np.nanmedian(a, axis)`` of a 2-D float array, the same floats, by one sort (NaN sorts last);
     NaN where a row (column) has no number, without numpy's warning. numpy's own goes through masked

@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Group, Light, components, median
+from .core import Context, Group, Light, components, median, pixels
 
 TRAFFIC_LIGHT = 19
 INFERRED = 12
@@ -74,8 +74,9 @@ def lens_cells(img: np.ndarray, mask: np.ndarray, squares: list[np.ndarray], rea
                       borderValue=0).astype(bool)
     if not inner.any():
         return [sq & mask for sq in squares]
-    paint = median(img[inner], axis=0)
-    dist = np.where(inner, np.linalg.norm(img - paint, axis=-1), 0.0)
+    paint = median(pixels(img, inner), axis=0)
+    d = img - paint  # np.linalg.norm over the channels: the root of their squares' sum, elementwise
+    dist = np.where(inner, np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]), 0.0)
     best, best_score = (0, 0), -1.0
     for dy in range(-reach, reach + 1):
         for dx in range(-reach, reach + 1):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .core import Context, Group, Light, median
+from .core import Context, Group, Light, median, pixels
 
 BUILDING = 11
 
@@ -53,7 +53,7 @@ def _window_table(ctx: Context, lights: list[Light], feat: np.ndarray) -> dict[s
         ya, yb, xa, xb = max(li.y0 - r, 0), min(li.y0 + h + r, H), max(li.x0 - r, 0), min(li.x0 + w + r, W)
         sel = wall[ya:yb, xa:xb]
         if sel.any():
-            t["wall"][i] = median(feat[ya:yb, xa:xb][sel], axis=0)
+            t["wall"][i] = median(pixels(feat[ya:yb, xa:xb], sel), axis=0)
             if ctx.depth is not None:
                 t["wz"][i] = median_depth(ctx.depth[ya:yb, xa:xb][sel])
     return t
@@ -125,7 +125,7 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
     # do not lie; the whole band where that shows too little
     spandrel = bld & ~((rows >= top0[None]) & (rows < bot0[None]))
     judge = spandrel if spandrel.sum() >= max(2, SPANDREL_SHARE * bld.sum()) else bld
-    fv = feat[ya:yb, xa:xb][judge]
+    fv = pixels(feat[ya:yb, xa:xb], judge)
     off = (np.abs(fv[:, 0] - colour[0]) > lum) | (np.hypot(fv[:, 1] - colour[1], fv[:, 2] - colour[2]) > chroma)
     if off.mean() > 0.5:  # another wall between, or panes nobody proposed (whole band)
         return False, shown
