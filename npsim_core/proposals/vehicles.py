@@ -551,8 +551,8 @@ def _end_face_in(ctx: Context, cls: int, y0: int, x0: int, m: np.ndarray
     p = ctx.params
     H, W = ctx.shape
     h, w = m.shape
-    ys, xs = np.nonzero(m)
-    sil_h = int(ys.max() - ys.min() + 1)
+    ys = np.flatnonzero(m.any(1))
+    sil_h = int(ys[-1] - ys[0] + 1)
     z = None
     left_side = x0 + (w - 1) / 2.0 < float(ctx.intrinsics.cx)  # left of the principal point: face on the left
     if ctx.depth is not None:
@@ -1022,8 +1022,11 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
         if float((off | (thing & (bd < own))).mean()) < 0.5:
             return None
     reach = max(2, int(np.ceil(SLIVER_REACH_M * ppm)))
-    dist = (np.arange(w)[None, :] - end[:, None]) * -out_step     # pixels inward from the cut, per row
-    win = (dist >= 0) & (dist < reach) & band[:, None] & m
+    ra, rb = int(br[0]), int(br[-1]) + 1  # (the window lies on the band's rows: the rest is never looked at)
+    dist = (np.arange(w)[None, :] - end[ra:rb, None]) * -out_step     # pixels inward from the cut, per row
+    win, by_cut = np.zeros_like(m), np.zeros_like(m)
+    win[ra:rb] = (dist >= 0) & (dist < reach) & band[ra:rb, None] & m[ra:rb]
+    by_cut[ra:rb] = dist <= SLIVER_MAX_GAP
     if win.sum() < 4:
         return None
     paint = median(pixels(img, win), axis=0)
@@ -1038,7 +1041,7 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     n, lab, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=8)
     lo_h = max(2, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
     hi_h = int(np.ceil(SLIVER_ROWS_M[1] * ppm)) + 1
-    beside = np.bincount(lab[cand & (dist <= SLIVER_MAX_GAP)], minlength=n)  # per part: pixels by the cut
+    beside = np.bincount(lab[cand & by_cut], minlength=n)  # per part: pixels by the cut
     best, best_n = None, 0
     for q in range(1, n):
         bh, bw = int(stats[q, cv2.CC_STAT_HEIGHT]), int(stats[q, cv2.CC_STAT_WIDTH])
