@@ -953,12 +953,46 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
     cols = x + np.arange(w)
     top = y + np.argmax(m, axis=0) - 2
     bot = y + h - 1 - np.argmax(m[::-1], axis=0) + 2
+    b = int(p.window_ledge_bleed_frac * W)  # the bleed's width (below)
+    d = depth[y:y + h, x:x + w]
+
+    def nearer(bleed: np.ndarray | None) -> np.ndarray | None:
+        """The blob's pixels nearer than the wall (None: no column judged), reads within ``bleed``
+        (local, at (y - b, x - b)) not taken."""
+        sides = []
+        for rows in (top, bot):
+            ok = has & (rows >= 0) & (rows < H)
+            v = np.full(w, np.nan)
+            v[ok] = np.where(_in_labels(labels[rows[ok], cols[ok]], (BUILDING,) + GROUND), depth[rows[ok], cols[ok]],
+                             np.nan)
+            if bleed is not None:
+                v[ok & bleed[np.clip(rows - y + b, 0, h + 2 * b - 1), np.arange(w) + b]] = np.nan
+            sides.append(v)
+        # Judged only in columns with wall (or the ground at its foot) on both sides: beside a car, a
+        # pole or the frame the edge pixels mix the depths of both and look nearer.
+        seen = np.isfinite(sides[0]) & np.isfinite(sides[1])
+        if not seen.any():
+            return None
+        # the wall between the two readings, row by row: a pitched camera's column is not vertical, and a
+        # steeply receding wall's depth then changes down the column
+        frac = (np.arange(h)[:, None] + y - top[None, :]) / np.maximum(bot - top, 1)[None, :]
+        ref = np.where(seen[None, :], sides[0][None, :] + frac * (sides[1] - sides[0])[None, :], -np.inf)
+        with np.errstate(invalid="ignore"):  # -inf in columns not judged: never near
+            gap = np.maximum(p.window_ledge_step_m, p.window_ledge_rel * ref)
+            near = m & np.isfinite(d) & (d < ref - gap)
+            if bleed is not None:
+                near &= ~bleed[b:b + h, b:b + w]
+        return near
+
+    # First without the bleed: it only takes reads and pixels away, so a blob with too few pixels
+    # nearer without it (most blobs: a pane is flush with its wall) has too few with it.
+    near = nearer(None)
+    if near is None or int(near.sum()) < p.window_ledge_min_share * m.sum():
+        return [(0, 0, m)]
     # The bleed of what is in front (not sky: no depth): a pane beside a tree or under a pole's arm
     # reads nearer than its wall over the bleed's width, and was cut there as a ledge (docs/proposals.md
     # "Fourteenth pass: the ledge test and the depth's bleed"). Outside the frame: as if in it. The
     # reads 2 px off stand clear of a bleed that narrow (512x256: 2 px).
-    b = int(p.window_ledge_bleed_frac * W)
-    bleed = None
     if b > 2:
         ya, yb, xa, xb = max(y - b, 0), min(y + h + b, H), max(x - b, 0), min(x + w + b, W)
         front = (~_in_labels(labels[ya:yb, xa:xb], (BUILDING, SKY) + GROUND)).astype(np.uint8)
@@ -967,29 +1001,9 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
         bleed[ya - y + b:yb - y + b, xa - x + b:xb - x + b] = (cv2.dilate(front, np.ones((2 * b + 1, 2 * b + 1),
                                                                                         np.uint8)) > 0) \
             if front.any() else False
-    sides = []
-    for rows in (top, bot):
-        ok = has & (rows >= 0) & (rows < H)
-        v = np.full(w, np.nan)
-        v[ok] = np.where(_in_labels(labels[rows[ok], cols[ok]], (BUILDING,) + GROUND), depth[rows[ok], cols[ok]], np.nan)
-        if bleed is not None:
-            v[ok & bleed[np.clip(rows - y + b, 0, h + 2 * b - 1), np.arange(w) + b]] = np.nan
-        sides.append(v)
-    # Judged only in columns with wall (or the ground at its foot) on both sides: beside a car, a
-    # pole or the frame the edge pixels mix the depths of both and look nearer.
-    seen = np.isfinite(sides[0]) & np.isfinite(sides[1])
-    if not seen.any():
-        return [(0, 0, m)]
-    # the wall between the two readings, row by row: a pitched camera's column is not vertical, and a
-    # steeply receding wall's depth then changes down the column
-    frac = (np.arange(h)[:, None] + y - top[None, :]) / np.maximum(bot - top, 1)[None, :]
-    ref = np.where(seen[None, :], sides[0][None, :] + frac * (sides[1] - sides[0])[None, :], -np.inf)
-    d = depth[y:y + h, x:x + w]
-    with np.errstate(invalid="ignore"):  # -inf in columns not judged: never near
-        gap = np.maximum(p.window_ledge_step_m, p.window_ledge_rel * ref)
-        near = m & np.isfinite(d) & (d < ref - gap)
-        if bleed is not None:
-            near &= ~bleed[b:b + h, b:b + w]
+        near = nearer(bleed)
+        if near is None:
+            return [(0, 0, m)]
     n = int(near.sum())
     if n < p.window_ledge_min_share * m.sum():  # a few pixels nearer are depth noise, not a ledge
         return [(0, 0, m)]
@@ -1439,8 +1453,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 nl.kind = "window"
                 kept.append([b_id, fl[0][1], fl[0][2], nl])
                 have[r0:r1 + 1, a0:a1 + 1] = True
-        fm, _ = wall_mask(b_id)
-        t_wall = _wall_direction(ctx, fm) if len(kept) >= 3 else None
+        fm, fsl = wall_mask(b_id)
+        t_wall = _wall_direction(ctx, fm, fsl) if len(kept) >= 3 else None
         # panes merged across a strip of wall: cut there before the rule drops them as too large
         kept = _split_oversized(ctx, kept, fm, t_wall, ratio, chroma)
         n0 = {id(f): f for f in kept}
@@ -1450,7 +1464,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         # the lattice from whole panes: a pane's visible part has another centre and width; a piece
         # _pitch_cut made of a dropped window is placed by its floor-mates' pitch, not evidence of it
         fit = [i for i, f in enumerate(kept) if not f[3].cut and id(f) in n0]
-        cells, merged = lattice_cells(ctx, fm, [kept[i] for i in fit], ratio, chroma, dropped, t_wall)
+        cells, merged = lattice_cells(ctx, fm, [kept[i] for i in fit], ratio, chroma, dropped, t_wall, fsl)
         merged = {fit[j] for j in merged}
         if cells:
             kept = [f for i, f in enumerate(kept) if i not in merged]
@@ -1473,7 +1487,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                 kept.append([b_id, fl_level(ctx, nl), p.window_floor_tol_m if ctx.depth is not None
                              else max(2.0, m.shape[0] / 2.0), nl])
         kept = _small_rule(ctx, kept, fm, t_wall)
-        out.extend(_cap_lit(p, kept, float(fm.sum())) + other)
+        out.extend(_cap_lit(p, kept, float(fm[fsl].sum())) + other)
     return out
 
 
@@ -1808,7 +1822,7 @@ def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray, boxe
         sl = boxes[b_id - 1] if 0 < b_id <= len(boxes) and boxes[b_id - 1] is not None else None
         if sl is not None:
             fm[sl] = bld[sl] == b_id
-        t = _wall_direction(ctx, fm)
+        t = _wall_direction(ctx, fm, sl)
         ai, wh = _wall_areas(ctx, by_wall[b_id], fm, t)
         ar, _ = _wall_areas(ctx, by_wall[b_id], fm, t, shrink=False)
         for q, x, y, w in zip(by_wall[b_id], ai, ar, wh):
@@ -2709,13 +2723,22 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
     return np.where(B, out, 0).astype(np.int32)
 
 
-def _wall_direction(ctx: Context, fm: np.ndarray) -> tuple[float, float] | None:
+def _rows_cols(fm: np.ndarray, box: tuple[slice, slice] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The rows and the columns holding a pixel of ``fm`` (HxW bool); with ``box`` (slices holding all of
+    its pixels) read on the box only (a full-image pass per wall otherwise)."""
+    if box is None:
+        return np.flatnonzero(fm.any(1)), np.flatnonzero(fm.any(0))
+    sub = fm[box]
+    return np.flatnonzero(sub.any(1)) + (box[0].start or 0), np.flatnonzero(sub.any(0)) + (box[1].start or 0)
+
+
+def _wall_direction(ctx: Context, fm: np.ndarray, box: tuple[slice, slice] | None = None) -> tuple[float, float] | None:
     """Horizontal direction (tx, tz) of a wall seen from above (``fm``: HxW bool, the wall's pixels):
     the principal axis of its points' sideways and forward positions (m, from depth); None without
     depth or when the wall spans under 0.5 m."""
     if ctx.depth is None:
         return None
-    rows, cols = np.flatnonzero(fm.any(1)), np.flatnonzero(fm.any(0))
+    rows, cols = _rows_cols(fm, box)  # (``box``: slices holding all of the wall, :func:`_rows_cols`)
     if rows.size == 0:
         return None
     ys, xs = np.nonzero(fm[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1])
@@ -2738,7 +2761,8 @@ def _wall_direction(ctx: Context, fm: np.ndarray) -> tuple[float, float] | None:
     return float(evecs[0, 1]), float(evecs[1, 1])
 
 
-def _wall_vp(ctx: Context, fm: np.ndarray, t: tuple[float, float] | None) -> float | None:
+def _wall_vp(ctx: Context, fm: np.ndarray, t: tuple[float, float] | None,
+            box: tuple[slice, slice] | None = None) -> float | None:
     """Image column of the vanishing point of a wall's horizontal direction ``t``
     (:func:`_wall_direction`; ``fm``: HxW bool, the wall's pixels); None when the wall faces the
     camera (its bays are evenly spaced in the image), is too short to tell, or without depth."""
@@ -2753,7 +2777,7 @@ def _wall_vp(ctx: Context, fm: np.ndarray, t: tuple[float, float] | None) -> flo
     if not -3 * W < u_vp < 4 * W:
         return None
     # the wall's columns must lie on one side of it (else it is not a receding plane)
-    cols = np.flatnonzero(fm.any(0))
+    cols = _rows_cols(fm, box)[1]
     if cols.size == 0 or abs(np.sign(cols - u_vp).mean()) < 0.98:
         return None
     return float(u_vp)
@@ -2821,8 +2845,8 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
 
 
 def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, chroma: np.ndarray,
-                  dropped: list | tuple = (), direction: tuple[float, float] | None = None) -> tuple[
-        list[tuple[int, int, np.ndarray]], set[int]]:
+                  dropped: list | tuple = (), direction: tuple[float, float] | None = None,
+                  wall_box: tuple[slice, slice] | None = None) -> tuple[list[tuple[int, int, np.ndarray]], set[int]]:
     """The facade grid of one wall (docs/proposals.md "Building windows"): every cell of it in view.
 
     ``wins``: the wall's windows as [wall id, level, level tolerance, Light]. Bays are a lattice in
@@ -2847,7 +2871,8 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
     H, W = fm.shape
     if len(wins) < 3:
         return [], set()
-    u0 = _wall_vp(ctx, fm, direction if direction is not None else _wall_direction(ctx, fm))
+    # (``wall_box``: slices holding all of the wall, :func:`_rows_cols`)
+    u0 = _wall_vp(ctx, fm, direction if direction is not None else _wall_direction(ctx, fm, wall_box), wall_box)
     K = ctx.intrinsics
     v_h = float(K.cy - K.fy * np.tan(p.camera_pitch_rad))  # the horizon row
 
@@ -2919,7 +2944,7 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
             rows.append((lambda u, a=float(_median(t)): a + 0.0 * u, lambda u, a=float(_median(b)): a + 0.0 * u))
     if not rows:
         return [], set()
-    cols = np.flatnonzero(fm.any(0))
+    cols = _rows_cols(fm, wall_box)[1]
     wr = to_w(np.array([cols.min() - 0.5, cols.max() + 0.5]), u_vp)
     k0, k1 = sorted(((wr - phi) / P).tolist())
     # Bays beyond the windows found only toward the vanishing point, where panes shrink until the
