@@ -162,14 +162,15 @@ def median(a: np.ndarray, axis: int | None = None):
     if n == 0 or a.dtype.kind not in "fiu":
         return np.median(a, axis=axis)
     s = np.sort(a, axis=axis)
+    if axis:
+        s = np.moveaxis(s, axis, 0)
     if a.dtype.kind == "f":
-        if np.isnan(np.take(s, -1, axis)).any():
+        if np.isnan(s[-1]).any():  # NaN sorts last
             return np.median(a, axis=axis)
     else:
         s = s.astype(np.float64)  # numpy's mean of two integers
-    hi = np.take(s, n // 2, axis)
     # + 0.0: numpy's mean starts its sum at 0, which turns -0.0 into 0.0
-    return hi + 0.0 if n % 2 else (np.take(s, n // 2 - 1, axis) + hi + 0.0) / 2
+    return s[n // 2] + 0.0 if n % 2 else (s[n // 2 - 1] + s[n // 2] + 0.0) / 2
 
 
 def pixels(img: np.ndarray, sel: np.ndarray) -> np.ndarray:
