@@ -11,7 +11,7 @@ from npsim_core.chain.engine import Engine, Stage
 from npsim_core.render.render import render_final
 from npsim_core.synthetic import street_scene
 
-W, H = 192, 96
+W, H = 128, 64
 
 
 def _edited(ann):

@@ -137,10 +137,18 @@ def test_export_writes_all_outputs(window, qtbot, tmp_path):
     assert np.array_equal(read_label_image(tmp_path / f"{n}_night_0_labelIds.png"), window.chain.scene.labels)
 
 
-def test_bad_scene_path_is_a_message_not_a_crash(window, tmp_path):
+def test_bad_scene_path_is_a_message_not_a_crash(qtbot, tmp_path, scene):
+    from npsim_gui.main_window import MainWindow
+
+    window = MainWindow(with_3d=False)  # (no mesh or night needed: the open fails before any work)
+    qtbot.addWidget(window)
+    window.set_scene(scene, ChainParams().with_value("refine", "steps", 5))
     window.open_scene(tmp_path / "does-not-exist")
     assert "not found" in window.last_error
-    assert window.chain is not None  # the old scene stays open
+    assert window.chain is not None and window.chain.scene is scene  # the old scene stays open
+    window.cancel_jobs()
+    qtbot.waitUntil(lambda: not window.jobs_busy, timeout=60_000)
+    window.close()
 
 
 def test_project_round_trip(window, qtbot, tmp_path):
@@ -156,13 +164,19 @@ def test_project_round_trip(window, qtbot, tmp_path):
     assert scene.lights is not None and scene.lights.instance_ids() == window.chain.scene.lights.instance_ids()
 
 
-def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(window):
+def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(qtbot):
     """The window's application-wide event filter sees events of watched objects that PySide hands
     over as a non-QObject (the 3D view's QSurface with a timer event, seen in CI): it lets them
     pass instead of raising in the Qt event loop (which failed a test's setup)."""
     from PySide6.QtCore import QTimerEvent
 
+    from npsim_gui.main_window import MainWindow
+
+    window = MainWindow()  # with its 3D view; no scene needed to call the filter
+    qtbot.addWidget(window)
+    window.show()
     assert window.eventFilter(object(), QTimerEvent(1)) is False
+    window.close()
 
 
 def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene):
@@ -273,10 +287,13 @@ def test_opens_a_real_layout_frame_by_image_and_by_dataset_root(qtbot, real_layo
     win.close()
 
 
-def test_large_frames_answer_sliders_from_a_proxy(qtbot):
+def test_large_frames_answer_sliders_from_a_proxy(qtbot, monkeypatch):
     from npsim_gui.main_window import MainWindow
 
-    big = street_scene(768, 384)
+    # the proxy rule does not depend on the size: a 128-px proxy width keeps the frames small
+    # (a 192x96 frame is proxied as a 768x384 one is at the app's 512; the sliders answer the same way)
+    monkeypatch.setattr(MainWindow, "PROXY_WIDTH", 128)
+    big = street_scene(192, 96)
     win = MainWindow(with_3d=False)
     win.ask = lambda *a: "Discard"
     qtbot.addWidget(win)
@@ -290,9 +307,9 @@ def test_large_frames_answer_sliders_from_a_proxy(qtbot):
     win.on_param_changed("refine", "lambda2", 3.0)
     qtbot.waitUntil(lambda: any("proxy" in t for t in logged), timeout=60_000)
     assert win.results is full  # the proxy result is shown, never kept
-    assert win.editor.canvas.base.array.shape[:2] == (384, 768)
+    assert win.editor.canvas.base.array.shape[:2] == (96, 192)
     qtbot.waitUntil(lambda: win.results is not full and win.results_final, timeout=180_000)
-    assert win.results.depth.shape == (384, 768)
+    assert win.results.depth.shape == (96, 192)
     win.close()
 
 

@@ -167,15 +167,19 @@ def test_annotation_edit_rebuilds_the_night_scene_only_for_a_shown_night_preview
     win.close()
 
 
-def test_a_large_real_layout_frame_opens_with_its_proxy(qtbot, settings, cityscapes_layout):
+def test_a_large_real_layout_frame_opens_with_its_proxy(qtbot, settings, cityscapes_layout, monkeypatch):
     """A Cityscapes-layout frame wider than the proxy width (its instanceIds included) opens and
-    answers from the proxy chain."""
-    root, stems = cityscapes_layout(frames=1, size=(768, 384), corrupt=0)
+    answers from the proxy chain. (A 128-px proxy width: a 192x96 frame is proxied as a 768x384 one
+    is at the app's 512, without the fixture's stereo matching at 768x384.)"""
+    from npsim_gui.main_window import MainWindow
+
+    monkeypatch.setattr(MainWindow, "PROXY_WIDTH", 128)
+    root, stems = cityscapes_layout(frames=1, size=(192, 96), corrupt=0)
     win = _window(qtbot)
     win.open_scene(fixture_image(root, stems[0]))
     assert getattr(win, "last_error", None) is None
-    assert win.chain.scene.width == 768 and win.proxy_chain.scene.width == win.PROXY_WIDTH
-    assert win.editor.canvas.base.array.shape[:2] == (384, 768)
+    assert win.chain.scene.width == 192 and win.proxy_chain.scene.width == win.PROXY_WIDTH == 128
+    assert win.editor.canvas.base.array.shape[:2] == (96, 192)
     win.cancel_jobs()
     qtbot.waitUntil(lambda: not win.jobs_busy, timeout=60_000)
     win.close()
