@@ -1925,17 +1925,23 @@ def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
         # through each pair of mates, the one with the most mates within fit_px (residuals of top and
         # bottom summed), then fitted to those
         best = None
-        for u in range(j.size):
-            for v in range(u + 1, j.size):
-                a_, b_ = j[u], j[v]
-                if abs(cx[a_] - cx[b_]) < 1.0:
-                    continue
-                st, sb = (top[b_] - top[a_]) / (cx[b_] - cx[a_]), (bot[b_] - bot[a_]) / (cx[b_] - cx[a_])
-                res = (np.abs(top[a_] + st * (cx[j] - cx[a_]) - top[j])
-                       + np.abs(bot[a_] + sb * (cx[j] - cx[a_]) - bot[j]))
-                inl = res <= fit_px
-                if best is None or (inl.sum(), -res[inl].sum()) > (best.sum(), -best_res):
-                    best, best_res = inl, float(res[inl].sum())
+        # every pair at once (rows in the order of a loop over u < v; the same float operations per
+        # element, and the residuals of each row summed in order: the same sums)
+        U, V = np.triu_indices(j.size, 1)
+        A_, B_ = j[U], j[V]
+        keep = ~(np.abs(cx[A_] - cx[B_]) < 1.0)
+        A_, B_ = A_[keep], B_[keep]
+        if A_.size:
+            st = (top[B_] - top[A_]) / (cx[B_] - cx[A_])
+            sb = (bot[B_] - bot[A_]) / (cx[B_] - cx[A_])
+            rel = cx[j][None, :] - cx[A_][:, None]
+            res = (np.abs(top[A_][:, None] + st[:, None] * rel - top[j][None, :])
+                   + np.abs(bot[A_][:, None] + sb[:, None] * rel - bot[j][None, :]))
+            inl = res <= fit_px
+            n_in, r_in = inl.sum(1).tolist(), np.where(inl, res, 0.0).sum(1).tolist()
+            for q in range(A_.size):
+                if best is None or (n_in[q], -r_in[q]) > (int(best.sum()), -best_res):
+                    best, best_res = inl[q], r_in[q]
         if best is None or best.sum() < max(2, (j.size + 1) // 2):
             continue  # the mates' ends are no floor's lines
         j = j[best]
@@ -2720,7 +2726,7 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
     if f > 1:
         out = cv2.resize(out, (W, H), interpolation=cv2.INTER_NEAREST)
         out = _fill_nearest(np.where(B, out, 0), B)
-    return np.where(B, out, 0).astype(np.int32)
+    return np.where(B, out, 0).astype(np.int32, copy=False)  # (np.where made a new array)
 
 
 def _rows_cols(fm: np.ndarray, box: tuple[slice, slice] | None = None) -> tuple[np.ndarray, np.ndarray]:
