@@ -114,12 +114,23 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @pytest.fixture(scope="session")
 def cityscapes_layout(tmp_path_factory):
     """A factory of Cityscapes-layout datasets from the synthetic street (stereo, no ground truth):
-    ``cityscapes_layout(frames=, size=, corrupt=)`` -> (root, frame stems)."""
+    ``cityscapes_layout(frames=, size=, corrupt=)`` -> (root, frame stems), a new folder each call
+    (a test may write into it). The fixture writer is deterministic (tests/test_cityscapes_fixture.py,
+    same arguments same bytes), so each set of arguments is written once per process and copied
+    after that (the stereo matching is most of the cost)."""
+    written: dict[tuple, tuple] = {}
+
     def make(*, frames: int, size: tuple[int, int], corrupt: int):
         from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
 
+        key = (frames, tuple(size), corrupt)
+        if key not in written:
+            src = tmp_path_factory.mktemp("cityscapes-written")
+            written[key] = (src, list(write_cityscapes_fixture(src, frames=frames, size=size, corrupt=corrupt)))
+        src, stems = written[key]
         root = tmp_path_factory.mktemp("cityscapes")
-        return root, write_cityscapes_fixture(root, frames=frames, size=size, corrupt=corrupt)
+        shutil.copytree(src, root, dirs_exist_ok=True)
+        return root, list(stems)
 
     return make
 

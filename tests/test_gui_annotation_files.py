@@ -24,11 +24,9 @@ SIZE = (256, 128)
 
 
 @pytest.fixture
-def dataset(tmp_path):
-    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
-
-    root = tmp_path / "cityscapes"
-    return root, write_cityscapes_fixture(root, frames=2, size=SIZE, corrupt=0)
+def dataset(cityscapes_layout):
+    """A fresh copy for each test (tests write annotations and recovery files beside the images)."""
+    return cityscapes_layout(frames=2, size=SIZE, corrupt=0)
 
 
 def _window(qtbot, answers: list[str] | None = None):

@@ -119,11 +119,9 @@ def test_the_standalone_editor_binds_the_same_keymap(qtbot, tmp_path):
 
 
 @pytest.fixture
-def dataset(tmp_path):
-    from npsim_core.synthetic.cityscapes import write_cityscapes_fixture
-
-    root = tmp_path / "cityscapes"
-    return root, write_cityscapes_fixture(root, frames=2, size=SIZE, corrupt=0)
+def dataset(cityscapes_layout):
+    """A fresh copy for each test (tests write annotations and recovery files beside the images)."""
+    return cityscapes_layout(frames=2, size=SIZE, corrupt=0)
 
 
 def test_frame_keys_work_while_a_spin_box_or_the_class_filter_has_the_focus(qtbot, settings, dataset):
