@@ -65,6 +65,17 @@ def _unique_rows(a: np.ndarray, **kw):
     return (u.view(a.dtype).reshape(-1, a.shape[1]), *rest)
 
 
+def _in_front(ctx: Context) -> np.ndarray:
+    """HxW bool, read-only: pixels labelled neither building nor sky (something in front of a wall),
+    once per context (two passes read it; the labels do not change during a proposal)."""
+    front = ctx.__dict__.get("_window_front")
+    if front is None:
+        front = ~_in_labels(ctx.labels, (BUILDING, SKY))
+        front.flags.writeable = False
+        ctx.__dict__["_window_front"] = front
+    return front
+
+
 _LABEL_SETS: dict[tuple[int, ...], np.ndarray] = {}
 
 
@@ -601,7 +612,7 @@ def _join_across_occluders(ctx: Context, found: list, p, rescan: bool = False) -
     if ov <= 0 or len(found) < 2:
         return found
     fy = float(ctx.intrinsics.fy)
-    front = ~_in_labels(ctx.labels, (BUILDING, SKY))
+    front = _in_front(ctx)
     zc: dict[int, float | None] = {}  # median depth per window, until it is joined
     for ax in (1, 0):  # side by side (a post), then one above the other (an arm, a sign across)
         _join_pass(ctx, found, p, ax, ov, fy, front, zc, rescan=rescan)
@@ -2104,7 +2115,7 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
     if gap_m <= 0 or len(found) < 4:
         return found
     fy = float(ctx.intrinsics.fy)
-    front = ~_in_labels(ctx.labels, (BUILDING, SKY))
+    front = _in_front(ctx)
     box = np.array([(f[3].y0, f[3].x0, f[3].y0 + f[3].mask.shape[0], f[3].x0 + f[3].mask.shape[1])
                     for f in found], np.int64).reshape(-1, 4)
     wall = np.array([f[0] for f in found])
@@ -2498,13 +2509,13 @@ def propose(ctx: Context) -> list[Group]:
     found = regularise(ctx, found, ratio, chroma, B, bld, rejects, boxes)
     # The grid and the lattice propose cells of their own: the same tests on every final window.
     found = [f for f in found if not _juts_out(ctx, f[3])]
+    dev_all = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)  # once: full-image
     for f in found:
         if _is_dormer(ctx, f[3]):
             f[3].kind = "dormer"
         li = f[3]
         box = (slice(li.y0, li.y0 + li.mask.shape[0]), slice(li.x0, li.x0 + li.mask.shape[1]))
-        _unblur(li, np.maximum(np.abs(ratio[box]) / t, chroma[box] / p.window_chroma_delta), p)
-    dev_all = np.maximum(np.abs(ratio) / t, chroma / p.window_chroma_delta)  # once: full-image
+        _unblur(li, dev_all[box], p)
     if p.window_extend_dev > 0 and found:
         dev = dev_all
         taken = np.zeros((H, W), np.int32)
