@@ -212,10 +212,11 @@ def _mask_edge_pairs(feat: np.ndarray, y0: int, x0: int, mask: np.ndarray) -> li
     pairs = []
     cols = np.flatnonzero(mask.any(0))
     rows = np.flatnonzero(mask.any(1))
-    top = np.argmax(mask[:, cols], axis=0)
-    bot = h - 1 - np.argmax(mask[::-1, cols], axis=0)
-    left = np.argmax(mask[rows, :], axis=1)
-    right = w - 1 - np.argmax(mask[rows, ::-1], axis=1)
+    # (the first and last mask pixel of every column and row, then those that hold one: no copies of the mask)
+    top = np.argmax(mask, axis=0)[cols]
+    bot = h - 1 - np.argmax(mask[::-1], axis=0)[cols]
+    left = np.argmax(mask, axis=1)[rows]
+    right = w - 1 - np.argmax(mask[:, ::-1], axis=1)[rows]
     for ins_y, ins_x, dy, dx in ((y0 + top, x0 + cols, -1, 0), (y0 + bot, x0 + cols, 1, 0),
                                  (y0 + rows, x0 + left, 0, -1), (y0 + rows, x0 + right, 0, 1)):
         oy, ox = ins_y + dy, ins_x + dx
