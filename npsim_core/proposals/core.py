@@ -229,7 +229,11 @@ def _check_inputs(image, labels, depth, intrinsics, instances) -> Context:
     if not np.issubdtype(labels.dtype, np.integer):
         raise NpsimInputError(f"labels must be integer Cityscapes labelIds, got {labels.dtype}")
     labels = labels.astype(np.uint8) if labels.dtype != np.uint8 else labels
-    cityscapes().validate(labels, "labels")
+    import cv2
+
+    # The ids present, from one histogram of the 8-bit ids (numpy's unique sorts the frame: 8x slower).
+    present = np.flatnonzero(cv2.calcHist([np.ascontiguousarray(labels)], [0], None, [256], [0, 256]).ravel())
+    cityscapes().validate(present.astype(np.uint8), "labels")
     if depth is not None:
         if not isinstance(depth, np.ndarray) or depth.shape != (H, W) or not np.issubdtype(depth.dtype, np.floating):
             raise NpsimInputError(f"depth must be an HxW float array in metres matching the image ({H}x{W}), got "
