@@ -802,3 +802,51 @@ def test_the_boot_lid_seen_over_the_end_face_does_not_lift_the_lamps():
     ann, lamps = _lights(propose_lights(img, lab, depth, intr, inst, params=FLAT), (3, 4, 5, 6))
     for t in truth:
         assert max((iou(ann.mask(i), t) for i in lamps), default=0.0) >= 0.5
+
+
+def test_core_speed_helpers_give_numpys_and_opencvs_own_values():
+    """core.median / nanmedian / pixels and components are speed-ups (docs/proposals.md, "Seventeenth pass:
+    the time of the other proposers"): numpy's values, dtypes and types (a -0.0 median is 0.0, as numpy's),
+    and OpenCV's components in the order of labelling the whole mask -- the box's corner at an even row and
+    column (an odd one reorders OpenCV's 2x2-block scan)."""
+    import warnings
+
+    import cv2
+
+    from npsim_core.proposals.core import components, median, nanmedian, pixels
+
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        n, k = int(rng.integers(1, 30)), int(rng.integers(1, 4))
+        a = np.round(rng.normal(size=(n, k)), 1).astype(rng.choice([np.float32, np.float64]))
+        a[rng.random(a.shape) < 0.1] = -0.0
+        for x, kw in ((a, {"axis": 0}), (a, {"axis": 1}), (a[:, 0], {}), ((a * 10).astype(np.int64), {})):
+            want, got = np.median(x, **kw), median(x, **kw)
+            assert type(got) is type(want) and np.array_equal(got, want)
+            assert np.array_equal(np.signbit(got), np.signbit(want))
+        b = a.copy()
+        b[rng.random(b.shape) < 0.4] = np.nan
+        for ax in (0, 1):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                want = np.nanmedian(b, axis=ax)
+            got = nanmedian(b, ax)
+            assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True)
+        img = rng.normal(size=(n, k + 3, 3)).astype(np.float32)
+        sel = rng.random((n, k + 3)) < 0.5
+        assert np.array_equal(pixels(img[:, 1:], sel[:, 1:]), img[:, 1:][sel[:, 1:]])
+    for _ in range(200):
+        h, w = (int(v) for v in rng.integers(8, 120, 2))
+        m = np.zeros((h, w), bool)
+        for _ in range(int(rng.integers(1, 20))):
+            y, x = int(rng.integers(0, h)), int(rng.integers(0, w))
+            m[y:y + int(rng.integers(1, 8)), x:x + int(rng.integers(1, 8))] = True
+        m &= rng.random((h, w)) < 0.7
+        for conn in (4, 8):
+            n, lab, stats, _ = cv2.connectedComponentsWithStats(m.astype(np.uint8), connectivity=conn)
+            want = [(int(s[1]), int(s[0]), lab[s[1]:s[1] + s[3], s[0]:s[0] + s[2]] == q, int(s[4]))
+                    for q, s in enumerate(stats) if q > 0 and s[4] >= 2]
+            got = list(components(m, 2, conn))
+            assert len(got) == len(want)
+            for g, wnt in zip(got, want):
+                assert g[:2] == wnt[:2] and g[3] == wnt[3] and np.array_equal(g[2], wnt[2])
