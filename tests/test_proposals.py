@@ -832,6 +832,14 @@ def test_core_speed_helpers_give_numpys_and_opencvs_own_values():
                 want = np.nanmedian(b, axis=ax)
             got = nanmedian(b, ax)
             assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True)
+        if not np.isnan(b).all():
+            want, got = np.nanmedian(b), nanmedian(b)  # axis None: over the whole array
+            assert type(got) is type(want) and np.array_equal(got, want)
+            assert np.array_equal(np.signbit(got), np.signbit(want))
+        b[0, 0] = np.inf  # an inf: numpy's own result
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            assert np.array_equal(nanmedian(b, 0), np.nanmedian(b, axis=0), equal_nan=True)
         img = rng.normal(size=(n, k + 3, 3)).astype(np.float32)
         sel = rng.random((n, k + 3)) < 0.5
         assert np.array_equal(pixels(img[:, 1:], sel[:, 1:]), img[:, 1:][sel[:, 1:]])

@@ -9,52 +9,11 @@ import cv2
 import numpy as np
 
 from .ads import _union
-from .core import Context, Group, Light, components
+from .core import Context, Group, Light, components, median, nanmedian
 
 BUILDING, VEGETATION, SKY = 11, 21, 23
 GROUND = (6, 7, 8, 9, 22)  # ground, road, sidewalk, parking, terrain
 WINDOW_BUILDING, WINDOWS_GROUP = 1, 13
-
-
-def _median(a, axis=None):
-    """``np.median(a, axis)``, the same value, for a 1-D float array (or along axis 0 of a 2-D one):
-    numpy's median costs ~50 us a call whatever the size, and it is called thousands of times a frame
-    on a blob's few pixels. Its two middle order statistics by one partition, averaged as numpy's mean
-    does (their sum from 0 over 2, in the array's dtype, float64 for integers); anything else (NaN,
-    empty, other shapes) goes to numpy."""
-    a = np.asarray(a)
-    if a.dtype.kind in "iu":  # numpy's mean of integers adds them as float64: the same order statistics
-        a = a.astype(np.float64)
-    if a.dtype.kind != "f" or a.size == 0 or not ((axis is None and a.ndim == 1) or (axis == 0 and a.ndim == 2)):
-        return np.median(a, axis=axis)
-    n = a.shape[0]
-    k = n // 2
-    part = np.partition(a, [k - 1, k, n - 1] if n % 2 == 0 else [k, n - 1], axis=0)
-    if np.isnan(part[-1]).any():  # numpy's median is NaN then
-        return np.median(a, axis=axis)
-    # + 0.0: numpy's mean sums from 0, which makes a -0.0 median 0.0
-    return part[k] + 0.0 if n % 2 else (part[k - 1] + part[k] + 0.0) / 2
-
-
-def _nanmedian(a: np.ndarray, axis: int | None = None):
-    """``np.nanmedian(a, axis)``, the same value, for a float array: numpy sorts a masked array (slow
-    in Python) below 600 values along the axis. The non-NaN values' middle two
-    order statistics (the one twice for an odd count: (x + x) / 2 is x), their sum over 2 as numpy's;
-    NaN where all are NaN (numpy warns there; callers silence it)."""
-    a = np.asarray(a)
-    if axis is None or a.ndim == 1:
-        v = a.ravel()
-        v = v[~np.isnan(v)]
-        return _median(v) if v.size else np.nanmedian(a)
-    if np.isinf(a).any():  # numpy's masked sort orders an inf and a NaN as it may
-        return np.nanmedian(a, axis=axis)
-    s = np.sort(np.moveaxis(a, axis, 0), axis=0)  # NaN last
-    n = np.count_nonzero(~np.isnan(s), axis=0)
-    lo = np.take_along_axis(s, np.maximum((n - 1) // 2, 0)[None], axis=0)[0]
-    hi = np.take_along_axis(s, (n // 2)[None], axis=0)[0]
-    out = (lo + hi + 0.0) / 2  # + 0.0: as numpy's sum from 0 (no -0.0)
-    out[n == 0] = np.nan
-    return out
 
 
 def _unique_rows(a: np.ndarray, **kw):
@@ -135,7 +94,7 @@ def wall_reference(feat: np.ndarray, building: np.ndarray, params) -> np.ndarray
     ref = np.where((den_f > params.window_wall_min_share)[..., None], fine, coarse)
     if (den_c <= 1e-3).any():  # nothing nearby looks like wall: the building's overall median
         vals = small[wb > 0]
-        ref[den_c <= 1e-3] = _median(vals, axis=0) if len(vals) else 0.0
+        ref[den_c <= 1e-3] = median(vals, axis=0) if len(vals) else 0.0
     return cv2.resize(ref, (W, H), interpolation=cv2.INTER_LINEAR)
 
 
@@ -193,8 +152,8 @@ def rereference_walls(feat: np.ndarray, walls: np.ndarray, cand: np.ndarray, ref
         hist = np.convolve(hist, [1, 2, 1], mode="same")
         mode = lo + (int(hist.argmax()) + 0.5) * step
         near = np.abs(lum - mode) < 0.5 * t
-        ab = _median(f[..., 1:][wm][near], axis=0)
-        r0 = _median(ref[sl][wm], axis=0)
+        ab = median(f[..., 1:][wm][near], axis=0)
+        r0 = median(ref[sl][wm], axis=0)
         if abs(float(r0[0]) - mode) <= t and float(np.hypot(r0[1] - ab[0], r0[2] - ab[1])) <= params.window_chroma_delta:
             continue  # the wall's own colour is its reference: dense panes, not a wrong reference
         # its colour: on the wall, and next to it on candidate pixels of neighbouring pieces
@@ -234,7 +193,7 @@ def _robust_sigma(val: np.ndarray, ids: np.ndarray, n: int) -> np.ndarray:
     for i in range(1, n + 1):
         v = vv[cuts[i]:cuts[i + 1]]
         if v.size:
-            out[i] = 1.4826 * float(_median(np.abs(v - _median(v))))
+            out[i] = 1.4826 * float(median(np.abs(v - median(v))))
     return out
 
 
@@ -357,14 +316,14 @@ def _extent_m(ctx: Context, y: int, x: int, m: np.ndarray) -> tuple[float, float
     cols = np.flatnonzero(has)
     if cols.size < 2:
         return None
-    zc = _nanmedian(d[:, cols], axis=0)
-    z_med = float(_nanmedian(d))
+    zc = nanmedian(d[:, cols], axis=0)
+    z_med = float(nanmedian(d))
     ci, zi = (cols[1:-1], zc[1:-1]) if cols.size >= 5 else (cols, zc)
     i, j = np.triu_indices(ci.size, 1)
-    slope = float(_median((zi[j] - zi[i]) / (ci[j] - ci[i])))
+    slope = float(median((zi[j] - zi[i]) / (ci[j] - ci[i])))
     K = ctx.intrinsics
     c0, c1 = float(cols[0]), float(cols[-1])
-    mid = float(_median(ci))
+    mid = float(median(ci))
     z0 = z_med + slope * (c0 - mid)
     z1 = z_med + slope * (c1 - mid)
     p0 = ((x + c0 - K.cx) * z0 / K.fx, z0)
@@ -539,7 +498,7 @@ def _extend_sides(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
             continue
         j = np.nonzero(mate)[0]
         j = j[np.argsort(np.hypot(box[j, 1] + box[j, 3] / 2 - (x0 + w / 2), box[j, 0] + box[j, 2] / 2 - (y0 + h / 2)))[:4]]
-        mw, mh = float(_median(box[j, 3])), float(_median(box[j, 2]))
+        mw, mh = float(median(box[j, 3])), float(median(box[j, 2]))
         # as tall as its pane: as its mates, or at least twice their width (a column mate may be a
         # taller pane of another floor)
         if w > thin * mw or h < min(tall * mh, 2.0 * mw):
@@ -718,7 +677,7 @@ def _join_pass(ctx: Context, found: list, p, ax: int, ov: float, fy: float, fron
                         & (np.abs(zs - z[i]) <= 0.15 * z[i])
                     mates[[i, j]] = False
                     ext = box[mates, 2 + ax] - box[mates, ax]
-                    if ext.size >= 2 and span > p.window_join_max_width * _median(ext):
+                    if ext.size >= 2 and span > p.window_join_max_width * median(ext):
                         continue
             elif span > 2 * max(box[i, 2 + ax] - box[i, ax], box[j, 2 + ax] - box[j, ax]) + g:
                 continue
@@ -846,7 +805,7 @@ def _ring_contrast(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndar
     if ring.sum() < 3 or not blob.any():
         return None
     f = feat[ya:yb, xa:xb]
-    inner, outer = _median(f[blob > 0], axis=0), _median(f[ring], axis=0)
+    inner, outer = median(f[blob > 0], axis=0), median(f[ring], axis=0)
     t = -np.log(p.window_dark_ratio)
     return (abs(float(inner[0] - outer[0])) / t,
             float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) / p.window_chroma_delta)
@@ -869,7 +828,7 @@ def _on_ground_floor(ctx: Context, y: int, x: int, m: np.ndarray) -> bool:
     d = ctx.depths_in(y, y + m.shape[0], x, x + m.shape[1], m)
     if d is None:
         return False
-    return float(ctx.height_above_ground(y + m.shape[0] - 0.5, float(_median(d)))) <= ctx.params.window_shop_max_top_m
+    return float(ctx.height_above_ground(y + m.shape[0] - 0.5, float(median(d)))) <= ctx.params.window_shop_max_top_m
 
 
 def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarray, p,
@@ -932,7 +891,7 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     near = np.abs(lum - mode) < 0.5 * t
     if not near.any():
         return []  # the smoothed mode fell between two colours, neither near it
-    ab = _median(f[..., 1:][m][near], axis=0)
+    ab = median(f[..., 1:][m][near], axis=0)
     base = np.array([mode, ab[0], ab[1]], np.float32)
     odd = _differs(f, np.broadcast_to(base, f.shape), p) & m
     if (m & ~odd).sum() < p.window_blob_wall_share * m.sum():
@@ -1020,7 +979,7 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
         return [(0, 0, m)]
     if n >= 0.5 * m.sum():
         rows = np.flatnonzero(near.any(1))
-        if (rows[-1] - rows[0] + 1) * float(_median(d[near])) / fy >= p.window_ledge_keep_m:
+        if (rows[-1] - rows[0] + 1) * float(median(d[near])) / fy >= p.window_ledge_keep_m:
             return [(0, 0, m)]  # a pane's height standing before the wall: a dormer, not a ledge
     rest = m & ~near
     return [(py, px, pm) for py, px, pm, _ in components(rest, p.window_min_area_px, connectivity=4)]
@@ -1079,7 +1038,7 @@ def _strip_width_m(ctx: Context, li: Light) -> float | None:
             dc = dc[np.isfinite(dc)]
             if dc.size >= 0.5 * h:
                 cols.append(c)
-                zs.append(float(_median(dc)))
+                zs.append(float(median(dc)))
         if len(cols) >= 3:
             slope = float(np.polyfit(np.asarray(cols, float), np.asarray(zs), 1)[0])  # m of depth per column
             widths.append(w * float(np.hypot(z / K.fx + (u - K.cx) * slope / K.fx, slope)))
@@ -1161,11 +1120,11 @@ def _set_back(ctx: Context, li: Light) -> float | None:
     inv = 1.0 / band[ok].astype(np.float64)
     coef, *_ = np.linalg.lstsq(A, inv, rcond=None)
     res = np.abs(A @ coef - inv)
-    keep = res <= 3.0 * max(float(_median(res)), 1e-12)
+    keep = res <= 3.0 * max(float(median(res)), 1e-12)
     if keep.sum() >= 6:
         coef, *_ = np.linalg.lstsq(A[keep], inv[keep], rcond=None)
     ys, xs = np.nonzero(li.mask)
-    inv_plane = float(design(li.x0 + _median(xs), li.y0 + _median(ys)) @ coef)
+    inv_plane = float(design(li.x0 + median(xs), li.y0 + median(ys)) @ coef)
     return float(z * inv_plane - 1.0) if inv_plane > 0 else None
 
 
@@ -1232,11 +1191,11 @@ def _columns(boxes: list[tuple[int, int, int, int]]) -> list[tuple[float, float,
             ov = min(a1, x1) - max(a0, x0) + 1
             if ov >= 0.5 * min(a1 - a0 + 1, x1 - x0 + 1):
                 c.append((x0, x1))
-                meds[k] = (_median([q[0] for q in c]), _median([q[1] for q in c]))
+                meds[k] = (median([q[0] for q in c]), median([q[1] for q in c]))
                 break
         else:
             cols.append([(x0, x1)])
-            meds.append((_median([x0]), _median([x1])))
+            meds.append((median([x0]), median([x1])))
     return [(float(a0), float(a1), len(c)) for c, (a0, a1) in zip(cols, meds)]
 
 
@@ -1334,7 +1293,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
             z = ctx.metres_per_px(y0, y1 + 1, x0, x1 + 1, f[3].mask)
             hm.append((y1 - y0 + 1) * z if z is not None else float(y1 - y0 + 1))
         hm = np.array(hm)
-        med_h = float(_median(hm))
+        med_h = float(median(hm))
         all_cols = _columns(list(box.values()))
         cols = [c for c in all_cols if c[2] >= 2]  # bays seen on two floors at least
         floor_of = {id(f): fl for fl in floors for f in fl}
@@ -1391,7 +1350,7 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
         for k, f in enumerate(wins):
             y0, y1, x0, x1 = box[id(f)]
             near = np.argsort(np.abs(centres - centres[k]))[1:5]
-            local_h = float(_median(hm[near])) if near.size else med_h
+            local_h = float(median(hm[near])) if near.size else med_h
             tall = hm[k] > 1.5 * max(med_h, local_h)
             # widths shrink along a receding facade: compare with the next windows of the same floor
             row = sorted(floor_of[id(f)], key=lambda q: box[id(q)][2])
@@ -1586,7 +1545,7 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
         else a_ref
     if np.isfinite(ref_a).sum() < p.window_median_min_count:
         return wins
-    med = float(_nanmedian(ref_a))
+    med = float(nanmedian(ref_a))
     lev = np.array([f[1] for f in wins])
     out = []
     for k, (f, ai) in enumerate(zip(wins, a)):
@@ -1594,12 +1553,12 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
         on_floor = (np.abs(lev - f[1]) <= f[2]) & np.isfinite(ref_a)
         row = ref_a[on_floor]
         if row.size >= 3:
-            ref = max(med, float(_median(row)))
+            ref = max(med, float(median(row)))
         else:
             # one or two whole mates on its floor: judged against them, not itself -- a floor of
             # larger panes (a top floor's tall ones) has mates of its size, a merged row does not
             on_floor[k] = False
-            ref = max(med, float(_median(ref_a[on_floor]))) if on_floor.any() else med
+            ref = max(med, float(median(ref_a[on_floor]))) if on_floor.any() else med
         if not (np.isfinite(ai) and ai > p.window_max_median_ratio * ref):
             out.append(f)
             continue
@@ -1664,12 +1623,12 @@ def _pitch_cut(ctx: Context, f: list, wins: list, area: float, limit: float, rat
     # a pane's width: their median (a mate merged with its neighbour's blur or a strip of wall is not
     # the pane) and a pixel (a pane 1.5 px wide is 1 or 2 px); its floor's band: their tallest (a mate
     # cut by something in front shows less than the pane)
-    mw, mh = int(np.ceil(_median([m[1] for m in mates]))) + 1, max(m[2] for m in mates)
+    mw, mh = int(np.ceil(median([m[1] for m in mates]))) + 1, max(m[2] for m in mates)
     sides = ([m[0] for m in mates if m[0] < cx], [m[0] for m in mates if m[0] > cx])
     steps = [b - a for side in sides for a, b in zip(sorted(side), sorted(side)[1:])]
     if not steps:
         return []
-    pitch = float(_median(steps))
+    pitch = float(median(steps))
     tl = -np.log(p.window_dark_ratio)
     box = (slice(li.y0, li.y0 + h), slice(li.x0, li.x0 + w))
     dev = np.maximum(np.abs(ratio[box]) / tl, chroma[box] / p.window_chroma_delta)
@@ -1717,9 +1676,9 @@ def _split_oversized(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, f
     ok = whole & np.isfinite(a)
     if ok.sum() < p.window_median_min_count:
         return wins
-    med = float(_median(a[ok]))
+    med = float(median(a[ok]))
     a_px, _ = _wall_areas(ctx, wins, fm, t, shrink=False)
-    med_px = float(_median(a_px[ok]))
+    med_px = float(median(a_px[ok]))
     tl = -np.log(p.window_dark_ratio)
     out = []
     for k, (f, ai) in enumerate(zip(wins, a)):
@@ -1773,7 +1732,7 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
     ok = whole & np.isfinite(a)
     if ok.sum() < p.window_median_min_count:
         return wins
-    med = float(_median(a[ok]))
+    med = float(median(a[ok]))
     lev = np.array([f[1] for f in wins])
     out = []
     for k, (f, ai, wh) in enumerate(zip(wins, a, whole)):
@@ -1781,7 +1740,7 @@ def _small_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float]
             mates = (np.abs(lev - f[1]) <= f[2]) & ok
             mates[k] = False
             if not (mates.sum() >= 2 and min(f[3].mask.shape) >= p.window_resolved_px
-                    and ai >= r * float(_median(a[mates]))):
+                    and ai >= r * float(median(a[mates]))):
                 continue
         out.append(f)
     return out
@@ -1860,7 +1819,7 @@ def _shop_fronts(ctx: Context, found: list, bld: np.ndarray, B: np.ndarray, boxe
             x0, x1, w = li.x0, li.x0 + li.mask.shape[1], li.mask.shape[1]
             ref = sizes([q for q in above if x0 - w <= q[3].x0 + q[3].mask.shape[1] / 2.0 <= x1 + w
                          and abs(depth[id(q)] - depth[id(f)]) <= tol * depth[id(f)]])
-        if len(ref) >= 2 and a[id(f)] > r * float(_median(ref)):
+        if len(ref) >= 2 and a[id(f)] > r * float(median(ref)):
             f[3].kind = "shop"
 
 
@@ -1876,7 +1835,7 @@ def _trim_ends(li: Light, dev: np.ndarray, p) -> None:
     d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
     cnt = li.mask.sum(1)
     prof = np.where(cnt > 0, (d * li.mask).sum(1) / np.maximum(cnt, 1), np.nan)
-    med = float(_nanmedian(prof))
+    med = float(nanmedian(prof))
     a, b, n = 0, h - 1, 0
     while n < h // 4 and b - a >= 4:
         if np.isfinite(prof[a]) and prof[a] < r * med:
@@ -2166,7 +2125,7 @@ def _join_split_panes(ctx: Context, found: list, dev: np.ndarray, p, log: list |
                 mates[[i, j]] = False
                 k = np.flatnonzero(mates)
                 k = k[np.argsort(np.abs(cx[k] - cx[i]), kind="stable")[:6]]
-                med = _median(ext[k], 0) if k.size >= 2 else None
+                med = median(ext[k], 0) if k.size >= 2 else None
                 # a floor of one pane size (two in three of the mates within a quarter of their median
                 # and a pixel), and the union is that size: two whole panes side by side are twice it;
                 # along the split within half a pixel (two 1-px panes and their pier are 3 px, a 2-px
@@ -2252,7 +2211,7 @@ def _split_blocks(ctx: Context, row: list, ref: np.ndarray) -> list[list]:
             # heights of neighbours on one receding facade shrink smoothly; a new building's jump
             prev = [info[j][1] for j in range(max(0, k - 3), k)]
             new = abs(hb - ha) > p.window_block_height * max(ha, hb) and \
-                abs(hb - float(_median(prev))) > p.window_block_height * max(hb, float(_median(prev))) \
+                abs(hb - float(median(prev))) > p.window_block_height * max(hb, float(median(prev))) \
                 and max(ha, hb) >= 6
         if new:
             out.append([row[k]])
@@ -2288,7 +2247,7 @@ def _wall_beyond(ctx: Context, li: Light, ax: int, end: bool, r: int = 6) -> flo
         sl = (slice(max(r0, 0), min(r1, H)), slice(max(li.x0, 0), min(li.x0 + w, Wd)))
     d = ctx.depth[sl][ctx.labels[sl] == BUILDING]
     d = d[np.isfinite(d)]
-    return float(_median(d)) if d.size >= 4 else None
+    return float(median(d)) if d.size >= 4 else None
 
 
 def _median_depth(ctx: Context, li: Light) -> float | None:
@@ -2303,7 +2262,7 @@ def _median_depth(ctx: Context, li: Light) -> float | None:
         return memo[key]
     d = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask]
     d = d[np.isfinite(d)]
-    z = float(_median(d)) if d.size else None
+    z = float(median(d)) if d.size else None
     memo[key] = z
     return z
 
@@ -2372,7 +2331,7 @@ def propose(ctx: Context) -> list[Group]:
             d = ctx.depth[y:y + h, x:x + w][sub]
             d = d[np.isfinite(d)]
             if d.size:
-                z = float(_median(d))
+                z = float(median(d))
         if z is not None:
             # Height, not area: facades recede, so a pane's image width is foreshortened but its height is not.
             height_m = h * z / fy
@@ -2396,11 +2355,11 @@ def propose(ctx: Context) -> list[Group]:
         fill = filled.sum() / float(max(w * h - hidden, 1))
         if fill < p.window_min_fill:
             return "fill"
-        contrast = float(_median(np.abs(ratio[y:y + h, x:x + w][sub])))
-        dark = float(_median(ratio[y:y + h, x:x + w][sub]))
+        contrast = float(median(np.abs(ratio[y:y + h, x:x + w][sub])))
+        dark = float(median(ratio[y:y + h, x:x + w][sub]))
         if p.window_shadow_chroma > 0 and np.log(p.window_shadow_ratio) < dark < 0 \
                 and (z is None or a * (z / fy) ** 2 >= p.window_shadow_min_m2):
-            tint = float(_median(chroma[y:y + h, x:x + w][sub]))
+            tint = float(median(chroma[y:y + h, x:x + w][sub]))
             # A pane sits on a sill; a shadow runs down to the facade's foot on the ground.
             below = np.zeros(w, bool)
             rows = h - 1 - np.argmax(sub[::-1], axis=0)               # lowest blob pixel per column
@@ -2596,7 +2555,7 @@ def _side_median(prof: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     win = np.lib.stride_tricks.sliding_window_view(pad, r, axis=0)  # (n + r + 1, ..., r)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows (columns hidden by a tree): NaN, no cut
-        med = _nanmedian(win, axis=-1)
+        med = nanmedian(win, axis=-1)
     return med[1:n], med[r + 1:r + n]
 
 
@@ -2695,9 +2654,9 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
             fm = np.where((m & ~cs[sl])[..., None], fs[sl], np.nan)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)  # columns without depth or wall: NaN
-                col_d = _nanmedian(d, axis=0)
-                col_z = _nanmedian(zc, axis=0)
-                col_f = _nanmedian(fm, axis=0)
+                col_d = nanmedian(d, axis=0)
+                col_z = nanmedian(zc, axis=0)
+                col_f = nanmedian(fm, axis=0)
             if ww > 2 * rc:
                 ld, rd = _side_median(col_d, rc)
                 lf, rf = _side_median(col_f, rc)
@@ -2715,7 +2674,7 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
                 colid[edges[i]:edges[i + 1]] = i
                 seg = col_d[edges[i]:edges[i + 1]]
                 if np.isfinite(seg).any():
-                    seg_d[i] = _nanmedian(seg)
+                    seg_d[i] = nanmedian(seg)
             with np.errstate(invalid="ignore"):
                 off = np.abs(d - seg_d[colid][None, :]) > p.window_facade_step_m + 0.01 * zz[sl]
             base = nxt + colid  # each column range's wall
@@ -2730,7 +2689,7 @@ def facades(ctx: Context, B: np.ndarray, feat: np.ndarray, cand: np.ndarray) -> 
                 piece = lab2 == c2
                 dd = d[piece]
                 dd = dd[np.isfinite(dd)]
-                if dd.size and float(np.std(dd)) <= p.window_facade_step_m + 0.01 * float(_median(zz[sl][piece])):
+                if dd.size and float(np.std(dd)) <= p.window_facade_step_m + 0.01 * float(median(zz[sl][piece])):
                     out[sl][piece] = nxt
                     nxt += 1
     out = _fill_nearest(out, Bs)
@@ -2905,7 +2864,7 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
         if u_vp in fits:  # the fine search's centre is the coarse one's best
             return fits[u_vp]
         wab = np.sort(to_w(edges_u, u_vp), axis=1)
-        width = float(_median(wab[:, 1] - wab[:, 0]))
+        width = float(median(wab[:, 1] - wab[:, 0]))
         fits[u_vp] = (_fit_lattice(wab.mean(1), width), width, wab)
         return fits[u_vp]
 
@@ -2955,10 +2914,10 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
             ok = np.abs(du) > 1.0
             if not ok.any():
                 continue
-            at, ab = _median((t[ok] - v_h) / du[ok]), _median((b[ok] - v_h) / du[ok])
+            at, ab = median((t[ok] - v_h) / du[ok]), median((b[ok] - v_h) / du[ok])
             rows.append((lambda u, a=at: v_h + a * (u - u_vp), lambda u, a=ab: v_h + a * (u - u_vp)))
         else:
-            rows.append((lambda u, a=float(_median(t)): a + 0.0 * u, lambda u, a=float(_median(b)): a + 0.0 * u))
+            rows.append((lambda u, a=float(median(t)): a + 0.0 * u, lambda u, a=float(median(b)): a + 0.0 * u))
     if not rows:
         return [], set()
     cols = _rows_cols(fm, wall_box)[1]
