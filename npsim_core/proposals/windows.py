@@ -985,6 +985,175 @@ def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int
     return [(py, px, pm) for py, px, pm, _ in components(rest, p.window_min_area_px, connectivity=4)]
 
 
+def _blob_columns(lab: np.ndarray, keep: np.ndarray, ya: int, xa: int) -> dict:
+    """The pixels of the kept labels of ``lab`` (a label image at (ya, xa)), ordered by label, column,
+    row: their image rows Y, columns X, labels L, and per (label, column) group (index G per pixel)
+    its label, column, top and bottom row and count."""
+    ys, xs = np.nonzero(lab)  # row-major: y ascending within a (label, column)
+    ls = lab[ys, xs]
+    sel = keep[ls]
+    ys, xs, ls = ys[sel], xs[sel], ls[sel].astype(np.int64)
+    key = ls * lab.shape[1] + xs
+    o = np.argsort(key, kind="stable")
+    key, Y, X, ls = key[o], ys[o] + ya, xs[o] + xa, ls[o]
+    first = np.r_[True, key[1:] != key[:-1]]
+    gs = np.flatnonzero(first)
+    ge = np.r_[gs[1:], key.size] - 1
+    return dict(Y=Y, X=X, L=ls, G=np.cumsum(first) - 1, lab=ls[gs], col=X[gs], top=Y[gs], bot=Y[ge],
+                cnt=ge - gs + 1, ya=ya, Hs=lab.shape[0])
+
+
+def _never_windows(ctx: Context, c: dict, n: int, bw: np.ndarray, bh: np.ndarray, area: np.ndarray, fy: float,
+                   p) -> np.ndarray:
+    """Per label 0..n-1 of :func:`_blob_columns`' table ``c`` (boxes ``bw`` x ``bh``, ``area`` px): whether
+    the blob can give nothing in :func:`propose`'s loop -- :func:`accept <propose>` calls it "small"
+    (under ``window_min_area_px`` or two rows; or, with depth, lower than ``window_height_m[0]`` at its
+    median depth and not cut off, :func:`_cut_off`) and :func:`_occupancy_split` does not cut it (a
+    "small" blob changes nothing and nothing of it is pushed again). Judged with a margin that only
+    ever keeps a blob for the per-blob tests."""
+    H, W = ctx.shape
+    dead = (area < p.window_min_area_px) | (bh < 2)
+    depth, labels = ctx.depth, ctx.labels
+    if depth is None or c["Y"].size == 0:
+        return dead
+    Y, X, L = c["Y"], c["X"], c["L"]
+    d = depth[Y, X]
+    fin = np.isfinite(d)
+    lf, df = L[fin], d[fin].astype(np.float64)
+    o = np.lexsort((df, lf))
+    lf, df = lf[o], df[o]
+    nf = np.bincount(lf, minlength=n)
+    st = np.r_[0, np.cumsum(nf)[:-1]]
+    has = nf > 0
+    zmed = np.full(n, np.nan)
+    zmed[has] = (df[(st + (nf - 1) // 2)[has]] + df[(st + nf // 2)[has]]) / 2
+    with np.errstate(invalid="ignore"):
+        low = has & (bh * zmed / fy < p.window_height_m[0] * (1 - 1e-6))
+    g_lab, g_col = c["lab"], c["col"]
+    if p.window_cut_any_height and low.any():
+        def front(rows: np.ndarray) -> np.ndarray:
+            out = (rows < 0) | (rows >= H)
+            ok = ~out
+            out[ok] = ~_in_labels(labels[rows[ok], g_col[ok]], (BUILDING, SKY))
+            return out
+
+        fc = np.bincount(g_lab, weights=front(c["top"] - 1) | front(c["bot"] + 1), minlength=n)
+        nc = np.bincount(g_lab, minlength=n)
+        low &= ~((np.minimum(bh, bw) >= 3) & (fc >= 0.5 * nc - 1e-9))
+    gap = float(p.window_gap_occupancy)
+    if gap > 0 and low.any():
+        def splits(g_l: np.ndarray, g_pos: np.ndarray, occ: np.ndarray, length: np.ndarray) -> np.ndarray:
+            """A nearly empty column (row) with fuller ones on both sides, per label."""
+            lo_, full = occ < gap * (1 + 1e-9), occ >= 2 * gap * (1 - 1e-9)
+            a = np.full(n, np.iinfo(np.int64).max)
+            b = np.full(n, np.iinfo(np.int64).min)
+            np.minimum.at(a, g_l[full], g_pos[full])
+            np.maximum.at(b, g_l[full], g_pos[full])
+            inside = lo_ & (g_pos > a[g_l]) & (g_pos < b[g_l])
+            # (a blob's box column (row) without pixels: empty, to be cut -- a piece of _gap_split)
+            return ((np.bincount(g_l[inside], minlength=n) > 0) | (np.bincount(g_l, minlength=n) < length)) \
+                & (length >= 5)
+
+        Hs = c["Hs"]
+        low &= ~splits(g_lab, g_col, c["cnt"] / bh[g_lab], bw)
+        rk, rc = np.unique(L * Hs + (Y - c["ya"]), return_counts=True)
+        r_lab = rk // Hs
+        low &= ~splits(r_lab, rk % Hs, rc / bw[r_lab], bh)
+    return dead | low
+
+
+def _first_blobs(ctx: Context, cand: np.ndarray, fy: float, p) -> list[tuple[int, int, np.ndarray, int]]:
+    """The blobs :func:`propose` starts from: ``components(cand, window_min_area_px, connectivity=4)``,
+    each without its ledges (:func:`_ledge_split`), as (y, x, mask, 0) in the same order -- less those
+    that cannot give a window (:func:`_never_windows`). A textured facade makes thousands of blobs,
+    most a few pixels below a pane's height, and the per-blob tests took seconds (docs/proposals.md
+    "Seventeenth pass: the textured facade's time"); here all are judged at once from one labelling.
+    :func:`_ledge_split` is called only for a blob of which enough pixels may be nearer than the wall
+    read above and below it (its first test, without the bleed, with a margin of a pixel more); else
+    the blob is itself."""
+    H, W = ctx.shape
+    rows = np.flatnonzero(cand.any(1))
+    if rows.size == 0:
+        return []
+    cols = np.flatnonzero(cand.any(0))
+    ya, xa = int(rows[0]) & ~1, int(cols[0]) & ~1  # as core.components: the same labels, the same order
+    sub = cand[ya:int(rows[-1]) + 1, xa:int(cols[-1]) + 1]
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(sub.astype(np.uint8), connectivity=4)
+    bx, by, bw, bh, area = (stats[:, i].astype(np.int64) for i in range(5))
+    keep = area >= p.window_min_area_px
+    keep[0] = False
+    if not keep.any():
+        return []
+    depth, labels = ctx.depth, ctx.labels
+    ledge = depth is not None and p.window_ledge_step_m > 0
+    may_ledge = np.full(n, ledge)  # (window_ledge_min_share <= 0: every blob to _ledge_split)
+    c = _blob_columns(lab, keep, ya, xa)
+    dead = _never_windows(ctx, c, n, bw, bh, area, fy, p)
+    if ledge and p.window_ledge_min_share > 0:
+        g_col, G, Y, X = c["col"], c["G"], c["Y"], c["X"]
+
+        def read(rows_: np.ndarray) -> np.ndarray:
+            v = np.full(rows_.size, np.nan)
+            ok = (rows_ >= 0) & (rows_ < H)
+            v[ok] = np.where(_in_labels(labels[rows_[ok], g_col[ok]], (BUILDING,) + GROUND),
+                             depth[rows_[ok], g_col[ok]], np.nan)
+            return v
+
+        t2, b2 = c["top"] - 2, c["bot"] + 2
+        s0, s1 = read(t2), read(b2)
+        seen = np.isfinite(s0) & np.isfinite(s1)
+        d = depth[Y, X]
+        with np.errstate(invalid="ignore"):
+            frac = (Y - t2[G]) / np.maximum(b2 - t2, 1)[G]
+            ref = s0[G] + frac * (s1 - s0)[G]
+            gap = np.maximum(p.window_ledge_step_m, p.window_ledge_rel * ref)
+            near = seen[G] & np.isfinite(d) & (d < ref - gap + 1e-6)  # the margin: a pixel more, never less
+        may_ledge = np.bincount(c["L"][near], minlength=n) >= p.window_ledge_min_share * area * (1 - 1e-9)
+    out = []
+    for k in np.flatnonzero(keep).tolist():
+        if dead[k] and not may_ledge[k]:
+            continue
+        x, y, w, h = int(bx[k]), int(by[k]), int(bw[k]), int(bh[k])
+        m = lab[y:y + h, x:x + w] == k
+        if may_ledge[k]:
+            out.extend((ya + y + ly, xa + x + lx, lm, 0)
+                       for ly, lx, lm in _ledge_split(depth, labels, fy, ya + y, xa + x, m, p))
+        else:
+            out.append((ya + y, xa + x, m, 0))
+    return out
+
+
+def _live_pieces(ctx: Context, y: int, x: int, pieces: list, fy: float, p) -> list:
+    """Of pieces ((py, px, mask) local to a blob at (y, x): :func:`_occupancy_split`'s, :func:`_gap_split`'s,
+    the eroded parts grown back), those that may give a window (:func:`_never_windows`), in their order.
+    Pieces that overlap (grown parts share pixels) are judged in turns: each turn labels the pieces left
+    over one another and judges those it shows whole."""
+    if ctx.depth is None or len(pieces) < 2:
+        return pieces
+    h = max(py + pm.shape[0] for py, _, pm in pieces)
+    w = max(px + pm.shape[1] for _, px, pm in pieces)
+    dead = np.zeros(len(pieces), bool)
+    left = list(range(len(pieces)))
+    for _ in range(4):
+        lab = np.zeros((h, w), np.int32)
+        n = len(left) + 1
+        bw, bh, area = np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64)
+        for k, i in enumerate(left, 1):
+            py, px, pm = pieces[i]
+            lab[py:py + pm.shape[0], px:px + pm.shape[1]][pm] = k
+            bh[k], bw[k] = pm.shape
+            area[k] = int(pm.sum())
+        keep = np.ones(n, bool)
+        keep[0] = False
+        whole = np.bincount(lab.ravel(), minlength=n) == area  # (a piece partly drawn over: the next turn)
+        d = _never_windows(ctx, _blob_columns(lab, keep, y, x), n, bw, bh, area, fy, p) & whole
+        dead[left] = d[1:]
+        left = [i for k, i in enumerate(left, 1) if not whole[k]]
+        if not left:
+            break
+    return [pc for pc, dd in zip(pieces, dead) if not dd]
+
+
 def _juts_out(ctx: Context, li: Light) -> bool:
     """Whether most of a proposed window is a ledge (:func:`_ledge_split`): an awning's valance or a
     balcony slab the facade lattice took for a cell."""
@@ -2386,14 +2555,13 @@ def propose(ctx: Context) -> list[Group]:
         return None
 
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
-    stack = [(y0 + ly, x0 + lx, lm, 0) for y0, x0, m, _ in components(cand, p.window_min_area_px, connectivity=4)
-             for ly, lx, lm in _ledge_split(ctx.depth, ctx.labels, fy, y0, x0, m, p)]
+    stack = _first_blobs(ctx, cand, fy, p)  # less the blobs that cannot give a window
     rejects = []  # blobs too large or too ragged for one window: the facade grid may cut them (regularise)
     while stack:
         y0, x0, m, depth_ = stack.pop()
         pieces = _occupancy_split(m, p.window_gap_occupancy)
         if len(pieces) > 1:  # panes side by side (or stacked) joined by a frame or a sill line
-            stack.extend((y0 + py, x0 + px, pm, depth_) for py, px, pm in pieces)
+            stack.extend((y0 + py, x0 + px, pm, depth_) for py, px, pm in _live_pieces(ctx, y0, x0, pieces, fy, p))
             continue
         why = accept(y0, x0, m)
         if why is None and p.window_row_gap_contrast > 0 and m.shape[1] >= 3:
@@ -2450,7 +2618,7 @@ def propose(ctx: Context) -> list[Group]:
                              chroma[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] / p.window_chroma_delta)
             pieces = _gap_split(m, dev, p.window_gap_contrast)
             if len(pieces) > 1:
-                for py, px, pm in pieces:
+                for py, px, pm in _live_pieces(ctx, y0, x0, pieces, fy, p):
                     stack.append((y0 + py, x0 + px, pm, p.window_split_steps + 1))
                 continue
         if why in ("fill", "size") and depth_ < p.window_split_steps:
@@ -2458,13 +2626,16 @@ def propose(ctx: Context) -> list[Group]:
             er = cv2.erode(m.astype(np.uint8), cross) > 0
             parts = list(components(er, 1, connectivity=4))
             if len(parts) > 1 or (parts and depth_ + 1 < p.window_split_steps):
+                grown_parts = []
                 for py, px, pm, _ in parts:
                     grown = np.zeros(m.shape, np.uint8)
                     grown[py:py + pm.shape[0], px:px + pm.shape[1]] = pm
                     grown = (cv2.dilate(grown, cross) > 0) & m
                     ys, xs = np.nonzero(grown)
                     gy0, gx0 = ys.min(), xs.min()
-                    stack.append((y0 + gy0, x0 + gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1], depth_ + 1))
+                    grown_parts.append((gy0, gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1]))
+                for gy0, gx0, gm in _live_pieces(ctx, y0, x0, grown_parts, fy, p):
+                    stack.append((y0 + gy0, x0 + gx0, gm, depth_ + 1))
     found = regularise(ctx, found, ratio, chroma, B, bld, rejects, boxes)
     # The grid and the lattice propose cells of their own: the same tests on every final window.
     found = [f for f in found if not _juts_out(ctx, f[3])]
