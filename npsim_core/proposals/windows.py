@@ -1043,20 +1043,27 @@ def _never_windows(ctx: Context, c: dict, n: int, bw: np.ndarray, bh: np.ndarray
     gap = float(p.window_gap_occupancy)
     if gap > 0 and low.any():
         def splits(g_l: np.ndarray, g_pos: np.ndarray, occ: np.ndarray, length: np.ndarray) -> np.ndarray:
-            """A nearly empty column (row) with fuller ones on both sides, per label."""
+            """A nearly empty column (row) with fuller ones on both sides, per label (``g_l`` sorted, and
+            ``g_pos`` ascending within a label)."""
             lo_, full = occ < gap * (1 + 1e-9), occ >= 2 * gap * (1 - 1e-9)
-            a = np.full(n, np.iinfo(np.int64).max)
-            b = np.full(n, np.iinfo(np.int64).min)
-            np.minimum.at(a, g_l[full], g_pos[full])
-            np.maximum.at(b, g_l[full], g_pos[full])
-            inside = lo_ & (g_pos > a[g_l]) & (g_pos < b[g_l])
+            cf = np.cumsum(full)
+            tot = np.bincount(g_l, weights=full, minlength=n)
+            s0 = np.r_[0, np.cumsum(np.bincount(g_l, minlength=n))[:-1]][g_l]  # its label's first group
+            before = cf - cf[s0] + full[s0]  # full ones up to here within the label
+            inside = lo_ & (before > 0) & (tot[g_l] - before > 0)
             # (a blob's box column (row) without pixels: empty, to be cut -- a piece of _gap_split)
             return ((np.bincount(g_l[inside], minlength=n) > 0) | (np.bincount(g_l, minlength=n) < length)) \
                 & (length >= 5)
 
         Hs = c["Hs"]
         low &= ~splits(g_lab, g_col, c["cnt"] / bh[g_lab], bw)
-        rk, rc = np.unique(L * Hs + (Y - c["ya"]), return_counts=True)
+        rkey = L * Hs + (Y - c["ya"])
+        if n * Hs <= 1 << 20:
+            rc = np.bincount(rkey, minlength=n * Hs)
+            rk = np.flatnonzero(rc)
+            rc = rc[rk]
+        else:
+            rk, rc = np.unique(rkey, return_counts=True)
         r_lab = rk // Hs
         low &= ~splits(r_lab, rk % Hs, rc / bw[r_lab], bh)
     return dead | low
@@ -2628,12 +2635,16 @@ def propose(ctx: Context) -> list[Group]:
             if len(parts) > 1 or (parts and depth_ + 1 < p.window_split_steps):
                 grown_parts = []
                 for py, px, pm, _ in parts:
-                    grown = np.zeros(m.shape, np.uint8)
-                    grown[py:py + pm.shape[0], px:px + pm.shape[1]] = pm
-                    grown = (cv2.dilate(grown, cross) > 0) & m
+                    # grown by the cross within its box and a pixel around it (a textured wall's blob
+                    # erodes into a thousand parts: each over the whole blob's box took a second)
+                    ga, gb = max(py - 1, 0), min(py + pm.shape[0] + 1, m.shape[0])
+                    gc, gd = max(px - 1, 0), min(px + pm.shape[1] + 1, m.shape[1])
+                    grown = np.zeros((gb - ga, gd - gc), np.uint8)
+                    grown[py - ga:py - ga + pm.shape[0], px - gc:px - gc + pm.shape[1]] = pm
+                    grown = (cv2.dilate(grown, cross) > 0) & m[ga:gb, gc:gd]
                     ys, xs = np.nonzero(grown)
                     gy0, gx0 = ys.min(), xs.min()
-                    grown_parts.append((gy0, gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1]))
+                    grown_parts.append((ga + gy0, gc + gx0, grown[gy0:ys.max() + 1, gx0:xs.max() + 1]))
                 for gy0, gx0, gm in _live_pieces(ctx, y0, x0, grown_parts, fy, p):
                     stack.append((y0 + gy0, x0 + gx0, gm, depth_ + 1))
     found = regularise(ctx, found, ratio, chroma, B, bld, rejects, boxes)
