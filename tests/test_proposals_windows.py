@@ -1361,3 +1361,46 @@ def test_the_fast_lookups_give_numpys_values():
     assert np.array_equal(u[inv.ravel()], f) and len(u) == len(np.unique(f, axis=0))
     lab = rng.integers(0, 34, (20, 30)).astype(np.uint8)
     assert np.array_equal(_in_labels(lab, (11, 23)), np.isin(lab, (11, 23)))
+
+
+def test_the_first_blobs_are_the_blobs_less_those_only_small():
+    """``_first_blobs`` (the blobs of a frame judged at once: a textured facade makes thousands) gives
+    the blobs of ``components`` + ``_ledge_split`` in their order, less only blobs that the per-blob
+    tests call "small" and ``_occupancy_split`` does not cut (lower than a pane at their median depth
+    and not cut off by something in front)."""
+    from npsim_core.proposals.core import Context, components, median
+    from npsim_core.proposals.windows import _cut_off, _first_blobs, _ledge_split, _occupancy_split
+
+    rng = np.random.default_rng(3)
+    Hh, Ww = 120, 200
+    labels = np.full((Hh, Ww), 11, np.uint8)
+    labels[90:, :] = 7            # road
+    labels[40:70, 150:160] = 26   # a car's part in front
+    depth = np.full((Hh, Ww), 20.0, np.float32) + rng.normal(0, 0.05, (Hh, Ww)).astype(np.float32)
+    depth[30:34, 20:60] = 18.0    # a balcony slab
+    cand = (rng.random((Hh, Ww)) < 0.3) & (labels == 11)
+    cand[10:22, 30:40] = True     # a pane
+    cand[30:34, 20:60] = True     # the slab
+    cand[35:60, 100:104] = True   # panes joined by a sill line
+    cand[35:60, 108:112] = True
+    cand[58:60, 100:112] = True
+    K = Intrinsics(150.0, 150.0, 99.5, 59.5, Ww, Hh)
+    ctx = Context(np.zeros((Hh, Ww, 3), np.uint8), labels, depth, K, None, PARAMS)
+    p, fy = ctx.params, 150.0
+    ref = [(y0 + ly, x0 + lx, lm) for y0, x0, m, _ in components(cand, p.window_min_area_px, connectivity=4)
+           for ly, lx, lm in _ledge_split(depth, labels, fy, y0, x0, m, p)]
+    got = _first_blobs(ctx, cand, fy, p)
+    assert 0 < len(got) < len(ref)
+    i = 0
+    for y, x, m in ref:
+        if i < len(got) and (got[i][0], got[i][1]) == (y, x) and got[i][2].shape == m.shape \
+                and (got[i][2] == m).all():
+            assert got[i][3] == 0
+            i += 1
+            continue
+        # dropped: "small" and not cut
+        assert len(_occupancy_split(m, p.window_gap_occupancy)) == 1
+        z = float(median(depth[y:y + m.shape[0], x:x + m.shape[1]][m]))
+        assert m.sum() < p.window_min_area_px or m.shape[0] < 2 or \
+            (m.shape[0] * z / fy < p.window_height_m[0] and not _cut_off(labels, y, x, m))
+    assert i == len(got)

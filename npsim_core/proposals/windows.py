@@ -1094,8 +1094,11 @@ def _first_blobs(ctx: Context, cand: np.ndarray, fy: float, p) -> list[tuple[int
     depth, labels = ctx.depth, ctx.labels
     ledge = depth is not None and p.window_ledge_step_m > 0
     may_ledge = np.full(n, ledge)  # (window_ledge_min_share <= 0: every blob to _ledge_split)
-    c = _blob_columns(lab, keep, ya, xa)
-    dead = _never_windows(ctx, c, n, bw, bh, area, fy, p)
+    if depth is None:  # (the table only serves the tests with depth)
+        dead = (area < p.window_min_area_px) | (bh < 2)
+    else:
+        c = _blob_columns(lab, keep, ya, xa)
+        dead = _never_windows(ctx, c, n, bw, bh, area, fy, p)
     if ledge and p.window_ledge_min_share > 0:
         g_col, G, Y, X = c["col"], c["G"], c["Y"], c["X"]
 
