@@ -155,6 +155,7 @@ CHILD = textwrap.dedent("""
     from npsim_core.chain import ChainParams
     from npsim_gui.main_window import MainWindow
     import tests.test_gui_annotation_files as t
+    MainWindow.AUTOSAVE_MS = 100   # the recovery file's delay is not what is tested: no need to wait 1 s
     win = MainWindow(with_3d=False)
     win.ask = lambda *a: "Discard"
     win.params = ChainParams().with_value("refine", "steps", 5)
