@@ -858,3 +858,21 @@ def test_core_speed_helpers_give_numpys_and_opencvs_own_values():
             assert len(got) == len(want)
             for g, wnt in zip(got, want):
                 assert g[:2] == wnt[:2] and g[3] == wnt[3] and np.array_equal(g[2], wnt[2])
+
+
+def test_the_same_proposals_check_tells_any_difference():
+    """benchmarks.proposals_same (the check of work meant to change no proposal) finds a single pixel, a
+    group member or a confidence that differs, and its frame sets are the benchmark's."""
+    from benchmarks.proposals_same import differences, frames
+
+    assert len(frames()) == 27 and len(frames(quick=True)) == 12 and len(frames(textured=True)) == 6
+    ref = dict(mask=np.zeros((4, 6), np.int32), groups={13001: (1001, 1002)}, meta={"light_kinds": {}},
+               conf={1001: 0.9, 1002: 0.5, 13001: 0.7})
+    same = {k: (v.copy() if isinstance(v, np.ndarray) else dict(v)) for k, v in ref.items()}
+    assert differences(same, ref) == []
+    px = dict(same, mask=same["mask"].copy())
+    px["mask"][2, 3] = 1001
+    assert differences(px, ref) == ["mask (1 px)"]
+    assert differences(dict(same, groups={13001: (1001,)}), ref) == ["groups"]
+    assert differences(dict(same, conf={**same["conf"], 1002: 0.5000001}), ref) == ["conf"]
+    assert differences(dict(same, mask=np.zeros((4, 5), np.int32)), ref)[0].startswith("mask shape")
