@@ -4,6 +4,7 @@ the λ sweep with its contact sheet, and the HTML report."""
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 
@@ -86,6 +87,8 @@ def test_local_worker_processes_and_cityscapes_layout(dataset, tmp_path, capsys)
         assert read_image(night).shape == (H, W, 3) and label.exists()
     doc = json.loads((out / "batch.json").read_text())
     assert doc["workers"] == 2 and all(f["peak_rss_mb"] > 0 for f in doc["frames"].values())
+    # each worker holds its share of the cores in every library (torch, OpenCV, Dr.Jit)
+    assert {f["threads"] for f in doc["frames"].values()} == {max(1, (os.cpu_count() or 1) // 2)}
     assert all(f["depth_source"].startswith("stereo") for f in doc["frames"].values())
 
 
@@ -97,7 +100,11 @@ def test_ray_tasks_on_a_local_instance(dataset, tmp_path, capsys):
     assert "Ray (local)" in capsys.readouterr().err
     for s in stems[:2]:
         assert verify_frame(out / s) is None
-    assert json.loads((out / "batch.json").read_text())["ray"] == "local"
+    doc = json.loads((out / "batch.json").read_text())
+    assert doc["ray"] == "local"
+    # a task reserves one CPU, so its frame's libraries run one thread each (Ray's workers set only
+    # OMP_NUM_THREADS: OpenCV and Dr.Jit would take every core)
+    assert {f["threads"] for f in doc["frames"].values()} == {batch_mod.RAY_TASK_CPUS}
 
 
 def test_bad_dataset_folders_get_a_clear_message(tmp_path, capsys):

@@ -46,6 +46,9 @@ class FrameOutcome:
     files: int = 0
     peak_rss_mb: float = 0.0
     warnings: list = field(default_factory=list)
+    #: The most CPU threads one of torch, OpenCV and Dr.Jit was allowed in the frame's process
+    #: (:func:`thread_counts`): with several workers on one machine each should hold its share.
+    threads: int = 0
 
     def to_json(self) -> dict:
         return {k: v for k, v in self.__dict__.items()}
@@ -109,7 +112,8 @@ def run_frame(src: FrameSource, params: ChainParams, out_root: str | Path, night
             _cityscapes_copy(folder, Path(out_root), src, nights)
         return FrameOutcome(src.name, "done", time.perf_counter() - t0, depth_source=man["depth_source"],
                             scores=man["errors"], nights=man["nights"], files=len(files),
-                            peak_rss_mb=_peak_rss_mb(), warnings=list(man.get("warnings", [])))
+                            peak_rss_mb=_peak_rss_mb(), warnings=list(man.get("warnings", [])),
+                            threads=max(thread_counts().values()))
     except (NpsimInputError, OSError) as exc:
         return FrameOutcome(src.name, "failed", time.perf_counter() - t0, error=str(exc))
     except NpsimCancelled:
@@ -166,10 +170,9 @@ def _stop_signals_held():
             signal.raise_signal(s)
 
 
-def _worker_init(threads: int) -> None:
-    """Share the cores between worker processes (torch, OpenCV, Dr.Jit each default to all); then
-    a SIGTERM from the parent stops the worker cleanly (:func:`_stop_worker`; before that its
-    default action ends it, with nothing written yet)."""
+def share_threads(threads: int) -> None:
+    """Allow torch, OpenCV and Dr.Jit ``threads`` CPU threads each in this process (each defaults to
+    every core, so two workers on a 2-core machine would run 2 x 3 x 2 threads)."""
     os.environ["OMP_NUM_THREADS"] = str(threads)
     try:
         import cv2
@@ -186,6 +189,28 @@ def _worker_init(threads: int) -> None:
         drjit.set_thread_count(threads)
     except (ImportError, AttributeError):  # older Dr.Jit: keeps its default
         pass
+
+
+def thread_counts() -> dict[str, int]:
+    """The CPU threads torch, OpenCV and Dr.Jit may use in this process (Dr.Jit's where it says)."""
+    import cv2
+    import torch
+
+    counts = {"torch": torch.get_num_threads(), "opencv": max(1, cv2.getNumThreads())}
+    try:
+        import drjit
+
+        counts["drjit"] = drjit.thread_count()
+    except (ImportError, AttributeError):  # older Dr.Jit: no way to ask
+        pass
+    return counts
+
+
+def _worker_init(threads: int) -> None:
+    """A local worker process: its share of the cores (:func:`share_threads`); then a SIGTERM from
+    the parent stops it cleanly (:func:`_stop_worker`; before that its default action ends it, with
+    nothing written yet)."""
+    share_threads(threads)
     signal.signal(signal.SIGTERM, _stop_worker)
 
 
@@ -322,6 +347,18 @@ def stop_workers(pool: ProcessPoolExecutor, grace_s: float = 10.0) -> int:
     return len(procs)
 
 
+#: The CPUs a Ray task reserves for one frame; the frame's libraries get as many threads.
+RAY_TASK_CPUS = 1
+
+
+def _ray_frame(src: FrameSource, params: ChainParams, out_root: str, nights: int, layout: str,
+               threads: int) -> FrameOutcome:
+    """One frame as a Ray task: Ray runs its tasks in long-lived worker processes that set only
+    ``OMP_NUM_THREADS``, so OpenCV and Dr.Jit would take every core of the node each."""
+    share_threads(threads)
+    return run_frame(src, params, out_root, nights, layout)
+
+
 def _run_ray(todo: Iterable[FrameSource], params: ChainParams, out_root: Path, nights: int, layout: str,
              address: str, finished: Callable[[FrameOutcome], None]) -> None:
     """The same jobs as Ray tasks (``address`` ``local`` starts a local instance)."""
@@ -342,8 +379,8 @@ def _run_ray(todo: Iterable[FrameSource], params: ChainParams, out_root: Path, n
                                   "address of a running Ray cluster (ray start --head) or 'local'") from None
         started = True
     try:
-        task = ray.remote(num_cpus=1)(run_frame)
-        refs = {task.remote(src, params, str(out_root), nights, layout): src for src in todo}
+        task = ray.remote(num_cpus=RAY_TASK_CPUS)(_ray_frame)
+        refs = {task.remote(src, params, str(out_root), nights, layout, RAY_TASK_CPUS): src for src in todo}
         while refs:
             ready, _ = ray.wait(list(refs), num_returns=1)
             for ref in ready:
