@@ -913,3 +913,31 @@ def test_a_far_lamp_beside_the_cut_only_its_middle_row_forty_levels_off_the_pain
     img, lab, depth, inst, intr, visible = _far_lamp_at_the_cut(36.0)
     ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
     assert not [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
+
+
+def test_a_lamp_box_laid_out_rows_off_over_the_sliver_beside_the_cut_gives_way_to_the_sliver():
+    """512x256 default seed 0: a red car (33 m) the green car in front hides but its inner end; its face's top
+    is taken three rows high under that car, so the inner lamp's box (laid out by geometry, nothing to snap
+    to on red paint) lies at rows 113-115 while the lamp shows as a sliver at the cut, rows 116-117, on the
+    box's columns. The sliver is proposed and the box is not (a false lamp of 15 px on the old code, which
+    kept both: the sliver overlaps no pixel of the box). With ``vehicle_sliver_box_tol_px`` -1 the box is
+    back. Unit: the box goes only when the sliver's rows miss the box's and its columns lie within them."""
+    from benchmarks.proposals import frame
+    from npsim_core.proposals.vehicles import _sliver_under_box
+
+    scene, inst = frame(512, 256, 0, "default")
+    car = inst == 26003
+    box = np.zeros(car.shape, bool)
+    box[113:116, 197:203] = True
+    sliver = np.zeros(car.shape, bool)
+    sliver[116:118, 200] = True
+    for tol, box_there in ((1, False), (-1, True)):
+        params = replace(ProposalParams(), categories=("vehicles",), vehicle_sliver_box_tol_px=tol)
+        ann, lamps = _lamps(propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst, params))
+        on_car = [ann.mask(i) for i in lamps if (ann.mask(i) & car).any()]
+        assert max((_iou(mk, sliver) for mk in on_car), default=0.0) >= 0.5
+        assert any(_iou(mk, box) >= 0.5 for mk in on_car) == box_there
+    assert _sliver_under_box(box, sliver, 1)
+    assert not _sliver_under_box(box, np.roll(sliver, 5, axis=1), 1)      # columns beyond the box: another lamp
+    assert not _sliver_under_box(box, np.roll(sliver, -2, axis=0), 1)     # rows shared: the box holds the lamp
+    assert not _sliver_under_box(box, sliver, -1)

@@ -115,6 +115,10 @@ class ProposalParams:
     #: ... on vehicles whose whole lamp (0.15 m) is under this many pixels tall (a taller lamp's rows are
     #: clear of the 3x3 blur: a single row over 40 levels there is a seam's or an edge's).
     vehicle_sliver_grow_max_px: float = 4.0
+    #: A lamp box laid out by geometry alone (snapped to nothing) whose rows miss the sliver found beside the
+    #: cut, the sliver's columns within the box's and this many pixels either way, is that lamp rows off (the
+    #: face's top under the car in front): the sliver replaces it; -1: off (``vehicles._sliver_under_box``).
+    vehicle_sliver_box_tol_px: int = 1
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3

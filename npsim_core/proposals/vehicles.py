@@ -1057,6 +1057,22 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     return out & win
 
 
+def _sliver_under_box(box: np.ndarray, sliver: np.ndarray, tol: int) -> bool:
+    """Whether a lamp box laid out by the face's geometry (snapped to nothing) and the sliver found beside
+    the cut are one lamp: the sliver's columns within the box's (``tol`` px either way; < 0: never) and its
+    rows none of the box's -- the face's top taken rows off under the car in front, the box above or below
+    the lamp the image shows (512x256 default seed 0: a red car cut by the car in front, its box 3 rows
+    above the sliver, docs/proposals.md "Eighteenth pass: vehicle lamps"). The sliver is then that lamp
+    and the box goes."""
+    if tol < 0:
+        return False
+    bx, sx = np.flatnonzero(box.any(0)), np.flatnonzero(sliver.any(0))
+    by, sy = np.flatnonzero(box.any(1)), np.flatnonzero(sliver.any(1))
+    if not (bx.size and sx.size):
+        return False
+    return bool(sx[0] >= bx[0] - tol and sx[-1] <= bx[-1] + tol and (sy[0] > by[-1] or sy[-1] < by[0]))
+
+
 def _sliver_grown(lab: np.ndarray, stats: np.ndarray, beside: np.ndarray, win: np.ndarray, box: tuple,
                   sub: np.ndarray, paint: np.ndarray, ppm: float, rows: tuple[int, int],
                   share: float, max_px: float) -> np.ndarray | None:
@@ -1240,6 +1256,9 @@ def propose(ctx: Context) -> list[Group]:
                 sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
                 if sliver is None:  # cut on its centre side by a car in the lane: a red lamp's sliver there
                     sliver = _sliver_lamp(ctx, y0, x0, m, img, z, centre_side=True)
+                if sliver is not None and distinct == 0 and len(lamps) == 1 and \
+                        _sliver_under_box(lamps[0], sliver, p.vehicle_sliver_box_tol_px):
+                    lamps, n_pair = [], 0  # the box laid out over the sliver is that lamp, rows off
                 if sliver is not None and not any((sliver & b).any() for b in lamps):
                     lamps.append(sliver)
             if n_pair == 0 and placed:  # nothing where the face puts its lamps: red ones by colour alone
