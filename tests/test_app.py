@@ -27,21 +27,36 @@ def scene():
     return street_scene(W, H)
 
 
+#: Tests of the pipeline, the views, the project and the night-less exports never read the night preview:
+#: they run with its dock closed (as a person may close it), so no preview is rendered when the scene
+#: opens or after each change (~1-2 s of Mitsuba per window and per change). (The export with a night
+#: keeps the preview: without it the export builds the night scene itself, no quicker.)
+preview_closed = pytest.mark.parametrize("window", ["preview closed"], indirect=True)
+
+
 @pytest.fixture
-def window(qtbot, scene):
+def window(qtbot, scene, request):
     from npsim_gui.main_window import MainWindow
 
+    night = getattr(request, "param", None) != "preview closed"
     win = MainWindow()
     win.ask = lambda title, text, buttons: "Discard"
     qtbot.addWidget(win)
     win.show()
+    if not night:
+        win.save_layout = lambda: None  # (the closed dock is not remembered for the next test's window)
+        win.render_dock.hide()
+        assert not win.night_preview_shown()
     # keep the test quick: a short refinement and a tiny preview
     params = ChainParams().with_value("refine", "steps", 40).with_value("night", "spp", 4) \
                              .with_value("night", "preview_scale", 1.0).with_value("night", "final_spp", 4)
     win.set_scene(scene, params)
     qtbot.waitUntil(lambda: win.results is not None and win.results.mesh is not None, timeout=120_000)
-    qtbot.waitUntil(lambda: win.render_panel.night is not None, timeout=120_000)
+    if night:
+        qtbot.waitUntil(lambda: win.render_panel.night is not None, timeout=120_000)
     yield win
+    if not night:
+        assert win.render_panel.night is None  # no preview was rendered behind the test's back
     win.close()
 
 
@@ -77,6 +92,7 @@ def _record_results(window):
     return seen
 
 
+@preview_closed
 def test_lambda_slider_recomputes_only_refine_and_mesh(window, qtbot):
     seen = _record_results(window)
     slider = window.params_panel.sliders[("refine", "lambda2")]
@@ -89,6 +105,7 @@ def test_lambda_slider_recomputes_only_refine_and_mesh(window, qtbot):
     assert window.loss_plot.series.get("total")
 
 
+@preview_closed
 def test_filter_slider_recomputes_from_filter(window, qtbot):
     seen = _record_results(window)
     s = window.params_panel.sliders[("filter", "sigma_s")]
@@ -99,6 +116,7 @@ def test_filter_slider_recomputes_from_filter(window, qtbot):
     assert window.params.filter.sigma_s == 6.0
 
 
+@preview_closed
 def test_view_modes_show_in_the_canvas(window, qtbot):
     from npsim_core.views import view_image
 
@@ -151,6 +169,7 @@ def test_bad_scene_path_is_a_message_not_a_crash(qtbot, tmp_path, scene):
     window.close()
 
 
+@preview_closed
 def test_project_round_trip(window, qtbot, tmp_path):
     from npsim_core.chain.project import load_project
 
@@ -179,6 +198,7 @@ def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(
     window.close()
 
 
+@preview_closed
 def test_fov_slider_shows_scene_fov_and_changes_intrinsics(window, qtbot, scene):
     fov = window.params_panel.sliders[("camera", "hfov_deg")]
     assert fov.value() == pytest.approx(scene.intrinsics.hfov_deg, abs=0.1)
@@ -248,6 +268,7 @@ def test_last_scene_is_remembered_between_runs(qtbot, tmp_path, scene):
     second.close()
 
 
+@preview_closed
 def test_export_twice_reports_once_each(window, qtbot, tmp_path):
     logged = []
     window.log.log = lambda text, _orig=window.log.log: (logged.append(text), _orig(text))
@@ -313,6 +334,7 @@ def test_large_frames_answer_sliders_from_a_proxy(qtbot, monkeypatch):
     win.close()
 
 
+@preview_closed
 def test_export_of_an_unchanged_frame_reuses_the_last_one_and_asks_before_overwriting(window, qtbot, tmp_path):
     logged, asked = [], []
     window.log.log = lambda text, _orig=window.log.log: (logged.append(text), _orig(text))
