@@ -3,7 +3,7 @@ where the command line reads it (``X_lights.json`` beside the image, ``--lights 
 recovery file within 2 s of an edit, offers it back after the process was killed, asks before
 leaving a frame with unsaved edits, and marks saved frames ✓ in the Frames dock.
 
-Cityscapes-layout fixture (``npsim_core.synthetic.cityscapes``, 256x128, two frames). Driven by
+Cityscapes-layout fixture (``npsim_core.synthetic.cityscapes``, 128x64, two frames). Driven by
 signals and ``qtbot.waitUntil``; no sleeps, no wall-clock assertions.
 """
 
@@ -20,7 +20,7 @@ import pytest
 
 from npsim_core.synthetic.cityscapes import fixture_image
 
-SIZE = (256, 128)
+SIZE = (128, 64)
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ import pytest
 from PySide6.QtCore import QRect, Qt
 from PySide6.QtGui import QFontMetrics, QKeySequence
 
-SIZE = (256, 128)
+SIZE = (128, 64)
 
 
 def _window(qtbot):
