@@ -107,6 +107,7 @@ def test_cancel_stops_a_running_job_and_returns_to_idle(qtbot, settings):
     win.show()
     qtbot.waitExposed(win)
     assert not win.act_cancel.isEnabled() and win.cancel_btn.isVisible()
+    win.render_dock.hide()  # (the pipeline's jobs are cancelled here: no night preview needed first)
     win.set_scene(street_scene(W, H), ChainParams().with_value("refine", "steps", 20))
     qtbot.waitUntil(lambda: win.results is not None and win.results_final and not win.jobs_busy, timeout=120_000)
     win.pipeline_jobs.submit(_long_job(win.chain))  # a job only the cancel can end
