@@ -154,8 +154,10 @@ CHILD = textwrap.dedent("""
     app = QApplication([])
     from npsim_core.chain import ChainParams
     from npsim_gui.main_window import MainWindow
+    import npsim_gui.main_window as main_window
     import tests.test_gui_annotation_files as t
     MainWindow.AUTOSAVE_MS = 100   # the recovery file's delay is not what is tested: no need to wait 1 s
+    main_window.warm_up = lambda: []  # nor the start-up's imports for the workers (torch, Mitsuba: ~3 s)
     win = MainWindow(with_3d=False)
     win.ask = lambda *a: "Discard"
     win.params = ChainParams().with_value("refine", "steps", 5)
