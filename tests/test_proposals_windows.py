@@ -431,6 +431,39 @@ def test_small_dark_grey_pane_is_not_a_cast_shadow_but_a_large_one_is():
     assert not any((w & shadow).sum() > 0.3 * w.sum() for w in wins.values()), "the cast shadow proposed"
 
 
+def test_whole_dark_grey_panes_of_two_square_metres_are_not_cast_shadows():
+    """A far facade's whole panes whose dark interior keeps the wall's grey (1.2 x 1.8 m, 2.2 m^2 on the wall:
+    the 512x256 default street's facades at 100-125 m, 7-9 px) were taken for cast shadows: the test judged
+    every such blob of 1 m^2 and more, under a whole pane's size. It now judges blobs of
+    ``window_shadow_min_m2`` (3.5 m^2) and more (docs/proposals.md "Eighteenth pass: windows at 512x256"):
+    the panes are proposed, a 7.5 m^2 dark patch of the wall's colour is still a shadow."""
+    img, labels, depth, noise = _canvas()
+    z = 25.0
+    _wall(img, labels, depth, -7.0, 7.0, 10.0, z)
+    img[labels == 11] = (150, 150, 150)                # a grey wall
+    dark = (97, 97, 97)                                # its colour, darker
+    gt = {}
+    for f, sill in enumerate((3.5, 6.5)):
+        for b in range(4):
+            x = -6.5 + 2.6 * b
+            _pane(img, gt, (f, b), x, x + 1.2, sill, sill + 1.8, z)
+            img[gt[(f, b)]] = dark
+    m2 = [g.sum() * (z / K.fy) ** 2 for g in gt.values()]
+    assert all(1.5 < a < PARAMS.window_shadow_min_m2 for a in m2), m2
+    shadow = np.zeros((H, W), bool)
+    shadow[int(_v(9.5, z)):int(_v(7.0, z)), int(_u(3.5, z)):int(_u(6.5, z))] = True
+    img[shadow] = dark
+    assert shadow.sum() * (z / K.fy) ** 2 > 2 * PARAMS.window_shadow_min_m2
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    hit = sum(any(_iou(g, w) >= 0.5 for w in wins.values()) for g in gt.values())
+    assert hit >= 0.8 * len(gt), f"{hit} of {len(gt)} dark grey panes proposed"
+    assert not any((w & shadow).sum() > 0.3 * w.sum() for w in wins.values()), "the cast shadow proposed"
+    # as the rule was (1 m^2): most of the panes are taken for shadows
+    from dataclasses import replace
+    img = np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8)
+    old, _ = _windows(propose_lights(img, labels, depth, K, None, replace(PARAMS, window_shadow_min_m2=1.0)))
+    assert sum(any(_iou(g, w) >= 0.5 for w in old.values()) for g in gt.values()) < 0.5 * len(gt)
+
 def test_contrasting_panes_reach_the_default_slider_and_a_faint_fleck_does_not():
     """The confidence follows what separates true windows from false ones on the synthetic streets
     (docs/proposals.md "Seventh pass"): contrast to the wall right around a window and its height.
@@ -694,6 +727,72 @@ def test_a_pane_found_by_its_frames_side_gets_the_rest_of_its_width():
         m[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] = li.mask
         assert _iou(m, pane) >= 0.85, f"pane {k}: IoU {_iou(m, pane):.2f}"
     assert found[6][3].mask.shape[1] == 3      # the blur column stays out
+
+def test_a_cell_cut_from_a_blob_takes_its_panes_columns_where_the_pane_is_wider():
+    """A blob too large for one window (two panes joined by a lintel line) is cut into the cells of its wall's
+    bays (``regularise``); the bays come from the floor above, whose panes are narrower, so each cell held 6
+    of its pane's 9 columns (the 512x256 default street's facing facades at 100-110 m; docs/proposals.md
+    "Eighteenth pass: windows at 512x256"). ``windows._cell_grown`` gives the cell the blob's run of columns
+    that fill half its rows and hold the cell's own, up to ``window_cell_grow`` x the cell's width, where no
+    window holds them."""
+    from npsim_core.proposals.windows import _cell_grown
+
+    m = np.zeros((14, 30), bool)
+    m[0, :] = True                                    # the lintel line joining the two panes
+    m[1:13, 2:11] = True                              # pane 1, columns 2-10
+    m[1:13, 17:26] = True                             # pane 2, columns 17-25
+    piece = np.zeros(m.shape, bool)
+    piece[1:13, 2:8] = m[1:13, 2:8]                   # its cell: columns 2-7, rows 1-12
+    got = _cell_grown(m, piece, 1, 12, 2, 7, 2.0, 50, 100, [])
+    want = np.zeros(m.shape, bool)
+    want[1:13, 2:11] = True
+    assert (got == want).all()
+    # a window holding the pane's columns already (image coordinates, rows 51-62): the cell stays as cut
+    assert (_cell_grown(m, piece, 1, 12, 2, 7, 2.0, 50, 100, [(51, 62, 109, 110)]) == piece).all()
+    # a run over twice the cell's width (the two panes' band joined row by row): as cut
+    m2 = m.copy()
+    m2[1:13, 11:17] = True
+    assert (_cell_grown(m2, piece, 1, 12, 2, 7, 2.0, 50, 100, []) == piece).all()
+    assert (_cell_grown(m, piece, 1, 12, 2, 7, 1.2, 50, 100, []) == piece).all()
+
+
+def test_panes_hanging_from_a_band_across_their_tops_are_cut_from_it():
+    """A floor's panes hang from a band of another shade across the wall (a fascia, a lintel strip) that
+    the wall reference calls different: band and panes are one blob too large for a window, which the grid
+    could not cut where no other floor gave the bays (the 512x256 streets' facing facades at 100-125 m;
+    docs/proposals.md "Eighteenth pass: windows at 512x256"). The blob is cut below the rows it fills
+    across (``windows._band_split``) and its panes are judged each on its own."""
+    from dataclasses import replace
+
+    from npsim_core.proposals.windows import _band_split
+
+    m = np.zeros((14, 30), bool)
+    m[0:4, 1:29] = True                               # the band, rows 0-3
+    m[4:14, 2:11] = True                              # two panes under it
+    m[4:14, 17:26] = True
+    parts = sorted(_band_split(m, 0.75, 3), key=lambda q: q[1])
+    assert [(py, px, pm.shape) for py, px, pm in parts] == [(4, 2, (10, 9)), (4, 17, (10, 9))]
+    assert _band_split(m[:, :14], 0.75, 3) == []       # one pane under its band: the other tests judge it
+    assert _band_split(m[4:], 0.75, 3) == []           # no band
+    assert _band_split(m, 0.0, 3) == []                # off
+
+    img, labels, depth, noise = _canvas()
+    z = 30.0
+    _wall(img, labels, depth, -9.0, 9.0, 9.5, z)
+    gt = {}
+    for b in range(5):
+        x = -7.5 + 3.3 * b
+        _pane(img, gt, b, x, x + 1.5, 3.0, 4.8, z)
+    uu, vv = np.arange(W)[None, :], np.arange(H)[:, None]
+    band = (uu >= _u(-8.0, z)) & (uu < _u(8.0, z)) & (vv >= _v(5.6, z)) & (vv < _v(4.8, z))
+    img[band] = (215, 200, 180)                       # a light fascia over the panes' tops
+    wins, _ = _windows(_run(img, labels, depth, noise))
+    hit = sum(any(_iou(g, w) >= 0.5 for w in wins.values()) for g in gt.values())
+    assert hit >= 4, f"{hit} of {len(gt)} panes under the band proposed"
+    img = np.clip(img.astype(int) + noise, 0, 255).astype(np.uint8)
+    old, _ = _windows(propose_lights(img, labels, depth, K, None, replace(PARAMS, window_band_split_share=0.0)))
+    assert sum(any(_iou(g, w) >= 0.5 for w in old.values()) for g in gt.values()) < hit
+
 
 def test_a_whole_pane_taller_than_a_few_small_ones_of_its_wall_is_kept():
     """A wall with three small windows (0.8 m) and a whole pane twice their height (1.7 m), one

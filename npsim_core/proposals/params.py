@@ -119,6 +119,11 @@ class ProposalParams:
     #: cut, the sliver's columns within the box's and this many pixels either way, is that lamp rows off (the
     #: face's top under the car in front): the sliver replaces it; -1: off (``vehicles._sliver_under_box``).
     vehicle_sliver_box_tol_px: int = 1
+    #: A lamp box's snapped blob reaching the image's left or right border and darker than the paint by more
+    #: than this many 8-bit levels in every channel is no lamp (a near car's dark end trim or glass the frame
+    #: cuts; a lamp by day is red or brighter): the box is laid out as unsnapped; 0: off
+    #: (``vehicles._dark_at_border``; docs/proposals.md "Eighteenth pass: a dark blob at the frame's border").
+    vehicle_border_dark_levels: float = 20.0
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3
@@ -220,10 +225,15 @@ class ProposalParams:
     #: shade, lit by the blue sky only, drifts further from the wall's colour).
     window_shadow_chroma_footed: float = 10.0
     #: ... judged only on blobs of at least this area on the wall (m^2, with depth): a cast shadow is
-    #: large; a smaller dark grey blob is a pane's part or a far pane with a dark interior.
-    window_shadow_min_m2: float = 1.0
+    #: large; a smaller dark grey blob is a pane's part or a far pane with a dark interior (a whole pane
+    #: of 1.2 x 2 m is 2.4 m^2: docs/proposals.md "Eighteenth pass: windows at 512x256"; 1.0 before).
+    window_shadow_min_m2: float = 3.5
     #: Erode-and-split attempts on a blob that fails the fill or size test (joined panes).
     window_split_steps: int = 2
+    #: ... first, such a blob is cut below (above) the rows at its top (bottom) that hold at least this share
+    #: of its width: a fascia or lintel band a floor's panes hang from (windows._band_split; docs/proposals.md
+    #: "Eighteenth pass: windows at 512x256"; 0: off).
+    window_band_split_share: float = 0.75
     #: A blob too large for a window of which at least this share is one colour is a wall piece the
     #: wall reference missed; its pixels differing from that colour are its panes (0: off).
     window_blob_wall_share: float = 0.5
@@ -400,6 +410,11 @@ class ProposalParams:
     window_block_lum: float = 0.3
     window_block_chroma: float = 8
     window_block_height: float = 0.5
+    #: Window groups (window_groups._gap_is_wall): the wall's depth between two panes is not judged within
+    #: this share of the image width (px) of anything in front: its depth bleeds onto the wall beside it (a
+    #: pole between two parts of one floor; docs/proposals.md "Eighteenth pass: windows at 512x256"; 0: judged
+    #: everywhere).
+    window_gap_bleed_frac: float = 0.005
     #: Box of the fine local wall estimate, as a fraction of the image width (the coarse box is 4x).
     window_wall_kernel_frac: float = 0.02
     #: Facades (wall planes) of a building region, with depth: wall directions binned by this many
@@ -413,6 +428,11 @@ class ProposalParams:
     #: most this many bays beyond the panes found, toward the vanishing point.
     window_cell_max_px: int = 3
     window_cell_max_extra_bays: int = 4
+    #: A cell cut out of a blob too large for one window (regularise) takes the blob's run of columns that
+    #: fill half the floor's rows and hold the cell's, when that run is at most this many times the cell's
+    #: width and no window holds it: a pane wider than the bays its wall's other floors give (0: off;
+    #: docs/proposals.md "Eighteenth pass: windows at 512x256").
+    window_cell_grow: float = 2.0
     #: A window within a lattice cell's columns and under this share of the cell's pixels is a
     #: fragment of the cell's pane (its top rows, a fleck of it): the cell replaces it (0: off).
     window_cell_fragment_share: float = 0.6

@@ -780,6 +780,26 @@ def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarr
     return [(0, 0, m)]
 
 
+def _band_split(m: np.ndarray, share: float, min_area: int) -> list[tuple[int, int, np.ndarray]]:
+    """The parts of a blob too large or ragged for one window (``m``) below (above) the rows at its top
+    (bottom) that it fills across -- at least ``share`` of its width each, a band: a fascia, a cornice or a
+    lintel strip of another shade than the wall reference, with a floor's panes hanging from it (the 512x256
+    streets' facing facades at 100-125 m; docs/proposals.md "Eighteenth pass: windows at 512x256"): the
+    4-connected components of what is left (``min_area`` pixels at least), as (y, x, mask), local; none
+    unless there are two at least (no band, or one pane under it: the blob's other tests judge it)."""
+    if m.shape[1] < 5 or share <= 0:
+        return []
+    full = m.mean(1) >= share
+    if full.all():
+        return []
+    top, bot = int(np.argmin(full)), int(np.argmin(full[::-1]))
+    if not (top or bot):
+        return []
+    rest = m[top:m.shape[0] - bot]
+    parts = [(top + py, px, pm) for py, px, pm, _ in components(rest, min_area, connectivity=4)]
+    return parts if len(parts) >= 2 else []
+
+
 def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, p) -> bool:
     """Whether a blob differs from the building pixels in a ring ``window_ring_px`` wide around it by
     at least half the window thresholds (log luminance or Lab chroma). The wall reference is a
@@ -1389,7 +1409,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
 
     * a window spanning two or more cells (bays x floors), and a blob rejected as too large or too
       ragged for one window (``rejects``: (y0, x0, mask)) that spans them, is cut into one window per
-      cell (a piece filling ``window_min_fill`` of its cell); a window
+      cell (a piece filling ``window_min_fill`` of its cell; grown to the blob's columns of its pane where
+      those are wider than the cell, :func:`_cell_grown`); a window
       taller than 1.5x the median window height of its facade and of the windows nearest to it, or
       wider than ``window_wide_ratio`` x the wider of its floor neighbours, is cut along the cells it
       spans; a tall one without floors to cut it along is dropped (a gable or a roof taken for a
@@ -1519,6 +1540,8 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                     cell_area = (int(round(r1)) - int(round(r0)) + 1) * (int(round(c1)) - int(round(c0)) + 1)
                     if piece.sum() < max(p.window_min_area_px, p.window_min_fill * cell_area):
                         continue
+                    if p.window_cell_grow > 0:
+                        piece = _cell_grown(m, piece, a0, a1, b0, b1, p.window_cell_grow, y0, x0, taken)
                     ys, xs = np.nonzero(piece)
                     sub = piece[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
                     nl = Light(WINDOW_BUILDING, y0 + int(ys.min()), x0 + int(xs.min()), sub, 0.6)
@@ -1637,6 +1660,29 @@ def regularise(ctx: Context, found: list, ratio: np.ndarray, chroma: np.ndarray,
                              else max(2.0, m.shape[0] / 2.0), nl])
         kept = _small_rule(ctx, kept, fm, t_wall)
         out.extend(_cap_lit(p, kept, float(fm[fsl].sum())) + other)
+    return out
+
+
+def _cell_grown(m: np.ndarray, piece: np.ndarray, a0: int, a1: int, b0: int, b1: int, grow: float,
+                y0: int, x0: int, taken: list) -> np.ndarray:
+    """The piece of a blob too large for one window (``m``, local; the piece: its pixels in the cell's rows
+    ``a0..a1`` and columns ``b0..b1``) grown to the blob's run of columns that fill at least half of the
+    cell's rows and hold the cell's own: the bays come from the wall's other floors, whose panes can be
+    narrower than this floor's, so a cell can hold two thirds of its pane (docs/proposals.md "Eighteenth
+    pass: windows at 512x256"). Kept as it was unless that run is at most ``grow`` x the cell's width and
+    meets no box of ``taken`` (y0, y1, x0, x1 inclusive, image coordinates; the blob at ``y0``, ``x0``)."""
+    band = m[a0:a1 + 1]
+    full = band.mean(0) >= 0.5  # the blob's columns over half the floor's band (a sill line is one row)
+    runs = np.cumsum(np.r_[full[:1], full[1:] & ~full[:-1]]) * full  # runs of such columns, numbered from 1
+    ids = np.unique(runs[b0:b1 + 1])
+    run = np.isin(runs, ids[ids > 0])  # those holding one of the cell's columns
+    cx = np.flatnonzero(run)
+    if not cx.size or cx[-1] - cx[0] + 1 > grow * (b1 - b0 + 1) or any(
+            min(x0 + int(cx[-1]), q[3]) >= max(x0 + int(cx[0]), q[2]) and min(y0 + a1, q[1]) >= max(y0 + a0, q[0])
+            for q in taken):
+        return piece
+    out = piece.copy()
+    out[a0:a1 + 1] |= band & run[None]
     return out
 
 
@@ -2457,7 +2503,8 @@ def propose(ctx: Context) -> list[Group]:
     height is plausible (``window_height_m`` with depth; a blob cut off at its top or bottom by the
     frame or something in front, :func:`_cut_off`, may be lower: it is a pane's visible part, and
     the facade lattice is fitted without it) and it fills its box
-    (``window_min_fill``); a blob failing the fill or size test is eroded, split into its parts
+    (``window_min_fill``); a blob failing the fill or size test is cut below (above) a band it fills
+    across at its top (bottom) into its parts (:func:`_band_split`), else eroded, split into its parts
     and each part grown back and tested again (``window_split_steps`` times at most). A darker blob
     with the wall's own colour, or running down to the ground with little tint, is a cast shadow
     (``window_shadow_*``; blobs of at least ``window_shadow_min_m2`` on the wall) and dropped. Then the grid per wall (:func:`regularise`). Floors:
@@ -2621,6 +2668,13 @@ def propose(ctx: Context) -> list[Group]:
             inner = _blob_panes(feat, y0, x0, m, p)
             if inner:
                 stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in inner)
+                continue
+        if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_band_split_share > 0:
+            # Panes hanging from a band across their tops (or standing on one): a fascia, a cornice or a
+            # lintel strip the reference calls different joins a floor's panes into one blob
+            pieces = _band_split(m, p.window_band_split_share, p.window_min_area_px)
+            if pieces:
+                stack.extend((y0 + py, x0 + px, pm, depth_ + 1) for py, px, pm in pieces)
                 continue
         if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_gap_contrast > 0:
             # Panes of a receding row merged across one-pixel walls: cut where the wall shows through.
