@@ -941,3 +941,35 @@ def test_a_lamp_box_laid_out_rows_off_over_the_sliver_beside_the_cut_gives_way_t
     assert not _sliver_under_box(box, np.roll(sliver, 5, axis=1), 1)      # columns beyond the box: another lamp
     assert not _sliver_under_box(box, np.roll(sliver, -2, axis=0), 1)     # rows shared: the box holds the lamp
     assert not _sliver_under_box(box, sliver, -1)
+
+
+def _border_car_with_dark_end(levels: float):
+    """A grey car at 8 m cut by the frame's right border (as the test above, 12 px of its 112-px end face
+    left: its inner lamp's box, 0.08-0.38 m in, mostly beyond the frame) whose end face shows a dark bluish
+    block (63 / 72 / 84 on 112 / 118 / 126 paint: its end's trim or glass) in the lamp's rows, from the box's
+    second column to the border; the lamps themselves do not stand out of the paint. The share of the block
+    under a proposed lamp."""
+    z, corner = 8.0, 188
+    img, lab, depth, inst, intr = _frame()
+    paint = (112, 118, 126)
+    body, cab = slice(_row(0.9, z), _row(0.3, z)), slice(_row(1.4, z), _row(0.9, z))
+    side = slice(corner - 60, corner)
+    lab[body, side], img[body, side], inst[body, side] = CAR, (135, 140, 146), CAR * 1000 + 1
+    depth[body, side] = np.linspace(12.0, 8.5, 60)[None, :]
+    for rows, c in ((body, corner), (cab, corner + 6)):
+        lab[rows, c:], img[rows, c:], inst[rows, c:], depth[rows, c:] = CAR, paint, CAR * 1000 + 1, z
+    dark = np.zeros(lab.shape, bool)
+    dark[_row(0.85, z):_row(0.62, z), 194:] = True
+    img[dark] = (63, 72, 84)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst,
+                                       params=replace(FLAT, vehicle_border_dark_levels=levels)))
+    return max(((ann.mask(i) & dark).sum() / dark.sum() for i in lamps), default=0.0)
+
+
+def test_a_dark_blob_at_the_frames_border_on_a_near_cars_end_is_not_taken_for_its_lamp():
+    """The lamp box on the strip of end face the border leaves holds a dark block reaching the border, 49 / 46
+    / 42 levels below the paint: it is not snapped to, and the box, mostly beyond the frame, is not proposed
+    (512x256 default seed 3: a 106-px false lamp). The old code (``vehicle_border_dark_levels`` 0) snapped the
+    lamp to the block."""
+    assert _border_car_with_dark_end(20.0) == 0.0
+    assert _border_car_with_dark_end(0.0) > 0.5

@@ -896,6 +896,9 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                 # deck's, the cabin seam's) by day (512x256 default seed 0: a 3-px false lamp on the body's top
                 # row, two rows above the lamp).
                 n = 0
+            if n and p.vehicle_border_dark_levels > 0 and _dark_at_border(img, cand, paint, x0, ctx.shape[1],
+                                                                         p.vehicle_border_dark_levels):
+                n = 0  # the dark trim or glass of a near car's end the frame cuts, not a lamp
             if n >= max(1, full // 3) and n <= 3 * full and not tall:
                 if small:
                     inside = _unblur(cand, 0.15 * ppm, 0.30 * ppm) & m
@@ -952,6 +955,19 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         lamps.append(box)
         n_snapped += int(boxes[side][4])
     return lamps, n_snapped
+
+
+def _dark_at_border(img: np.ndarray, blob: np.ndarray, paint: np.ndarray, x0: int, width: int,
+                    levels: float) -> bool:
+    """Whether a lamp box's snapped blob (local bool mask at image column ``x0``) reaches the image's left or
+    right border column and its mean colour lies more than ``levels`` (8-bit) below the paint in every
+    channel: a near car the frame cuts shows its end's dark trim or glass there (512x256 default seed 3: a
+    106-px blob of 63 / 72 / 84 on 112 / 118 / 126 paint at the right border), while a lamp by day is red
+    or brighter than the paint -- and one the frame clips shows no shape to judge it by."""
+    cols = np.flatnonzero(blob.any(0))
+    if cols.size == 0 or not (x0 + cols[0] == 0 or x0 + cols[-1] == width - 1):
+        return False
+    return bool(np.all(pixels(img, blob).mean(0) < np.asarray(paint, np.float32) - levels))
 
 
 def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float, red_only: bool = False) -> np.ndarray:
