@@ -122,8 +122,12 @@ class ProposalParams:
     #: A lamp box's snapped blob reaching the image's left or right border and darker than the paint by more
     #: than this many 8-bit levels in every channel is no lamp (a near car's dark end trim or glass the frame
     #: cuts; a lamp by day is red or brighter): the box is laid out as unsnapped; 0: off
-    #: (``vehicles._dark_at_border``; docs/proposals.md "Eighteenth pass: a dark blob at the frame's border").
+    #: (``vehicles._dark_at_border``; docs/proposals.md "Eighteenth pass: vehicle lamps held out").
     vehicle_border_dark_levels: float = 20.0
+    #: A lamp under ``SMALL_LAMP_PX`` tall is not snapped to a blob lying wholly in the silhouette's last column
+    #: beside background (the street's colour bled into the car's edge; ``vehicles._edge_bleed``;
+    #: docs/proposals.md "Eighteenth pass: vehicle lamps held out"); False: off.
+    vehicle_small_lamp_edge_bleed: bool = True
     #: A vehicle silhouette narrower than this share of the end face's width (``vehicle_width_m`` at its
     #: depth), not cut by the image border, gets no lamps: its face is mostly hidden (a far car in a row).
     vehicle_min_face_share: float = 0.3

@@ -896,6 +896,8 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
                 # deck's, the cabin seam's) by day (512x256 default seed 0: a 3-px false lamp on the body's top
                 # row, two rows above the lamp).
                 n = 0
+            if n and small and p.vehicle_small_lamp_edge_bleed and _edge_bleed(ctx, y0, x0, m, cand):
+                n = 0  # the background's colour bled into the silhouette's last column, not a lamp
             if n and p.vehicle_border_dark_levels > 0 and _dark_at_border(img, cand, paint, x0, ctx.shape[1],
                                                                          p.vehicle_border_dark_levels):
                 n = 0  # the dark trim or glass of a near car's end the frame cuts, not a lamp
@@ -955,6 +957,27 @@ def _lamp_pair(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, p
         lamps.append(box)
         n_snapped += int(boxes[side][4])
     return lamps, n_snapped
+
+
+def _edge_bleed(ctx: Context, y0: int, x0: int, m: np.ndarray, blob: np.ndarray) -> bool:
+    """Whether every pixel of a small lamp's snapped blob (local bool mask at image row ``y0``, column ``x0``)
+    lies in the silhouette's last column beside background (``BACKGROUND``: road, pavement, building, sky...
+    -- not another vehicle or an occluder): the background's colour bled into the car's edge by antialiasing
+    and blur departs from the paint as a lamp does (512x256 default seed 5: a red car at 56 m whose left lamp
+    box snapped to its edge column, grey of the street on 84 / 25 / 25 paint, two rows below the lamp; its mate
+    mirrored it, both false). At a cut by the car in front the sliver there is the lamp's (512x256 default seed 11)."""
+    H, W = ctx.shape
+    h, w = m.shape
+    ys, xs = np.nonzero(blob)
+    if ys.size == 0:
+        return False
+    beside_bg = np.zeros(ys.size, bool)
+    for dx in (-1, 1):
+        lx, gx = xs + dx, x0 + xs + dx
+        off_sil = (lx < 0) | (lx >= w) | ~m[ys, np.clip(lx, 0, w - 1)]
+        in_frame = (gx >= 0) & (gx < W)
+        beside_bg |= off_sil & in_frame & np.isin(ctx.labels[y0 + ys, np.clip(gx, 0, W - 1)], BACKGROUND)
+    return bool(beside_bg.all())
 
 
 def _dark_at_border(img: np.ndarray, blob: np.ndarray, paint: np.ndarray, x0: int, width: int,
