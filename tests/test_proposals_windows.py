@@ -775,6 +775,14 @@ def test_panes_hanging_from_a_band_across_their_tops_are_cut_from_it():
     assert _band_split(m[:, :14], 0.75, 3) == []       # one pane under its band: the other tests judge it
     assert _band_split(m[4:], 0.75, 3) == []           # no band
     assert _band_split(m, 0.0, 3) == []                # off
+    # a band over a pane's flecks beside a wedge of wall or shade (a real-layout frame's ground floor under
+    # a shop sign: a 122-px wedge beside parts of 4 and 6 px) is no row of panes: not cut, judged whole
+    w = np.zeros((20, 24), bool)
+    w[0:3, 0:24] = True                               # the band
+    w[3:5, 1:3] = True                                # a fleck of a pane, 4 px
+    w[3:20, 10:24] = np.tri(17, 14, 3, dtype=bool)    # the wedge, 100+ px
+    assert _band_split(w, 0.75, 3) == []
+    assert len(_band_split(w, 0.75, 3, max_ratio=0.0)) == 2     # the ratio test off: cut into both
 
     img, labels, depth, noise = _canvas()
     z = 30.0

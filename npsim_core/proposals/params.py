@@ -238,6 +238,9 @@ class ProposalParams:
     #: of its width: a fascia or lintel band a floor's panes hang from (windows._band_split; docs/proposals.md
     #: "Eighteenth pass: windows at 512x256"; 0: off).
     window_band_split_share: float = 0.75
+    #: ... into parts alike in size, the largest at most this many times the smallest in area: a floor's
+    #: panes (the streets' splits are within 2.1x); a wedge of wall beside a pane's flecks is not (0: any).
+    window_band_part_ratio: float = 4.0
     #: A blob too large for a window of which at least this share is one colour is a wall piece the
     #: wall reference missed; its pixels differing from that colour are its panes (0: off).
     window_blob_wall_share: float = 0.5

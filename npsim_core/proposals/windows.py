@@ -780,13 +780,16 @@ def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarr
     return [(0, 0, m)]
 
 
-def _band_split(m: np.ndarray, share: float, min_area: int) -> list[tuple[int, int, np.ndarray]]:
+def _band_split(m: np.ndarray, share: float, min_area: int,
+                max_ratio: float = 4.0) -> list[tuple[int, int, np.ndarray]]:
     """The parts of a blob too large or ragged for one window (``m``) below (above) the rows at its top
     (bottom) that it fills across -- at least ``share`` of its width each, a band: a fascia, a cornice or a
     lintel strip of another shade than the wall reference, with a floor's panes hanging from it (the 512x256
     streets' facing facades at 100-125 m; docs/proposals.md "Eighteenth pass: windows at 512x256"): the
     4-connected components of what is left (``min_area`` pixels at least), as (y, x, mask), local; none
-    unless there are two at least (no band, or one pane under it: the blob's other tests judge it)."""
+    unless there are two at least, within ``max_ratio`` of each other in area
+    (``window_band_part_ratio``) (no band, one pane
+    under it, or flecks beside a wedge of wall: the blob's other tests judge it)."""
     if m.shape[1] < 5 or share <= 0:
         return []
     full = m.mean(1) >= share
@@ -797,7 +800,13 @@ def _band_split(m: np.ndarray, share: float, min_area: int) -> list[tuple[int, i
         return []
     rest = m[top:m.shape[0] - bot]
     parts = [(top + py, px, pm) for py, px, pm, _ in components(rest, min_area, connectivity=4)]
-    return parts if len(parts) >= 2 else []
+    if len(parts) < 2:
+        return []
+    # a floor's panes are alike in size (the streets' splits: parts within 2.1x of each other): parts of
+    # unlike sizes are no row of panes but a wedge of wall or shade the band ran over beside a pane's
+    # flecks (a ground floor under a shop sign on a real-layout frame: 122 px beside 4 and 6)
+    areas = [int(pm.sum()) for _, _, pm in parts]
+    return parts if max_ratio <= 0 or max(areas) <= max_ratio * min(areas) else []
 
 
 def _stands_out(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndarray, p) -> bool:
@@ -2672,7 +2681,7 @@ def propose(ctx: Context) -> list[Group]:
         if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_band_split_share > 0:
             # Panes hanging from a band across their tops (or standing on one): a fascia, a cornice or a
             # lintel strip the reference calls different joins a floor's panes into one blob
-            pieces = _band_split(m, p.window_band_split_share, p.window_min_area_px)
+            pieces = _band_split(m, p.window_band_split_share, p.window_min_area_px, p.window_band_part_ratio)
             if pieces:
                 stack.extend((y0 + py, x0 + px, pm, depth_ + 1) for py, px, pm in pieces)
                 continue
