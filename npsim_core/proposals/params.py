@@ -119,6 +119,18 @@ class ProposalParams:
     #: cut, the sliver's columns within the box's and this many pixels either way, is that lamp rows off (the
     #: face's top under the car in front): the sliver replaces it; -1: off (``vehicles._sliver_under_box``).
     vehicle_sliver_box_tol_px: int = 1
+    #: A lamp 1 px across at the cut, blended with the car in front (``vehicles._sliver_blend``): the cut column
+    #: departs from its own colour over a run of rows by more than this many 8-bit levels (per row and on
+    #: average) beyond the columns two away either side; 0: off (docs/proposals.md "Nineteenth pass: vehicle
+    #: lamps").
+    vehicle_sliver_blend_levels: float = 6.0
+    #: ... the run's top and bottom (m below the end face's top row): the lamp rows, not the body's top edge.
+    vehicle_sliver_blend_rows_m: tuple[float, float] = (0.05, 0.32)
+    #: ... the occluder's last column, the cut column and the car's next shift alike over the run: the mean
+    #: shift (8-bit levels, its length over RGB) within these bounds, ...
+    vehicle_sliver_blend_shift: tuple[float, float] = (8.0, 40.0)
+    #: ... and each column's shift within this share of the mean's length from the mean.
+    vehicle_sliver_blend_spread: float = 0.55
     #: A lamp box's snapped blob reaching the image's left or right border and darker than the paint by more
     #: than this many 8-bit levels in every channel is no lamp (a near car's dark end trim or glass the frame
     #: cuts; a lamp by day is red or brighter): the box is laid out as unsnapped; 0: off

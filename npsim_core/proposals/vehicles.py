@@ -1010,6 +1010,39 @@ def _lamp_coloured(c: np.ndarray, paint: np.ndarray, red_share: float, red_only:
     return red if red_only else red | ((d[..., 0] + d[..., 1] + d[..., 2]) / 3 > 20.0)
 
 
+def _cut_band(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, centre_side: bool = False
+              ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, int] | None:
+    """Where :func:`_sliver_lamp` looks: (pixels per metre at depth ``z``, the rows at lamp heights
+    (``SLIVER_H_M``, a bool per row of the local box), their indices, per row the silhouette's end on the cut
+    side (local column), the step outward from it: -1 or 1), or None when the vehicle is not cut there (at
+    least half of those rows with the pixel beyond the end off the frame or a nearer thing than background),
+    has no depth, or its whole lamp would be under ``SLIVER_MIN_LAMP_PX`` tall."""
+    H, W = ctx.shape
+    h, w = m.shape
+    ppm = float(ctx.intrinsics.fy) / z
+    if ctx.depth is None or 0.15 * ppm < SLIVER_MIN_LAMP_PX:
+        return None
+    has = m.any(1)
+    hts = ctx.height_above_ground(y0 + np.arange(h), z)
+    band = has & (hts >= SLIVER_H_M[0]) & (hts <= SLIVER_H_M[1])
+    br = np.flatnonzero(band)
+    if br.size < 2:
+        return None
+    left = (x0 + w / 2.0 < float(ctx.intrinsics.cx)) != centre_side  # the cut side: away from the centre
+    end = np.where(has, m.argmax(1), w) if left else np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
+    out_step = -1 if left else 1
+    k = max(1, int(round(W / 512)))
+    beyond, inside = x0 + end[br] + out_step, x0 + end[br] - out_step * 2 * k
+    off = (beyond < 0) | (beyond >= W)
+    bd = ctx.depth[y0 + br, np.clip(beyond + out_step * (k - 1), 0, W - 1)]
+    own = ctx.depth[y0 + br, np.clip(inside, 0, W - 1)]
+    thing = ~np.isin(ctx.labels[y0 + br, np.clip(beyond, 0, W - 1)], BACKGROUND)
+    with np.errstate(invalid="ignore"):  # NaN depth: not nearer
+        if float((off | (thing & (bd < own))).mean()) < 0.5:
+            return None
+    return ppm, band, br, end, out_step
+
+
 def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray, z: float,
                  centre_side: bool = False) -> np.ndarray | None:
     """The visible part of a lamp of a vehicle cut on its side away from the image centre -- by the
@@ -1038,29 +1071,11 @@ def _sliver_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, img: np.ndarray,
     import cv2
 
     p = ctx.params
-    H, W = ctx.shape
-    h, w = m.shape
-    ppm = float(ctx.intrinsics.fy) / z
-    if ctx.depth is None or 0.15 * ppm < SLIVER_MIN_LAMP_PX:
+    cut = _cut_band(ctx, y0, x0, m, z, centre_side)
+    if cut is None:
         return None
-    has = m.any(1)
-    hts = ctx.height_above_ground(y0 + np.arange(h), z)
-    band = has & (hts >= SLIVER_H_M[0]) & (hts <= SLIVER_H_M[1])
-    br = np.flatnonzero(band)
-    if br.size < 2:
-        return None
-    left = (x0 + w / 2.0 < float(ctx.intrinsics.cx)) != centre_side  # the cut side: away from the centre
-    end = np.where(has, m.argmax(1), w) if left else np.where(has, w - 1 - m[:, ::-1].argmax(1), -1)
-    out_step = -1 if left else 1
-    k = max(1, int(round(W / 512)))
-    beyond, inside = x0 + end[br] + out_step, x0 + end[br] - out_step * 2 * k
-    off = (beyond < 0) | (beyond >= W)
-    bd = ctx.depth[y0 + br, np.clip(beyond + out_step * (k - 1), 0, W - 1)]
-    own = ctx.depth[y0 + br, np.clip(inside, 0, W - 1)]
-    thing = ~np.isin(ctx.labels[y0 + br, np.clip(beyond, 0, W - 1)], BACKGROUND)
-    with np.errstate(invalid="ignore"):  # NaN depth: not nearer
-        if float((off | (thing & (bd < own))).mean()) < 0.5:
-            return None
+    ppm, band, br, end, out_step = cut
+    w = m.shape[1]
     reach = max(2, int(np.ceil(SLIVER_REACH_M * ppm)))
     ra, rb = int(br[0]), int(br[-1]) + 1  # (the window lies on the band's rows: the rest is never looked at)
     dist = (np.arange(w)[None, :] - end[ra:rb, None]) * -out_step     # pixels inward from the cut, per row
@@ -1110,6 +1125,86 @@ def _sliver_under_box(box: np.ndarray, sliver: np.ndarray, tol: int) -> bool:
     if not (bx.size and sx.size):
         return False
     return bool(sx[0] >= bx[0] - tol and sx[-1] <= bx[-1] + tol and (sy[0] > by[-1] or sy[-1] < by[0]))
+
+
+def _sliver_blend(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, face_top: int) -> np.ndarray | None:
+    """A lamp 1 px across at the cut by the car in front, blended with that car's colour (local mask), or
+    None: what :func:`_sliver_lamp` does not see when the lamp departs from the paint by less than its 40
+    levels (2048x1024 hard seeds 0-2: 10 of the 14 visible lamps missed, 15-47 levels; docs/proposals.md
+    "Nineteenth pass: vehicle lamps").
+
+    By day the photo's 3x3 blur spreads such a lamp -- its own edge -- over the cut column and the column
+    either side of it alike, the occluder's last and the car's next: over the lamp's rows the three shift
+    together by a third of the lamp's departure from the paint (5-16 levels), while the columns two away on
+    either side, the occluder's and the car's own, do not. So, over the rows at lamp heights
+    (:func:`_cut_band`), per row the cut column's colour less its median over those rows, less the mean of
+    the same for the columns two pixels either side: a run of rows where it exceeds
+    ``vehicle_sliver_blend_levels`` in some channel, on average over the run too (not rows of a feature the
+    neighbours share, nor noise changing sign), as tall as a lamp (``SLIVER_ROWS_M``, at least 3 rows), its top and bottom
+    within ``vehicle_sliver_blend_rows_m`` below the end face's top row ``face_top`` (local; under the body
+    top the lamp row band, not the body's top edge nor the bumper). The three columns' shifts over the run
+    (against as many rows above and below it) must agree -- each within ``vehicle_sliver_blend_spread`` of
+    their mean's length from the mean --, the mean be ``vehicle_sliver_blend_shift`` levels long, and be a
+    lamp's: brighter in every channel (2 levels' tolerance) or leaning red (red over green and blue by a
+    fifth of its length). The mask: the cut column over the run's rows; of several runs, the largest shift.
+    A real frame's blur is softer but of the same kind (the lens's, the JPEG's): a thin lamp at an
+    occluder's edge shows as a faint band across the edge, not as a colour of its own."""
+    p = ctx.params
+    lv = p.vehicle_sliver_blend_levels
+    if lv <= 0:
+        return None
+    cut = _cut_band(ctx, y0, x0, m, z)
+    if cut is None:
+        return None
+    ppm, _, br, end, out_step = cut
+    H, W = ctx.shape
+    xc = x0 + end[br]
+    cols = [xc - out_step * d for d in (-2, -1, 0, 1, 2)]  # from the occluder's side inward
+    if min(int(c.min()) for c in cols) < 0 or max(int(c.max()) for c in cols) >= W:
+        return None
+    ys = y0 + br
+    P = [ctx.image[ys, c].astype(np.float32) for c in cols]
+    dv = [q - np.median(q, axis=0) for q in P]
+    res = dv[2] - 0.5 * (dv[0] + dv[4])
+    on = _chan_max(np.abs(res)) > lv
+    lo_h = max(3, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
+    hi_h = int(np.ceil(SLIVER_ROWS_M[1] * ppm)) + 1
+    top_m, bot_m = p.vehicle_sliver_blend_rows_m
+    shift_lo, shift_hi = p.vehicle_sliver_blend_shift
+    best, best_n = None, 0.0
+    i = 0
+    while i < on.size:
+        if not on[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < on.size and on[j + 1] and br[j + 1] == br[j] + 1:
+            j += 1
+        n, a, b = j - i + 1, i, j + 1
+        i = j + 1
+        top, bot = (br[a] - face_top) / ppm, (br[b - 1] + 1 - face_top) / ppm
+        if not (lo_h <= n <= hi_h and top >= top_m and bot <= bot_m):
+            continue
+        if float(np.abs(res[a:b].mean(0)).max()) <= lv:
+            continue
+        around = np.r_[np.arange(max(0, a - n), a), np.arange(b, min(on.size, b + n))]
+        shifts = [q[a:b].mean(0) - (q[around].mean(0) if around.size else np.median(q, axis=0)) for q in P[1:4]]
+        u = (shifts[0] + shifts[1] + shifts[2]) / 3.0
+        nu = float(np.linalg.norm(u))
+        if not shift_lo <= nu <= shift_hi:
+            continue
+        if max(float(np.linalg.norm(v - u)) for v in shifts) >= p.vehicle_sliver_blend_spread * nu:
+            continue
+        if not ((u.min() > -2.0 and u.sum() > 0) or u[0] - max(u[1], u[2]) > 0.2 * nu):
+            continue  # darker, not red: a seam, a shadow, a gap
+        if nu > best_n:
+            best, best_n = (a, b), nu
+    if best is None:
+        return None
+    out = np.zeros_like(m)
+    rr = br[best[0]:best[1]]
+    out[rr, end[rr]] = True
+    return out & m
 
 
 def _sliver_grown(lab: np.ndarray, stats: np.ndarray, beside: np.ndarray, win: np.ndarray, box: tuple,
@@ -1295,6 +1390,8 @@ def propose(ctx: Context) -> list[Group]:
                 sliver = _sliver_lamp(ctx, y0, x0, m, img, z)
                 if sliver is None:  # cut on its centre side by a car in the lane: a red lamp's sliver there
                     sliver = _sliver_lamp(ctx, y0, x0, m, img, z, centre_side=True)
+                if sliver is None:  # a lamp at the cut too faint for the sliver: its blur across the cut
+                    sliver = _sliver_blend(ctx, y0, x0, m, z, r0)
                 if sliver is not None and distinct == 0 and len(lamps) == 1 and \
                         _sliver_under_box(lamps[0], sliver, p.vehicle_sliver_box_tol_px):
                     lamps, n_pair = [], 0  # the box laid out over the sliver is that lamp, rows off
