@@ -259,6 +259,13 @@ class ProposalParams:
     #: ... its colour the mode of a histogram of its log luminance in bins this share of the window
     #: threshold wide (the width of the "near the mode" window: a shaded wall spreads over narrower bins).
     window_blob_mode_step: float = 0.5
+    #: ... or, short of that share, where a second colour of wall lies on the piece -- a cast shadow over
+    #: it (or sun over a shaded one): a window threshold or more darker (lighter) than the mode, of the
+    #: wall's hue (chroma within ``window_chroma_delta``), near at least this share of the blob -- what
+    #: differs from both colours, when the two fill ``window_blob_wall_share`` and that is two parts or
+    #: more holding ``window_blob_second_pane_share`` of the blob (windows._shadow_colour; 0: off).
+    window_blob_second_share: float = 0.1
+    window_blob_second_pane_share: float = 0.15
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
     #: Window groups (window_groups._building_end): a floor's step between neighbouring panes at least this many

@@ -904,7 +904,10 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     luminance (the chroma of the pixels near it); when at least ``window_blob_wall_share`` of the
     blob is within the window thresholds of that colour, the blob's pixels that differ from it are
     the candidates (their 4-connected components, local (y, x, mask); each is then judged as any
-    blob); else none (no colour fills that much of it: panes of several colours merged)."""
+    blob); else, where a second colour of wall lies on the piece (:func:`_shadow_colour`: a cast
+    shadow), the pixels that differ from both when the two fill that share, two parts at least and
+    ``window_blob_second_pane_share`` of the blob; else none (no colour fills that much of it: panes
+    of several colours merged)."""
     h, w = m.shape
     if m.sum() < 8 * p.window_min_area_px:
         return []
@@ -923,9 +926,45 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     ab = median(f[..., 1:][m][near], axis=0)
     base = np.array([mode, ab[0], ab[1]], np.float32)
     odd = _differs(f, np.broadcast_to(base, f.shape), p) & m
+    if (m & ~odd).sum() >= p.window_blob_wall_share * m.sum():
+        return [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+    base2 = _shadow_colour(f, m, lum, hist, lo, step, mode, ab, p)
+    if base2 is None:
+        return []
+    odd &= _differs(f, np.broadcast_to(base2, f.shape), p)
     if (m & ~odd).sum() < p.window_blob_wall_share * m.sum():
         return []
-    return [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+    parts = [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+    if len(parts) < 2 or sum(int(pm.sum()) for _, _, pm in parts) < p.window_blob_second_pane_share * m.sum():
+        return []  # a few flecks: the two colours were the panes' and the wall's (a lit street's panes)
+    return parts
+
+
+def _shadow_colour(f: np.ndarray, m: np.ndarray, lum: np.ndarray, hist: np.ndarray, lo: float, step: float,
+                   mode: float, ab: np.ndarray, p) -> np.ndarray | None:
+    """A second colour of wall on a blob (``m``; ``f`` its features, ``lum`` its log luminance, ``hist``
+    the smoothed histogram :func:`_blob_panes` took its ``mode`` from, bins ``step`` wide from ``lo``,
+    ``ab`` the mode's chroma): a cast shadow over a sunlit piece (or sun over a shaded one) -- the
+    fullest bin a window threshold or more darker (else lighter) than the mode, holding at least
+    ``window_blob_second_share`` of the blob near it, of the wall's hue (its chroma within
+    ``window_chroma_delta`` of the mode's: dark glass or a sign is no shadow). (log luminance, a, b) or
+    None (``window_blob_second_share`` 0: never)."""
+    share = float(p.window_blob_second_share)
+    if share <= 0:
+        return None
+    t = -np.log(p.window_dark_ratio)
+    bins = lo + (np.arange(hist.size) + 0.5) * step
+    for side in (bins <= mode - t, bins >= mode + t):
+        if not (side & (hist > 0)).any():
+            continue
+        c = float(bins[int(np.where(side, hist, -1).argmax())])
+        near = np.abs(lum - c) < 0.5 * t
+        if near.sum() < share * m.sum():
+            continue
+        ab2 = median(f[..., 1:][m][near], axis=0)
+        if float(np.hypot(*(ab2 - ab))) < p.window_chroma_delta:
+            return np.array([c, ab2[0], ab2[1]], np.float32)
+    return None
 
 
 def _ledge_split(depth: np.ndarray | None, labels: np.ndarray, fy: float, y: int, x: int, m: np.ndarray,
