@@ -1164,7 +1164,7 @@ def _sliver_blend(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, face_
         return None
     ys = y0 + br
     P = [ctx.image[ys, c].astype(np.float32) for c in cols]
-    dv = [q - np.median(q, axis=0) for q in P]
+    dv = [q - median(q, axis=0) for q in P]
     res = dv[2] - 0.5 * (dv[0] + dv[4])
     on = _chan_max(np.abs(res)) > lv
     lo_h = max(3, int(np.floor(SLIVER_ROWS_M[0] * ppm)))
@@ -1188,7 +1188,7 @@ def _sliver_blend(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, face_
         if float(np.abs(res[a:b].mean(0)).max()) <= lv:
             continue
         around = np.r_[np.arange(max(0, a - n), a), np.arange(b, min(on.size, b + n))]
-        shifts = [q[a:b].mean(0) - (q[around].mean(0) if around.size else np.median(q, axis=0)) for q in P[1:4]]
+        shifts = [q[a:b].mean(0) - (q[around].mean(0) if around.size else median(q, axis=0)) for q in P[1:4]]
         u = (shifts[0] + shifts[1] + shifts[2]) / 3.0
         nu = float(np.linalg.norm(u))
         if not shift_lo <= nu <= shift_hi:
