@@ -368,6 +368,17 @@ class ProposalParams:
     #: (windows._strip_width_m).
     window_min_width_m: float = 0.25
     window_strip_max_px: int = 3
+    #: A final window at least ``window_soffit_aspect`` times as wide as it is tall (px; 3 rows at least) is a
+    #: balcony soffit seen from below or a slab's face, not a pane, when its depth says its face is far from
+    #: vertical: down each column its height above the ground (from the depth and the camera) falls per row
+    #: by under ``window_soffit_tilt`` of the z / fy a vertical wall's does (a ratio: ~1 on a wall, ~0 on a
+    #: horizontal face; the median over its columns; 0: no test; windows._soffit_like). docs/proposals.md
+    #: "Nineteenth pass: false windows on balcony soffits".
+    window_soffit_aspect: float = 1.5
+    window_soffit_tilt: float = 0.45
+    #: ... and a window at least as wide as it is tall (4 rows at least) under ``window_soffit_square_tilt``:
+    #: a pane's shape, so only a face read as nearly horizontal (true panes that size read 0.35 and up).
+    window_soffit_square_tilt: float = 0.2
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Without depth, a building region whose luminance departs from its 3x3 mean (1.4826 x the median

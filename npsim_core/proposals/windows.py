@@ -2540,6 +2540,36 @@ def _median_depth(ctx: Context, li: Light) -> float | None:
     return z
 
 
+def _soffit_like(ctx: Context, li: Light) -> bool:
+    """A wide, low (or square) window on a face the depth reads as far from vertical: a balcony soffit
+    seen from below, a slab's face (``window_soffit_*``; docs/proposals.md "Nineteenth pass: false windows
+    on balcony soffits"). Per column of the window (3 rows of depth at least) the least-squares rise of
+    the height above the ground per row, over the rise a vertical wall at that depth gives (z / fy); the
+    median over the columns under ``window_soffit_tilt`` (``window_soffit_square_tilt`` for a window under
+    ``window_soffit_aspect`` times as wide as tall but as wide as tall, 4 rows at least)."""
+    p = ctx.params
+    h, w = li.mask.shape
+    tilt = p.window_soffit_tilt if w >= p.window_soffit_aspect * h else \
+        p.window_soffit_square_tilt if w >= h >= 4 else 0.0
+    if ctx.depth is None or p.window_soffit_tilt <= 0 or h < 3 or tilt <= 0:
+        return False
+    z = ctx.depth[li.y0:li.y0 + h, li.x0:li.x0 + w].astype(np.float64)
+    ok = li.mask & np.isfinite(z) & (z > 0)
+    n = ok.sum(0)
+    good = n >= 3
+    if not good.any():
+        return False
+    ok, z, n = ok[:, good], np.where(ok, z, 0.0)[:, good], n[good]
+    fy, cp, sp = float(ctx.intrinsics.fy), np.cos(p.camera_pitch_rad), np.sin(p.camera_pitch_rad)
+    r = np.arange(h, dtype=np.float64)[:, None]
+    down = np.where(ok, ((li.y0 + r - ctx.intrinsics.cy) * cp / fy + sp) * z, 0.0)  # metres below the camera
+    rm = (r * ok).sum(0) / n
+    dm = down.sum(0) / n
+    slope = ((r - rm) * (down - dm) * ok).sum(0) / np.maximum(((r - rm) ** 2 * ok).sum(0), 1e-9)
+    zc = np.array([median(z[ok[:, k], k]) for k in range(z.shape[1])])  # each column's depth
+    return float(median(slope / (zc / fy))) < tilt
+
+
 def propose(ctx: Context) -> list[Group]:
     """Window instances in one windows_group per floor of each wall (:func:`facades`).
 
@@ -2797,6 +2827,7 @@ def propose(ctx: Context) -> list[Group]:
         # a strip narrower along its wall than any pane: a downpipe, a crease, a pilaster's shaded side
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
                                           and wm < p.window_min_width_m)]
+    found = [f for f in found if not _soffit_like(ctx, f[3])]  # a balcony soffit or a slab's face
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))

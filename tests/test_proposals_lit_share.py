@@ -1,0 +1,94 @@
+"""False windows on faces that are not a facade -- balcony soffits seen from below (issue #26; docs/proposals.md
+"Nineteenth pass: false windows on balcony soffits", windows._soffit_like).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from npsim_core.camera import Intrinsics
+from npsim_core.proposals import ProposalParams, propose_lights
+from npsim_core.proposals.core import Context, Light
+from npsim_core.proposals.windows import WINDOW_BUILDING, _soffit_like
+
+W, H = 1024, 1024
+K = Intrinsics(1100.0, 1100.0, 511.5, 511.5, W, H)
+PARAMS = ProposalParams(categories=("windows",), camera_pitch_rad=0.0)
+
+
+def _band(soffit: float, noise: float = 0.0) -> tuple[Context, Light]:
+    """A dark band 1.4 m wide, ~21 px tall, 9.2 m up a wall facing a level camera (1.22 m high) at 30 m: a
+    balcony slab's underside from the wall to 2 m out of it (``soffit`` 1: its depth per row that of a horizontal
+    plane 9.2 m up), a ribbon pane flush with the wall (0: the wall's depth), or between (that share of the
+    plane's departure from the wall's depth); ``noise``: relative depth noise per pixel (a stereo matcher's is
+    about 2 %)."""
+    z, out, h_rel = 30.0, 2.0, 9.2 - PARAMS.camera_height_m
+    v0, v1 = int(np.ceil(K.cy - K.fy * h_rel / (z - out))), int(np.ceil(K.cy - K.fy * h_rel / z))
+    u0, u1 = int(np.ceil(K.cx - K.fx * 0.7 / z)), int(np.ceil(K.cx + K.fx * 0.7 / z))
+    depth = np.full((H, W), z, np.float32)
+    rows = np.arange(v0, v1, dtype=np.float64)
+    depth[v0:v1, u0:u1] = (z + soffit * (K.fy * h_rel / (K.cy - rows) - z))[:, None]
+    if noise:
+        depth *= (1.0 + noise * np.random.default_rng(1).standard_normal(depth.shape)).astype(np.float32)
+    ctx = Context(np.zeros((H, W, 3), np.uint8), np.full((H, W), 11, np.uint8), depth, K, None, PARAMS)
+    return ctx, Light(WINDOW_BUILDING, v0, u0, np.ones((v1 - v0, u1 - u0), bool), 0.9)
+
+
+def _cut(li: Light, w: int) -> Light:
+    return Light(WINDOW_BUILDING, li.y0, li.x0, li.mask[:, :w], 0.9)
+
+
+def test_a_window_on_a_face_the_depth_reads_as_horizontal_is_a_soffit():
+    """Down each column of a soffit seen from below the depth grows as a horizontal plane's does: its height
+    above the ground is the same on every row (the ratio ~0), where a vertical wall's falls by z / fy a row
+    (~1). A wide band on it is a soffit, with 2 % depth noise a pixel too, and so is a square piece of it; a
+    ribbon pane flush with its wall never is, nor a piece narrower than tall. Half-way (a face read at ~0.3:
+    the depth's bleed, a slab's face and its soffit in one window) a wide band is one, a square piece is not
+    (a pane's shape). Nothing without depth or with the test off."""
+    for noise in (0.0, 0.02):
+        ctx, li = _band(1.0, noise)
+        h = li.mask.shape[0]
+        assert h >= 18 and li.mask.shape[1] >= 2 * h
+        assert _soffit_like(ctx, li) and _soffit_like(ctx, _cut(li, h))
+        assert not _soffit_like(ctx, _cut(li, h - 1))
+        flush, li0 = _band(0.0, noise)
+        assert not _soffit_like(flush, li0) and not _soffit_like(flush, _cut(li0, h))
+    half, li = _band(0.7)
+    assert _soffit_like(half, li) and not _soffit_like(half, _cut(li, li.mask.shape[0]))
+    ctx, li = _band(1.0)
+    ctx.params = replace(PARAMS, window_soffit_tilt=0.0)
+    assert not _soffit_like(ctx, li)
+    ctx.params, ctx.depth = PARAMS, None
+    assert not _soffit_like(ctx, li)
+
+
+def test_the_false_window_on_the_lights_streets_balcony_soffit_goes_and_the_true_ones_stay():
+    """The lights street at 512x256, seed 2: false 8x5 and 7x5 windows at 64-74 m lie on balconies' undersides
+    (their true normal points down); the scene's predicted depth (blurred, noisy) reads the first as horizontal,
+    so it goes (the second, at the frame's top, stays), and no window matching a true light goes with it."""
+    from npsim_core.synthetic import street_scene
+
+    sc = street_scene(512, 256, 2, "lights")
+    horizontal = np.abs(np.nan_to_num(sc.normals_gt[..., 1])) > 0.9
+    truth = sc.lights.instance_map
+
+    def windows(tilt: float):
+        p = ProposalParams(categories=("windows",), window_soffit_tilt=tilt)
+        m = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None, p).above(0.5).instance_map
+        return [m == i for i in np.unique(m) if i // 1000 == 1]
+
+    def matched(wins):
+        n = 0
+        for w in wins:
+            js, c = np.unique(truth[w], return_counts=True)
+            n += any(j and cj / float(w.sum() + (truth == j).sum() - cj) >= 0.3 for j, cj in zip(js, c))
+        return n
+
+    def on_soffits(wins):
+        return [w for w in wins if (w & horizontal).sum() >= 0.5 * w.sum() and w.sum() >= 20]
+
+    before, after = windows(0.0), windows(ProposalParams().window_soffit_tilt)
+    assert len(on_soffits(before)) == 2 and len(on_soffits(after)) == 1
+    assert matched(after) == matched(before)
