@@ -880,6 +880,47 @@ def test_panes_inside_a_wall_piece_in_sun_and_in_a_cast_shadow_are_found():
     assert _blob_panes(feat(piece((70, 60, 110))), 0, 0, blob, PARAMS) == []  # a bluish band: not the wall's hue
 
 
+def test_a_row_of_panes_kept_as_one_window_on_a_face_the_reference_missed_is_cut_into_them():
+    """A narrow sunlit face whose colour the wall reference missed is candidate all over, and a row of
+    its far panes with the face between them passed as one window (512x256 default street seed 1: four
+    1-2 px panes at 80-90 m in one 8 x 9 px window at 0.60, each drawn by hand). The parts of the blob
+    that differ from its own colour are its panes when three or more are each half its height at least
+    and the blob is a far receding row (metres of wall a pixel); a framed pane (its frame one ring, or two
+    sides) stays whole, and so does the same row on a near wall facing the camera (a window's lights
+    between its mullions)."""
+    import cv2
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _panes_side_by_side
+
+    def feat(rgb):
+        lin = (rgb.astype(np.float32) / 255.0) ** 2.2
+        lum = 0.2126 * lin[..., 0] + 0.7152 * lin[..., 1] + 0.0722 * lin[..., 2]
+        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
+        return np.dstack([np.log(np.maximum(lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
+
+    def ctx(depth):
+        return Context(np.zeros((10, 9, 3), np.uint8), np.full((10, 9), 11, np.uint8), depth,
+                       Intrinsics(150.0, 150.0, 60.0, 4.5, 9, 10), None, PARAMS)
+
+    far = ctx(np.tile(80.0 + 2.0 * np.arange(9, dtype=np.float32), (10, 1)))  # receding: 2 m of depth a column
+    blob = np.ones((10, 9), bool)
+    row = np.zeros((10, 9, 3), np.uint8)
+    row[:] = (200, 190, 170)                                    # the sunlit face
+    for x0, x1, col in ((1, 2, 250), (3, 4, 110), (5, 6, 250), (7, 9, 250)):
+        row[2:, x0:x1] = col                                    # lit and dark panes a pixel apart
+    got = sorted((py, px, pm.shape) for py, px, pm in _panes_side_by_side(far, feat(row), 0, 0, blob, PARAMS))
+    assert got == [(2, 1, (8, 1)), (2, 3, (8, 1)), (2, 5, (8, 1)), (2, 7, (8, 2))]
+    near = ctx(np.full((10, 9), 20.0, np.float32))              # facing the camera at 20 m: 0.13 m a column
+    assert _panes_side_by_side(near, feat(row), 0, 0, blob, PARAMS) == []
+    framed = np.zeros((10, 9, 3), np.uint8)
+    framed[:] = (230, 230, 225)                                 # a light frame around dark glass
+    framed[1:-1, 1:-1] = GLASS
+    assert _panes_side_by_side(far, feat(framed), 0, 0, blob, PARAMS) == []
+    framed[0], framed[-1] = GLASS, GLASS                        # its two sides only
+    assert _panes_side_by_side(far, feat(framed), 0, 0, blob, PARAMS) == []
+
+
 def _pole(img, labels, depth, u0: int, u1: int, top_row: int = 5):
     """A post in front of the wall over image columns [u0, u1), from ``top_row`` down to the bottom."""
     img[top_row:, u0:u1] = (84, 86, 90)

@@ -276,6 +276,10 @@ def test_window_groups_on_a_textured_wall_are_those_of_the_pairwise_table(monkey
     import npsim_core.proposals.windows as wmod
 
     monkeypatch.setattr(wmod, "_texture_walls", lambda feat, B, params: (feat, None))
+    # nor the nineteenth pass's splits of a wall piece in sun and shade and of a far row kept as one window,
+    # which cut some of the texture's blobs differently: the case is the windows it was built on
+    monkeypatch.setattr(wmod, "_shadow_colour", lambda *a, **k: None)
+    monkeypatch.setattr(wmod, "_panes_side_by_side", lambda *a, **k: [])
     # seed 0 hard with depth: a pair the cheap tests reject as split is joined after one side's first join
     for seed, variant, depth, joins in ((0, "default", False, 4), (0, "hard", True, 3)):
         before, sweep, table = _regroup_both_ways(256, 128, seed, variant, depth)

@@ -266,6 +266,10 @@ class ProposalParams:
     #: more holding ``window_blob_second_pane_share`` of the blob (windows._shadow_colour; 0: off).
     window_blob_second_share: float = 0.1
     window_blob_second_pane_share: float = 0.15
+    #: A blob kept as one window splits into the parts that differ from its own colour (as a wall piece's,
+    #: above) when at least this many of them are each at least half its height: a row of panes on a
+    #: face the wall reference missed (windows._panes_side_by_side; 0: off).
+    window_blob_row_min_panes: int = 3
     #: Windows whose centres lie within this height (m) of each other form one floor.
     window_floor_tol_m: float = 0.6
     #: Window groups (window_groups._building_end): a floor's step between neighbouring panes at least this many

@@ -940,6 +940,30 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     return parts
 
 
+def _panes_side_by_side(ctx: Context, feat: np.ndarray, y: int, x: int, m: np.ndarray,
+                        p) -> list[tuple[int, int, np.ndarray]]:
+    """The panes of a blob kept as one window (``m`` at (y, x)) that is a row of them on a face of its own
+    colour: a narrow sunlit face the wall reference missed is candidate all over, so its panes and the
+    face between them pass as one window (512x256 default street seed 1: four 1-2 px panes at 80-90 m in
+    one 8 x 9 px window; docs/proposals.md "Nineteenth pass: windows at 512x256"). The parts of it that
+    differ from its own colour (:func:`_blob_panes`), when at least ``window_blob_row_min_panes`` of them
+    are far panes, each at least half its height and at most ``window_row_pane_max_px`` wide, on a blob
+    that spans at least ``window_row_min_m_per_px`` of wall per pixel column (:func:`_extent_m`: a far
+    receding row; a single framed pane leaves two sides of its frame, a pane with a curtain or a
+    reflection band one part, a near window's lights between its mullions and stripes of its reflection
+    span a few centimetres a pixel); else []."""
+    n = int(p.window_blob_row_min_panes)
+    if n <= 0:
+        return []
+    parts = _blob_panes(feat, y, x, m, p)
+    if sum(pm.shape[0] >= 0.5 * m.shape[0] and pm.shape[1] <= p.window_row_pane_max_px for _, _, pm in parts) < n:
+        return []
+    ext = _extent_m(ctx, y, x, m)
+    if ext is None or ext[0] < p.window_row_min_m_per_px * (m.shape[1] - 1):
+        return []  # not a far receding row: a near window's lights between its mullions, its frame
+    return parts
+
+
 def _shadow_colour(f: np.ndarray, m: np.ndarray, lum: np.ndarray, hist: np.ndarray, lo: float, step: float,
                    mode: float, ab: np.ndarray, p) -> np.ndarray | None:
     """A second colour of wall on a blob (``m``; ``f`` its features, ``lum`` its log luminance, ``hist``
@@ -2715,6 +2739,14 @@ def propose(ctx: Context) -> list[Group]:
                     found.pop()
                     stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in pieces)
                     continue
+        if why is None and depth_ == 0 and p.window_blob_row_min_panes > 0:
+            # kept as one window, but a row of panes on a face of its own colour that the wall reference
+            # missed: the face between them is candidate too, and the blob passes as one window
+            inner = _panes_side_by_side(ctx, feat, y0, x0, m, p)
+            if inner:
+                found.pop()
+                stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in inner)
+                continue
         ground = why is None and min(m.shape) >= 8 and _on_ground_floor(ctx, y0, x0, m)
         if why is None and p.window_trim_wall_share < 1 and depth_ <= p.window_split_steps \
                 and min(m.shape) >= 8 and (ground or p.window_trim_any_floor):
