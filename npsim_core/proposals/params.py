@@ -167,6 +167,16 @@ class ProposalParams:
     #: A column of a vehicle's cabin band most of whose pixels lie within this many levels of the
     #: paint is a pillar: the band's panes part there (0: at the end face's edge only).
     vehicle_pillar_paint_diff: float = 20.0
+    #: A vehicle pane on a face of at least this many pixels per metre (at its depth; 15: nearer than
+    #: about 30 m at 512x256) loses its bottom rows and side columns of body (``vehicles._body_trim``):
+    #: a near car's cabin band runs over the sunlit top of its body and beside the cabin.
+    vehicle_pane_body_min_ppm: float = 15.0
+    #: A body pixel there has the paint's hue: its colour over its channels' sum within this much (a share
+    #: of the sum, per channel) of the paint's (0: the trim off).
+    vehicle_pane_body_tol: float = 0.04
+    #: ... on a paint whose colour over its sum spreads at least this much across the channels (a share of
+    #: the sum; a grey or white car's body has the glass's hue).
+    vehicle_pane_body_chroma: float = 0.1
     #: An end face laid out from its inner edge (its outer edge hidden by a nearer object): that edge,
     #: found from depth, moves in by up to this share of the face's width to the pillar -- the shading
     #: step in the cabin rows (glass up to ``vehicle_pillar_rows_m`` above the body top) where end and

@@ -77,6 +77,9 @@ PILLAR_M = 0.1
 #: matched no pane): it keeps its rule confidence, not raised by the rescoring, so the slider's default
 #: leaves it (docs/proposals.md, "Eleventh pass: pane slivers at the slider").
 PANE_SLIVER_SHARE = 0.05
+#: A pane trimmed of its body rows and columns (:func:`_body_trim`) keeps at least this share of its pixels,
+#: or is left whole.
+BODY_TRIM_KEEP = 0.5
 #: A car's narrowest pillar (m) and the pixels it must span for its middle column to be clear of the photo's
 #: edge blur (3x3): on a face at that scale or nearer a pillar column is one whose pixels lie within half of
 #: ``vehicle_pillar_paint_diff`` of the paint, its core in the paint's own colour -- glass departing 10-20
@@ -188,6 +191,47 @@ def _pane_parts(img: np.ndarray, band: np.ndarray, end: np.ndarray, paint: np.nd
         part = band & (lab == i)[None, :]
         out.append((float((part & end).sum() * 2 > part.sum()), part, widths[i] < PANE_SLIVER_SHARE * widest))
     return out, True
+
+
+def _body_trim(img: np.ndarray, part: np.ndarray, paint: np.ndarray, tol: float, min_chroma: float) -> np.ndarray:
+    """A pane's mask less its outer rows and columns of body: a row (from the bottom) or a column (from
+    either side) most of whose pixels have the paint's hue -- their colour over its sum within ``tol`` of
+    the paint's in every channel, however lit -- on a paint whose colour over its sum spreads at least
+    ``min_chroma`` across the channels (a grey car's body cannot be told from its glass this way).
+    A near car's cabin band runs past its glass: its bottom rows take the sunlit top of the body below
+    the glass (the face's body top is measured at the end face), and where the silhouette is wider than
+    the cabin, the body beside it; the shade's paint test (``vehicle_pillar_paint_diff``) does not see
+    them, lit 80-90 levels brighter than the end face's paint (docs/proposals.md, "Nineteenth pass:
+    vehicle panes at 512x256 -- the body in a near car's band"). Unchanged when it would keep under
+    ``BODY_TRIM_KEEP`` of the pane (a car at the image border whose band is mostly body: no pane to trim)."""
+    s = float(paint.sum())
+    if tol <= 0 or s <= 0:
+        return part
+    pc = paint / s
+    if float(pc.max() - pc.min()) < min_chroma:
+        return part
+    ys, xs = np.nonzero(part)
+    r0, r1, c0, c1 = ys.min(), ys.max(), xs.min(), xs.max()
+    sub = img[r0:r1 + 1, c0:c1 + 1]
+    tot = np.maximum(sub.sum(-1), 1.0)
+    body = _chan_max(np.abs(sub / tot[..., None] - pc)) <= tol
+    pm = part[r0:r1 + 1, c0:c1 + 1]
+    body &= pm
+    n_r, n_c = pm.sum(1), pm.sum(0)
+    rb, cb = body.sum(1) * 2 > n_r, body.sum(0) * 2 > n_c
+    b = pm.shape[0]
+    while b > 1 and rb[b - 1]:
+        b -= 1
+    lo, hi = 0, pm.shape[1]
+    while lo < hi - 1 and cb[lo]:
+        lo += 1
+    while hi > lo + 1 and cb[hi - 1]:
+        hi -= 1
+    if b == pm.shape[0] and lo == 0 and hi == pm.shape[1]:
+        return part
+    out = np.zeros_like(part)
+    out[r0:r0 + b, c0 + lo:c0 + hi] = pm[:b, lo:hi]
+    return out if out.sum() >= BODY_TRIM_KEEP * pm.sum() else part
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -1445,6 +1489,8 @@ def propose(ctx: Context) -> list[Group]:
         parts, parted = _pane_parts(img, panes, end, paint, p.vehicle_pillar_paint_diff,
                                     fy / z if z is not None else None)
         for is_end, part, sliver in parts:
+            if z is not None and fy / z >= p.vehicle_pane_body_min_ppm and part.any():
+                part = _body_trim(img, part, paint, p.vehicle_pane_body_tol, p.vehicle_pane_body_chroma)
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf
                                      if sliver else _rescore(
