@@ -953,14 +953,14 @@ def _panes_side_by_side(ctx: Context, feat: np.ndarray, y: int, x: int, m: np.nd
     reflection band one part, a near window's lights between its mullions and stripes of its reflection
     span a few centimetres a pixel); else []."""
     n = int(p.window_blob_row_min_panes)
-    if n <= 0:
-        return []
-    parts = _blob_panes(feat, y, x, m, p)
-    if sum(pm.shape[0] >= 0.5 * m.shape[0] and pm.shape[1] <= p.window_row_pane_max_px for _, _, pm in parts) < n:
+    if n <= 0 or m.shape[1] < n or m.sum() < 8 * p.window_min_area_px:
         return []
     ext = _extent_m(ctx, y, x, m)
     if ext is None or ext[0] < p.window_row_min_m_per_px * (m.shape[1] - 1):
         return []  # not a far receding row: a near window's lights between its mullions, its frame
+    parts = _blob_panes(feat, y, x, m, p)
+    if sum(pm.shape[0] >= 0.5 * m.shape[0] and pm.shape[1] <= p.window_row_pane_max_px for _, _, pm in parts) < n:
+        return []
     return parts
 
 
