@@ -177,6 +177,10 @@ class ProposalParams:
     #: ... on a paint whose colour over its sum spreads at least this much across the channels (a share of
     #: the sum; a grey or white car's body has the glass's hue).
     vehicle_pane_body_chroma: float = 0.1
+    #: A near car's pane (``vehicle_pane_body_min_ppm``) of glass darker than its paint takes the row below it
+    #: where most of its bottom columns there lie within this share of the glass's departure from the paint of
+    #: the glass's colour (``vehicles._glass_below``; 0: off).
+    vehicle_pane_glass_below_share: float = 0.4
     #: An end face laid out from its inner edge (its outer edge hidden by a nearer object): that edge,
     #: found from depth, moves in by up to this share of the face's width to the pillar -- the shading
     #: step in the cabin rows (glass up to ``vehicle_pillar_rows_m`` above the body top) where end and

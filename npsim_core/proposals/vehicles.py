@@ -80,6 +80,9 @@ PANE_SLIVER_SHARE = 0.05
 #: A pane trimmed of its body rows and columns (:func:`_body_trim`) keeps at least this share of its pixels,
 #: or is left whole.
 BODY_TRIM_KEEP = 0.5
+#: A pane's glass (its median colour) at least this many levels (largest channel) off the paint is grown down
+#: by its row below (:func:`_glass_below`); nearer the paint the row cannot be told from body.
+GLASS_BELOW_MIN = 20.0
 #: A car's narrowest pillar (m) and the pixels it must span for its middle column to be clear of the photo's
 #: edge blur (3x3): on a face at that scale or nearer a pillar column is one whose pixels lie within half of
 #: ``vehicle_pillar_paint_diff`` of the paint, its core in the paint's own colour -- glass departing 10-20
@@ -232,6 +235,37 @@ def _body_trim(img: np.ndarray, part: np.ndarray, paint: np.ndarray, tol: float,
     out = np.zeros_like(part)
     out[r0:r0 + b, c0 + lo:c0 + hi] = pm[:b, lo:hi]
     return out if out.sum() >= BODY_TRIM_KEEP * pm.sum() else part
+
+
+def _glass_below(img: np.ndarray, m: np.ndarray, part: np.ndarray, paint: np.ndarray, share: float) -> np.ndarray:
+    """A pane grown down by the silhouette's row below it where that row is its glass: more than half of the
+    pane's bottom columns there lie within ``share`` of the glass's departure from the paint (per channel,
+    its median colour's) of that glass colour. Only for glass darker than the paint (its brightest channel
+    under the paint's) and at least ``GLASS_BELOW_MIN`` levels off it: a band brighter than its paint holds
+    sky or reflection, whose row below is no glass.
+
+    The band ends ``PANE_INSET_M`` above the end face's body top; a cabin set back from the face has its
+    glass end lower in the image than that on many cars, the glass's last row left out (512x256 default
+    seed 0: two panes of a red car at 33 m two rows short, IoU 0.51 and 0.64; docs/proposals.md,
+    "Nineteenth pass: vehicle panes at 512x256 -- the body in a near car's band, the glass's last row")."""
+    if share <= 0:
+        return part
+    ys = np.flatnonzero(part.any(1))
+    b = int(ys[-1])
+    if b + 1 >= m.shape[0]:
+        return part
+    glass = median(pixels(img, part), axis=0)
+    gp = float(_chan_max(np.abs(glass - paint)))
+    if gp < GLASS_BELOW_MIN or float(glass.max()) >= float(paint.max()):
+        return part
+    cols = np.flatnonzero(part[b])
+    c = cols[m[b + 1, cols]]
+    near = c[_chan_max(np.abs(img[b + 1, c] - glass)) <= share * gp]
+    if near.size * 2 <= cols.size:
+        return part
+    out = part.copy()
+    out[b + 1, near] = True
+    return out
 
 
 def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[float, ...]) -> float:
@@ -1491,6 +1525,7 @@ def propose(ctx: Context) -> list[Group]:
         for is_end, part, sliver in parts:
             if z is not None and fy / z >= p.vehicle_pane_body_min_ppm and part.any():
                 part = _body_trim(img, part, paint, p.vehicle_pane_body_tol, p.vehicle_pane_body_chroma)
+                part = _glass_below(img, m, part, paint, p.vehicle_pane_glass_below_share)
             if part.sum() >= 2:
                 members.append(Light(WINDOW_TRANSPORT if cls == 28 else WINDOW_PARKED, y0, x0, part, pane_conf
                                      if sliver else _rescore(
