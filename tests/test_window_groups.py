@@ -429,3 +429,38 @@ def test_a_single_pane_left_inside_its_floor_joins_the_group_whose_bay_it_fills(
     # 0: never
     col_of[0] = np.array([0.0, 1.0, 1.0])
     assert wg._join_inside_panes(t, idx_of, col_of, sorted(idx_of), 0.0, *args[1:]) == {}
+
+
+@pytest.mark.parametrize("shadow_lum", [(0.5, 1.0), (0.0, 0.0)])
+def test_floor_joined_across_the_edge_of_a_cast_shadow(shadow_lum):
+    # A building's left half in sun, its right half in the shadow another building casts (its wall's colour
+    # 0.7 x in sRGB: about 0.8 darker in log linear luminance, of one hue), the bays' rhythm running on across
+    # the shadow's edge: the windows proposer cuts each floor there, and the wall colours either side are
+    # over ``window_block_lum`` apart. Joined as one wall in sun and shadow (window_groups._shadow_pair;
+    # docs/proposals.md "Nineteenth pass: window groups across a cast shadow's edge"); off: two groups a floor.
+    from dataclasses import replace
+
+    img, labels, depth = _street()
+    sun = (172, 152, 128)
+    bays = [-11.0, -8.6, -6.2, -3.8, -1.4, 1.0, 3.4, 5.8, 8.2]
+    panes = _building(img, labels, depth, -12.0, 10.0, sun, bays)
+    edge = _u(-0.2)
+    wall = (labels == 11) & (np.arange(W)[None] >= edge) & ~np.all(img == GLASS, axis=2)
+    img[wall] = np.round(np.array(sun) * 0.7).astype(np.uint8)
+    per_floor, _ = _groups_per_floor(img, labels, depth, panes, replace(PARAMS, window_group_shadow_lum=shadow_lum))
+    if shadow_lum[1] > 0:
+        assert all(len(g) == 1 for g in per_floor.values()), per_floor
+        assert per_floor[FLOORS[0][0]] != per_floor[FLOORS[1][0]]
+    else:
+        assert all(len(g) == 2 for g in per_floor.values()), per_floor  # the case the rule is for
+
+
+def test_a_darker_building_of_one_hue_past_blank_wall_keeps_its_own_groups():
+    # The next building's wall of the same hue, 0.7 x as bright (as a cast shadow would be), past a stretch
+    # of blank wall where the bays' rhythm breaks: the sun/shadow join needs the gap within ``BLANK_STEPS`` x
+    # the smaller part's step (window_groups._shadow_pair), so the two buildings keep their own groups.
+    img, labels, depth = _street()
+    sun = (172, 152, 128)
+    left = _building(img, labels, depth, -12.0, -1.6, sun, [-11.0, -8.6, -6.2, -3.8])
+    right = _building(img, labels, depth, -1.6, 11.5, tuple(int(round(0.7 * c)) for c in sun), [3.6, 6.0, 8.4])
+    _assert_one_group_per_floor_of_each_block(img, labels, depth, left, right)

@@ -465,6 +465,12 @@ class ProposalParams:
     window_block_lum: float = 0.3
     window_block_chroma: float = 8
     window_block_height: float = 0.5
+    #: Window groups (window_groups._shadow_pair): two parts of one floor whose wall colours differ in log
+    #: luminance by more than the first and at most the second, of one hue (chroma within
+    #: ``window_chroma_delta``), two panes each, are joined as one wall in sun and in a cast shadow when the
+    #: rest of the join's tests pass: on one plane by the wall's depth beside the panes, the gap's wall of
+    #: either colour, the gap at most ``BLANK_STEPS`` x the smaller part's step. (0, 0): off.
+    window_group_shadow_lum: tuple[float, float] = (0.6, 1.0)
     #: Window groups (window_groups._gap_is_wall): the wall's depth between two panes is not judged within
     #: this share of the image width (px) of anything in front: its depth bleeds onto the wall beside it (a
     #: pole between two parts of one floor; docs/proposals.md "Eighteenth pass: windows at 512x256"; 0: judged

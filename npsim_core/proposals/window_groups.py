@@ -71,6 +71,23 @@ def _same_colour(a: np.ndarray, b: np.ndarray, lum: float, chroma: float) -> boo
     return abs(float(a[0] - b[0])) <= lum and float(np.hypot(a[1] - b[1], a[2] - b[2])) <= chroma
 
 
+def _shadow_pair(a: np.ndarray, b: np.ndarray, lum: float, p) -> bool:
+    """Whether two wall colours (log luminance, a, b) are one wall in sun and in a cast shadow: of one hue
+    (chroma within ``window_chroma_delta``), their luminance ``window_group_shadow_lum`` apart (log; a
+    margin over ``lum``: two grey buildings a little apart are not a shadow's edge; (0, 0): never)."""
+    lo, hi = (float(v) for v in p.window_group_shadow_lum)
+    if hi <= 0 or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return False
+    dl = abs(float(a[0] - b[0]))
+    return max(lo, lum) < dl <= hi and float(np.hypot(a[1] - b[1], a[2] - b[2])) <= p.window_chroma_delta
+
+
+def _wall_depth(t: dict) -> dict:
+    """``t`` with each window's depth the wall's beside it (``wz``; its own where no wall shows): a far pane's
+    depth bleeds from what stands beside it (512x256 default seed 1: a pane at 69 m on a wall at 81-88 m)."""
+    return {**t, "z": np.where(np.isfinite(t["wz"]), t["wz"], t["z"])}
+
+
 def _on_one_plane(t: dict, idx: np.ndarray, tol: float) -> bool:
     """Whether the windows ``idx`` lie on one plane: inverse depth is affine in the image coordinates
     on a plane, so fit 1/z = a + b u + c v and allow ``tol`` of the depth off it."""
@@ -92,9 +109,10 @@ def _on_one_plane(t: dict, idx: np.ndarray, tol: float) -> bool:
 
 
 def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour: np.ndarray,
-                 lum: float, chroma: float, tol: float) -> tuple[bool, float]:
+                 lum: float, chroma: float, tol: float, colour2: np.ndarray | None = None) -> tuple[bool, float]:
     """Whether the wall between window ``i`` (left) and ``j`` (right) along their floor is one wall:
-    its building pixels (others are something in front) mostly of ``colour`` and, with depth, on the
+    its building pixels (others are something in front) mostly of ``colour`` (or of ``colour2``: the
+    wall in sun and in a cast shadow, :func:`_shadow_pair`, whose depth is not judged here) and, with depth, on the
     line of inverse depth between the two windows (read beyond ``window_gap_bleed_frac`` of the image width
     from anything in front, whose depth bleeds onto the wall beside it); and the share of that band the
     building shows (1: nothing in front)."""
@@ -128,10 +146,13 @@ def _gap_is_wall(ctx: Context, feat: np.ndarray, t: dict, i: int, j: int, colour
     judge = spandrel if spandrel.sum() >= max(2, SPANDREL_SHARE * bld.sum()) else bld
     fv = pixels(feat[ya:yb, xa:xb], judge)
     off = (np.abs(fv[:, 0] - colour[0]) > lum) | (np.hypot(fv[:, 1] - colour[1], fv[:, 2] - colour[2]) > chroma)
+    if colour2 is not None:
+        off &= (np.abs(fv[:, 0] - colour2[0]) > lum) | (np.hypot(fv[:, 1] - colour2[1], fv[:, 2] - colour2[2]) > chroma)
     if off.mean() > 0.5:  # another wall between, or panes nobody proposed (whole band)
         return False, shown
     zi, zj = (float(t["wz"][k]) if np.isfinite(t["wz"][k]) else float(t["z"][k]) for k in (i, j))
-    if ctx.depth is not None and np.isfinite(zi) and np.isfinite(zj):
+    if ctx.depth is not None and np.isfinite(zi) and np.isfinite(zj) and colour2 is None:
+        # (a sun/shadow pair's plane was judged on the wall's depth beside all its panes: :func:`_wall_depth`)
         # on the line of inverse depth between the walls beside the two panes (the panes' own where no
         # wall shows around one), at their centres
         fc = (cols - t["cu"][i]) / max(t["cu"][j] - t["cu"][i], 1.0)
@@ -469,7 +490,7 @@ def _join_inside_panes(t: dict, idx_of: dict[int, np.ndarray], col_of: dict[int,
 
 def _fails_as_split(ends: np.ndarray, pos: np.ndarray, a: np.ndarray, b: np.ndarray, x0: np.ndarray,
                     x1: np.ndarray, colour: np.ndarray, step: np.ndarray, floor_tol: float | None, lum: float,
-                    chroma: float) -> np.ndarray:
+                    chroma: float, p=None) -> np.ndarray:
     """Per pair of parts (``a``, ``b``) as :func:`_split_at_blanks` left them: whether one of
     :func:`regroup_windows`' cheap tests rejects it (levels at the gap, wall colour, the step against the
     parts' own bays), all pairs at once. ``ends``: (n, 5) :func:`_ends` per part; ``colour``, ``step``:
@@ -482,8 +503,14 @@ def _fails_as_split(ends: np.ndarray, pos: np.ndarray, a: np.ndarray, b: np.ndar
     ok = np.all(np.isfinite(colour), axis=1)
     dc = colour[a] - colour[b]
     fail |= ~(ok[a] & ok[b])
-    fail |= np.abs(dc[:, 0]) > lum + eps
-    fail |= np.hypot(dc[:, 1], dc[:, 2]) > chroma + eps
+    off = (np.abs(dc[:, 0]) > lum + eps) | (np.hypot(dc[:, 1], dc[:, 2]) > chroma + eps)
+    if p is not None and p.window_group_shadow_lum[1] > 0:
+        # a sun/shadow pair of one hue (_shadow_pair), parts of two panes or more: left to the exact test
+        with np.errstate(invalid="ignore"):
+            off &= ~((np.abs(dc[:, 0]) <= p.window_group_shadow_lum[1] + eps)
+                     & (np.hypot(dc[:, 1], dc[:, 2]) <= p.window_chroma_delta + eps)
+                     & np.isfinite(step[a]) & np.isfinite(step[b]))
+    fail |= off
     i, j = ends[left, 0].astype(int), ends[right, 2].astype(int)
     d = np.hypot(pos[i, 0] - pos[j, 0], pos[i, 1] - pos[j, 1])
     st = np.fmax(step[a], step[b])  # NaN for two single panes: their bay is found pair by pair
@@ -520,8 +547,11 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         two along the floor are that wall (:func:`_gap_is_wall`) and that step is at most
         ``BLANK_STEPS`` (visible wall) or ``HIDDEN_STEPS`` (something in front) x the median step
         (of the groups; for two without a step of their own, single panes, the bay of the building's
-        other floors over those columns, :func:`_bay_of_wall`; else 2.5 pane widths). Group confidence: the mean of its
-        members'.
+        other floors over those columns, :func:`_bay_of_wall`; else 2.5 pane widths). Then, of the clusters those
+        joins made, two of two panes or more whose walls are one wall in sun and in a cast shadow
+        (:func:`_shadow_pair`, ``window_group_shadow_lum``) join on the same tests, their plane by the wall's depth
+        beside the panes (:func:`_wall_depth`), the gap's wall of either colour, the gap at most ``BLANK_STEPS`` x
+        the smaller step. Group confidence: the mean of its members'.
 
         The pairs are found by a sweep along the floor levels and cheap tests (level, colour, step)
         run before the costly ones (plane, the gap's pixels), for every pair at once while both of its
@@ -582,70 +612,82 @@ def regroup_windows(ctx: Context, groups: list[Group], feat: np.ndarray | None =
         gap = np.maximum(x0[None] - x1[:, None], x0[:, None] - x1[None])
         cand = np.triu((np.abs(la - lb) <= LEVEL_GATE * tol_ab) & (gap >= 0), 1)
         pairs = sorted(zip(*np.nonzero(cand)), key=lambda ab: gap[ab])
-        skip = [False] * len(pairs)
+        skip = skip_shadow = [False] * len(pairs)
     else:
         pa, pb, _ = _candidate_pairs(level, pane_h, x0, x1, floor_tol)
         pairs = list(zip(pa.tolist(), pb.tolist()))
         ends_of = {k: _ends(t, parts[k]) for k in range(n)}
-        skip = _fails_as_split(np.array([ends_of[k] for k in range(n)], float).reshape(n, 5), pos, pa, pb, x0, x1,
-                               part_col, part_step, floor_tol, lum, chroma).tolist()
+        ends_arr = np.array([ends_of[k] for k in range(n)], float).reshape(n, 5)
+        skip = _fails_as_split(ends_arr, pos, pa, pb, x0, x1, part_col, part_step, floor_tol, lum, chroma).tolist()
+        skip_shadow = _fails_as_split(ends_arr, pos, pa, pb, x0, x1, part_col, part_step, floor_tol, lum, chroma,
+                                      p).tolist()
     pristine = [True] * n  # the part as the split left it: its own root, nothing joined to it
-    for (a, b), sk in zip(pairs, skip):
-        if sk and pristine[a] and pristine[b]:
-            continue  # fails a cheap test on the parts as split (_fails_as_split): as the slow path would
-        ra, rb = root(int(a)), root(int(b))
-        if ra == rb:
-            continue
-        ia, ib = idx_of[ra], idx_of[rb]
-        (xa0, xa1), (xb0, xb1) = span_of[ra], span_of[rb]
-        if min(xa1, xb1) - max(xa0, xb0) > 0:
-            continue  # overlapping along the floor: two walls one behind the other, or two floors
-        left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
-        # the floor at the gap: its level read from depth drifts along a long wall (docs/proposals.md)
-        if pairwise:
-            i, lev_l = _ends(t, left)[:2]
-            j, lev_r = _ends(t, right)[2:4]
-            half_pane = _ends(t, ia)[4]
-        else:
-            (i, lev_l), (j, lev_r) = ends_of[ra if left is ia else rb][:2], ends_of[rb if left is ia else ra][2:4]
-            half_pane = ends_of[ra][4]
-        if abs(lev_l - lev_r) > (floor_tol if floor_tol is not None else half_pane):
-            continue
-        ca, cb = col_of[ra], col_of[rb]
-        if not _same_colour(ca, cb, lum, chroma):
-            continue
-        both = np.concatenate([ia, ib])
-        steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
-        if steps:
-            step = max(steps)
-        else:  # single panes: the bay of the building's other floors over these columns
-            step = _bay_of_wall(part_step, part_col, x0, x1, min(xa0, xb0), max(xa1, xb1), (ca + cb) / 2.0,
-                                lum, chroma)
-            if not np.isfinite(step):
-                step = 2.5 * float(median(width_m[both]))
-        d = float(np.hypot(*(pos[i] - pos[j])))
-        if not pairwise and d > max(BLANK_STEPS, HIDDEN_STEPS) * step:
-            continue  # too far whatever the gap shows: the costly tests below are not needed
-        if has_depth and not _on_one_plane(t, both, tol):
-            continue
-        wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
-        if not wall:
-            continue
-        blank = shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, both, tol)
-        if d > (BLANK_STEPS if blank else HIDDEN_STEPS) * step:
-            continue
-        if both.size >= 3 and _end_between(ctx, feat, t, i, j, both, 0.5 * (lev_l + lev_r),
-                                           floor_tol if floor_tol is not None else half_pane, floors,
-                                           (ca + cb) / 2.0, lum, chroma, tol):
-            continue  # a building's end between the two (the split's cut), maybe beside a part passed over
-        parent[rb] = ra
-        idx_of[ra] = both
-        col_of[ra] = _median_colour(t["wall"][both])
-        span_of[ra] = (min(xa0, xb0), max(xa1, xb1))
-        step_of[ra] = max(steps) if steps else float("nan")  # the step across the join is a gap, not a bay
-        pristine[ra] = pristine[rb] = False
-        if not pairwise:
-            ends_of[ra] = _ends(t, both)
+    # the joins of one wall colour first; then, of the clusters they made, those across a cast shadow's edge
+    # (_shadow_pair): a sun/shadow join made early would leave the rest of the floor to compare with its mix
+    for shadow_pass in ((False, True) if p.window_group_shadow_lum[1] > 0 else (False,)):
+        for (a, b), sk in zip(pairs, skip_shadow if shadow_pass else skip):
+            if sk and pristine[a] and pristine[b]:
+                continue  # fails a cheap test on the parts as split (_fails_as_split): as the slow path would
+            ra, rb = root(int(a)), root(int(b))
+            if ra == rb:
+                continue
+            ia, ib = idx_of[ra], idx_of[rb]
+            (xa0, xa1), (xb0, xb1) = span_of[ra], span_of[rb]
+            if min(xa1, xb1) - max(xa0, xb0) > 0:
+                continue  # overlapping along the floor: two walls one behind the other, or two floors
+            left, right = (ia, ib) if xa1 <= xb0 else (ib, ia)
+            # the floor at the gap: its level read from depth drifts along a long wall (docs/proposals.md)
+            if pairwise:
+                i, lev_l = _ends(t, left)[:2]
+                j, lev_r = _ends(t, right)[2:4]
+                half_pane = _ends(t, ia)[4]
+            else:
+                (i, lev_l), (j, lev_r) = ends_of[ra if left is ia else rb][:2], ends_of[rb if left is ia else ra][2:4]
+                half_pane = ends_of[ra][4]
+            if abs(lev_l - lev_r) > (floor_tol if floor_tol is not None else half_pane):
+                continue
+            ca, cb = col_of[ra], col_of[rb]
+            # one colour in the first pass; in the second, the wall in sun and in a cast shadow: one hue, and the
+            # bays of both parts to go on (two panes each)
+            shadow = shadow_pass
+            if not (_shadow_pair(ca, cb, lum, p) and np.isfinite(step_of[ra]) and np.isfinite(step_of[rb])
+                    if shadow_pass else _same_colour(ca, cb, lum, chroma)):
+                continue
+            both = np.concatenate([ia, ib])
+            steps = [s for s in (step_of[ra], step_of[rb]) if np.isfinite(s)]
+            if steps:
+                step = max(steps)
+            else:  # single panes: the bay of the building's other floors over these columns
+                step = _bay_of_wall(part_step, part_col, x0, x1, min(xa0, xb0), max(xa1, xb1), (ca + cb) / 2.0,
+                                    lum, chroma)
+                if not np.isfinite(step):
+                    step = 2.5 * float(median(width_m[both]))
+            d = float(np.hypot(*(pos[i] - pos[j])))
+            if not pairwise and d > max(BLANK_STEPS, HIDDEN_STEPS) * step:
+                continue  # too far whatever the gap shows: the costly tests below are not needed
+            if has_depth and not _on_one_plane(_wall_depth(t) if shadow else t, both, tol):
+                continue
+            if shadow:
+                wall, shown = _gap_is_wall(ctx, feat, t, i, j, ca, lum, chroma, tol, colour2=cb)
+            else:
+                wall, shown = _gap_is_wall(ctx, feat, t, i, j, (ca + cb) / 2.0, lum, chroma, tol)
+            if not wall:
+                continue
+            blank = shown >= VISIBLE_SHARE and not _bay_in_gap(t, i, j, both, tol)
+            if d > (BLANK_STEPS if blank or shadow else HIDDEN_STEPS) * (min(steps) if shadow else step):
+                continue
+            if both.size >= 3 and _end_between(ctx, feat, t, i, j, both, 0.5 * (lev_l + lev_r),
+                                               floor_tol if floor_tol is not None else half_pane, floors,
+                                               (ca + cb) / 2.0, lum, chroma, tol):
+                continue  # a building's end between the two (the split's cut), maybe beside a part passed over
+            parent[rb] = ra
+            idx_of[ra] = both
+            col_of[ra] = _median_colour(t["wall"][both])
+            span_of[ra] = (min(xa0, xb0), max(xa1, xb1))
+            step_of[ra] = max(steps) if steps else float("nan")  # the step across the join is a gap, not a bay
+            pristine[ra] = pristine[rb] = False
+            if not pairwise:
+                ends_of[ra] = _ends(t, both)
     if p.window_inside_row_tol > 0:
         roots = sorted({root(k) for k in range(n)})
         for r, r2 in _join_inside_panes(t, idx_of, col_of, roots, p.window_inside_row_tol, lum, chroma, tol,
