@@ -874,29 +874,38 @@ def test_a_lamp_runs_on_below_the_row_where_the_car_in_front_starts_hiding_the_f
     assert max((_iou(ann.mask(i), truth[0]) for i in lamps), default=0.0) >= 0.95
 
 
-def _far_lamp_at_the_cut(peak: float):
-    """A dark car at 25 m (a lamp 6 x 3 px) in a row parked left of the road: the car in front (24 m) hides
-    its face but for 6 px and 4 px of side face -- its face is not placed -- and the inner lamp shows 4 x 3 px
-    beside the cut, as a far lamp's blur leaves it on the photo (2048x1024 hard seed 2, a red lamp on a black
-    car at 115 m): its middle row ``peak`` levels off the paint in its two middle pixels, 30 in the rest of the
-    lamp and 16-27 in the rim the blur spreads a pixel around it. Returns the frame and the visible lamp."""
+def _dark_car_behind_a_yellow_one():
+    """A dark car at 25 m (paint (29, 21, 27)) parked left of the road, its face hidden left of column 130
+    by a yellow car at 24 m, 4 px of its side face showing right of it. Returns the frame (image as float32),
+    the paint, the yellow car's colour, the car's depth and the cut's column."""
     z, cut = 25.0, 130
     img, lab, depth, inst, intr = _frame(cx=160.0)
-    paint = np.array((29.0, 21.0, 27.0))
+    img = img.astype(np.float32)
+    paint, occ = np.array((29.0, 21.0, 27.0)), np.array((180.0, 150.0, 60.0))
     for s in ((slice(_row(0.9, z), _row(0.3, z)), slice(100, 136)), (slice(_row(1.4, z), _row(0.9, z)), slice(102, 134))):
         lab[s], img[s], depth[s], inst[s] = CAR, paint, z, CAR * 1000 + 1
     side = (slice(_row(0.9, z), _row(0.3, z)), slice(136, 140))
     lab[side], img[side], inst[side] = CAR, (24, 18, 22), CAR * 1000 + 1
     depth[side] = z + 0.3 * (np.arange(136, 140) - 135)
     front = (slice(40, 120), slice(0, cut))
-    lab[front], img[front], depth[front], inst[front] = CAR, (180, 150, 60), 24.0, CAR * 1000 + 2
+    lab[front], img[front], depth[front], inst[front] = CAR, occ, 24.0, CAR * 1000 + 2
+    return img, lab, depth, inst, intr, paint, occ, z, cut
+
+
+def _far_lamp_at_the_cut(peak: float):
+    """A dark car at 25 m (a lamp 6 x 3 px) in a row parked left of the road: the car in front (24 m) hides
+    its face but for 6 px and 4 px of side face -- its face is not placed -- and the inner lamp shows 4 x 3 px
+    beside the cut, as a far lamp's blur leaves it on the photo (2048x1024 hard seed 2, a red lamp on a black
+    car at 115 m): its middle row ``peak`` levels off the paint in its two middle pixels, 30 in the rest of the
+    lamp and 16-27 in the rim the blur spreads a pixel around it. Returns the frame and the visible lamp."""
+    img, lab, depth, inst, intr, paint, _, z, cut = _dark_car_behind_a_yellow_one()
     dep = np.array([[18, 26, 26, 18, 10], [21, 30, 30, 21, 18], [30, peak, peak, 30, 27], [20, 30, 30, 21, 18],
                     [18, 26, 27, 18, 10]])
     top = _row(0.83, z)
     img[top - 1:top + 4, cut:cut + 5] = np.clip(paint + dep[..., None] * np.array((1.0, 0.1, 0.2)), 0, 255)
     visible = np.zeros(lab.shape, bool)
     visible[top:_row(0.68, z), cut:cut + 4] = True
-    return img, lab, depth, inst, intr, visible
+    return img.astype(np.uint8), lab, depth, inst, intr, visible
 
 
 def test_a_far_lamp_beside_the_cut_only_its_middle_row_forty_levels_off_the_paint_is_proposed_at_its_blur():
@@ -1008,17 +1017,7 @@ def _faint_sliver_at_the_cut(shift, rows=(68, 71)):
     top): the blur spreads it over the occluder's last column, its own and the car's next alike -- each
     shifted by ``shift`` (8-bit RGB), a third of the lamp's departure from the paint. Returns the frame and
     the visible lamp (1 x 3 px)."""
-    z, cut = 25.0, 130
-    img, lab, depth, inst, intr = _frame(cx=160.0)
-    img = img.astype(np.float32)
-    paint, occ = np.array((29.0, 21.0, 27.0)), np.array((180.0, 150.0, 60.0))
-    for s in ((slice(_row(0.9, z), _row(0.3, z)), slice(100, 136)), (slice(_row(1.4, z), _row(0.9, z)), slice(102, 134))):
-        lab[s], img[s], depth[s], inst[s] = CAR, paint, z, CAR * 1000 + 1
-    side = (slice(_row(0.9, z), _row(0.3, z)), slice(136, 140))
-    lab[side], img[side], inst[side] = CAR, (24, 18, 22), CAR * 1000 + 1
-    depth[side] = z + 0.3 * (np.arange(136, 140) - 135)
-    front = (slice(40, 120), slice(0, cut))
-    lab[front], img[front], depth[front], inst[front] = CAR, occ, 24.0, CAR * 1000 + 2
+    img, lab, depth, inst, intr, paint, occ, z, cut = _dark_car_behind_a_yellow_one()
     body = slice(_row(1.4, z), _row(0.3, z))
     img[body, cut - 1], img[body, cut] = (2 * occ + paint) / 3, (occ + 2 * paint) / 3
     img[rows[0]:rows[1], cut - 1:cut + 2] += np.asarray(shift, np.float32)

@@ -17,6 +17,16 @@ PARAMS = ProposalParams(categories=("windows",), camera_pitch_rad=0.0)
 WALL, GLASS = (172, 152, 128), (38, 48, 60)
 
 
+def _wall_features(rgb: np.ndarray) -> np.ndarray:
+    """The window proposer's colour features (log linear luminance, Lab a and b) of an RGB patch."""
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _features
+
+    h, w = rgb.shape[:2]
+    return _features(Context(np.ascontiguousarray(rgb), np.full((h, w), 11, np.uint8), None,
+                             Intrinsics(150.0, 150.0, w / 2, h / 2, w, h), None, PARAMS))
+
+
 def _v(h_m: float, z: float) -> float:
     """Image row of a point ``h_m`` above the ground at depth ``z`` (level camera)."""
     return K.cy - K.fy * (h_m - PARAMS.camera_height_m) / z
@@ -355,15 +365,7 @@ def test_panes_inside_a_wall_piece_the_reference_missed():
     with its panes, too large for a window, and its panes were lost (2048x1024 default street: 20
     true windows in such blobs). Inside a blob mostly of one colour, what differs from that colour
     are its panes; a blob of which no colour fills half gives none."""
-    import cv2
-
     from npsim_core.proposals.windows import _blob_panes
-
-    def feat(rgb):
-        lin = (rgb.astype(np.float32) / 255.0) ** 2.2
-        lum = 0.2126 * lin[..., 0] + 0.7152 * lin[..., 1] + 0.0722 * lin[..., 2]
-        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
-        return np.dstack([np.log(np.maximum(lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
     rng = np.random.default_rng(0)
     img = np.zeros((60, 30, 3), np.uint8)
@@ -373,12 +375,12 @@ def test_panes_inside_a_wall_piece_the_reference_missed():
         img[y:y + 14, x:x + 8] = GLASS
     img = np.clip(img.astype(int) + rng.integers(-4, 5, img.shape), 0, 255).astype(np.uint8)
     blob = np.ones((60, 30), bool)
-    got = sorted((py, px, pm.shape) for py, px, pm in _blob_panes(feat(img), 0, 0, blob, PARAMS))
+    got = sorted((py, px, pm.shape) for py, px, pm in _blob_panes(_wall_features(img), 0, 0, blob, PARAMS))
     assert got == [(y, x, (14, 8)) for y, x in panes]
     mixed = img.copy()                                          # no colour fills half of it
     for k, col in enumerate(((118, 74, 52), (40, 60, 160), (200, 200, 90), (30, 30, 30))):
         mixed[15 * k:15 * (k + 1)] = col
-    assert _blob_panes(feat(mixed), 0, 0, blob, PARAMS) == []
+    assert _blob_panes(_wall_features(mixed), 0, 0, blob, PARAMS) == []
 
 
 def test_far_panes_one_pixel_wide_three_tall_are_proposed():
@@ -852,15 +854,7 @@ def test_panes_inside_a_wall_piece_in_sun_and_in_a_cast_shadow_are_found():
     80-100 m, 7 of its panes drawn by hand). The shadow's colour, a threshold or more darker (or lighter)
     than the piece's mode and of the wall's hue, is wall too; what differs from both are the panes. A
     second colour of another hue (dark glass, a sign) is no shadow: none, as before."""
-    import cv2
-
     from npsim_core.proposals.windows import _blob_panes
-
-    def feat(rgb):
-        lin = (rgb.astype(np.float32) / 255.0) ** 2.2
-        lum = 0.2126 * lin[..., 0] + 0.7152 * lin[..., 1] + 0.0722 * lin[..., 2]
-        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
-        return np.dstack([np.log(np.maximum(lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
     rng = np.random.default_rng(0)
     panes = [(4, 4), (4, 18), (22, 4), (22, 18), (43, 4), (43, 18)]
@@ -875,9 +869,9 @@ def test_panes_inside_a_wall_piece_in_sun_and_in_a_cast_shadow_are_found():
 
     blob = np.ones((60, 30), bool)
     shade = piece(tuple(int(0.6 * c) for c in WALL))            # the wall in a cast shadow: 40 % sun, 24 % shade
-    got = sorted((py, px, pm.shape) for py, px, pm in _blob_panes(feat(shade), 0, 0, blob, PARAMS))
+    got = sorted((py, px, pm.shape) for py, px, pm in _blob_panes(_wall_features(shade), 0, 0, blob, PARAMS))
     assert got == [(y, x, (12, 8)) for y, x in panes]
-    assert _blob_panes(feat(piece((70, 60, 110))), 0, 0, blob, PARAMS) == []  # a bluish band: not the wall's hue
+    assert _blob_panes(_wall_features(piece((70, 60, 110))), 0, 0, blob, PARAMS) == []  # a bluish band: not the wall's hue
 
 
 def test_a_row_of_panes_kept_as_one_window_on_a_face_the_reference_missed_is_cut_into_them():
@@ -888,16 +882,8 @@ def test_a_row_of_panes_kept_as_one_window_on_a_face_the_reference_missed_is_cut
     and the blob is a far receding row (metres of wall a pixel); a framed pane (its frame one ring, or two
     sides) stays whole, and so does the same row on a near wall facing the camera (a window's lights
     between its mullions)."""
-    import cv2
-
     from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _panes_side_by_side
-
-    def feat(rgb):
-        lin = (rgb.astype(np.float32) / 255.0) ** 2.2
-        lum = 0.2126 * lin[..., 0] + 0.7152 * lin[..., 1] + 0.0722 * lin[..., 2]
-        lab = cv2.cvtColor(rgb, cv2.COLOR_RGB2Lab).astype(np.float32)
-        return np.dstack([np.log(np.maximum(lum, 1e-4)), lab[..., 1] - 128.0, lab[..., 2] - 128.0])
 
     def ctx(depth):
         return Context(np.zeros((10, 9, 3), np.uint8), np.full((10, 9), 11, np.uint8), depth,
@@ -909,16 +895,16 @@ def test_a_row_of_panes_kept_as_one_window_on_a_face_the_reference_missed_is_cut
     row[:] = (200, 190, 170)                                    # the sunlit face
     for x0, x1, col in ((1, 2, 250), (3, 4, 110), (5, 6, 250), (7, 9, 250)):
         row[2:, x0:x1] = col                                    # lit and dark panes a pixel apart
-    got = sorted((py, px, pm.shape) for py, px, pm in _panes_side_by_side(far, feat(row), 0, 0, blob, PARAMS))
+    got = sorted((py, px, pm.shape) for py, px, pm in _panes_side_by_side(far, _wall_features(row), 0, 0, blob, PARAMS))
     assert got == [(2, 1, (8, 1)), (2, 3, (8, 1)), (2, 5, (8, 1)), (2, 7, (8, 2))]
     near = ctx(np.full((10, 9), 20.0, np.float32))              # facing the camera at 20 m: 0.13 m a column
-    assert _panes_side_by_side(near, feat(row), 0, 0, blob, PARAMS) == []
+    assert _panes_side_by_side(near, _wall_features(row), 0, 0, blob, PARAMS) == []
     framed = np.zeros((10, 9, 3), np.uint8)
     framed[:] = (230, 230, 225)                                 # a light frame around dark glass
     framed[1:-1, 1:-1] = GLASS
-    assert _panes_side_by_side(far, feat(framed), 0, 0, blob, PARAMS) == []
+    assert _panes_side_by_side(far, _wall_features(framed), 0, 0, blob, PARAMS) == []
     framed[0], framed[-1] = GLASS, GLASS                        # its two sides only
-    assert _panes_side_by_side(far, feat(framed), 0, 0, blob, PARAMS) == []
+    assert _panes_side_by_side(far, _wall_features(framed), 0, 0, blob, PARAMS) == []
 
 
 def _pole(img, labels, depth, u0: int, u1: int, top_row: int = 5):
