@@ -407,22 +407,31 @@ def test_far_panes_one_pixel_wide_three_tall_are_proposed():
     assert all(props.confidence[i] <= PARAMS.window_tiny_max_confidence for i in wins)
 
 
+def _grey_wall_with_dark_panes(z, half_width_m, top_m, sills, bays, pitch_m, pane_m):
+    """A grey wall at ``z`` m (x within +-``half_width_m``, up to ``top_m``) with floors at ``sills`` of ``bays``
+    panes ``pane_m`` (width, height) m every ``pitch_m`` m, in the wall's colour darker: the canvas, the panes'
+    masks and that dark grey."""
+    img, labels, depth, noise = _canvas()
+    _wall(img, labels, depth, -half_width_m, half_width_m, top_m, z)
+    img[labels == 11] = (150, 150, 150)                # a grey wall
+    dark = (97, 97, 97)                                # its colour, darker
+    gt = {}
+    for f, sill in enumerate(sills):
+        for b in range(bays):
+            x = 0.5 - half_width_m + pitch_m * b
+            _pane(img, gt, (f, b), x, x + pane_m[0], sill, sill + pane_m[1], z)
+            img[gt[(f, b)]] = dark
+    return img, labels, depth, noise, gt, dark
+
+
 def test_small_dark_grey_pane_is_not_a_cast_shadow_but_a_large_one_is():
     """A blob only darker than the wall and of its colour is taken for a cast shadow. Far panes with
     a dark interior (0.85 m^2 on the wall, 12 px) keep the wall's grey too and were all dropped; a
     cast shadow is large, so blobs under ``window_shadow_min_m2`` are not judged as one -- a 7 m^2
     dark patch of the wall's colour still is a shadow."""
-    img, labels, depth, noise = _canvas()
     z = 40.0
-    _wall(img, labels, depth, -12.0, 12.0, 15.0, z)
-    img[labels == 11] = (150, 150, 150)                # a grey wall
-    dark = (97, 97, 97)                                # its colour, darker
-    gt = {}
-    for f, sill in enumerate((5.0, 8.2, 11.4)):
-        for b in range(6):
-            x = -11.0 + 2.4 * b
-            _pane(img, gt, (f, b), x, x + 0.8, sill, sill + 1.1, z)
-            img[gt[(f, b)]] = dark
+    img, labels, depth, noise, gt, dark = _grey_wall_with_dark_panes(z, 12.0, 15.0, (5.0, 8.2, 11.4), 6, 2.4,
+                                                                     (0.8, 1.1))
     assert all(g.sum() >= 4 and g.sum() * (z / K.fy) ** 2 < PARAMS.window_shadow_min_m2 for g in gt.values())
     shadow = np.zeros((H, W), bool)
     shadow[int(_v(12.0, z)):int(_v(9.5, z)), int(_u(5.0, z)):int(_u(8.0, z))] = True
@@ -439,17 +448,8 @@ def test_whole_dark_grey_panes_of_two_square_metres_are_not_cast_shadows():
     every such blob of 1 m^2 and more, under a whole pane's size. It now judges blobs of
     ``window_shadow_min_m2`` (3.5 m^2) and more (docs/proposals.md "Eighteenth pass: windows at 512x256"):
     the panes are proposed, a 7.5 m^2 dark patch of the wall's colour is still a shadow."""
-    img, labels, depth, noise = _canvas()
     z = 25.0
-    _wall(img, labels, depth, -7.0, 7.0, 10.0, z)
-    img[labels == 11] = (150, 150, 150)                # a grey wall
-    dark = (97, 97, 97)                                # its colour, darker
-    gt = {}
-    for f, sill in enumerate((3.5, 6.5)):
-        for b in range(4):
-            x = -6.5 + 2.6 * b
-            _pane(img, gt, (f, b), x, x + 1.2, sill, sill + 1.8, z)
-            img[gt[(f, b)]] = dark
+    img, labels, depth, noise, gt, dark = _grey_wall_with_dark_panes(z, 7.0, 10.0, (3.5, 6.5), 4, 2.6, (1.2, 1.8))
     m2 = [g.sum() * (z / K.fy) ** 2 for g in gt.values()]
     assert all(1.5 < a < PARAMS.window_shadow_min_m2 for a in m2), m2
     shadow = np.zeros((H, W), bool)
