@@ -33,7 +33,10 @@ Table 5: the facades over the 40 % lit share by the face they are -- horizontal 
 top: no facade, though the scene's geometry makes it a wall plane), vertical but under 3 px across (no
 image outlines them), the rest -- and the largest share over the vertical faces at least 3 px across
 (docs/proposals.md "Fourteenth pass"). ``--list-lit`` lists each facade over the cap with the windows on
-it; ``--list-big`` each window over the 1.5x rule.
+it; ``--list-big`` each window over the 1.5x rule. Table 5b: the same with the faces that cannot hold a window
+set apart (also those showing less wall than the street's smallest pane), the facades left over the
+cap, those still over when each window matching a true pane takes that pane's kind, and the largest share
+(docs/proposals.md "Twentieth pass: the 40 % lit share").
 
 The ``lights`` variant (docs/proposals.md) is the light-proposal test bed: gables, dormers, shop
 fronts, office floors, plates, cars driving, signals showing a state.
@@ -176,7 +179,7 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
                  gt_kinds: dict[str, str] | None = None,
                  offenders: list | None = None,
                  lit_over: list | None = None, cap: float = 0.4,
-                 faces: list | None = None) -> tuple[int, int, float, int, int]:
+                 faces: list | None = None, faces_m: list | None = None) -> tuple[int, int, float, int, int]:
     """(windows of kind ``window``, of those larger than 1.5x their facade's median, largest share of a
     facade covered by them, of those larger than 1.5x the median of the facade's true windows, of those
     larger than 1.5x the median of the facade's *whole* true windows with a one-pixel allowance) -- Table 4.
@@ -213,7 +216,11 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
     windows of any kind: (light id, box, kind, pixels on the facade, best true window's id, mask IoU
     and kind), and the face's normal axis (0 x, 1 y: a horizontal face -- a soffit, a slab's top --,
     2 z)) -- ``--list-lit``. ``faces``: when given (with ``walls``), each facade holding a window
-    of kind ``window`` is appended to it as (lit share, normal axis, box width, box height in px)."""
+    of kind ``window`` is appended to it as (lit share, normal axis, box width, box height in px).
+    ``faces_m``: the same facades as ``faces`` (same order) with two more: the area of the face's visible
+    part on the wall (m^2, as a window's) and its lit share when each window matching a true pane (mask IoU
+    >= 0.3) takes that pane's kind (``gt_kinds``: a dormer's, a gable's, an office band's or a shop's pane
+    proposed as a ``window`` is not counted) -- Table 5b."""
     import cv2
 
     from npsim_core.annotation import class_of
@@ -267,6 +274,9 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
 
     per_q: dict[int, list[float]] = {}
     ids_q: dict[int, list[int]] = {}
+    lit_k: dict[int, float] = {}  # faces_m: windows matching a true pane of another kind left out
+    g_kinds = true_kinds(scene) if gt_kinds is None else gt_kinds
+    g_map = scene.lights.instance_map if getattr(scene, "lights", None) is not None else None
     for i in ann.instance_ids():
         if class_of(i) != 1:
             continue
@@ -279,6 +289,10 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
         if kinds.get(str(i), "window") != "window":
             continue
         lit[fid] = lit.get(fid, 0.0) + float(mk.sum() if walls is None else (b == fid).sum())
+        if faces_m is not None and walls is not None:
+            j, iou = _best_true(mk, g_map) if g_map is not None else (0, 0.0)
+            if not (j and iou >= 0.3 and g_kinds.get(str(j), "window") != "window"):
+                lit_k[fid] = lit_k.get(fid, 0.0) + float((b == fid).sum())
         a = wall_area(mk)
         per.setdefault(fid, []).append(a)
         per_q.setdefault(fid, []).append(quantised(mk, a))
@@ -326,6 +340,8 @@ def window_rules(scene, ann, walls: np.ndarray | None = None,
         for fid, a in lit.items():
             y0, y1, x0, x1 = box_of(bld == fid)
             faces.append((a / max(area(fid), 1.0), int(ids[fid] % 4), x1 - x0 + 1, y1 - y0 + 1))
+            if faces_m is not None:
+                faces_m.append(faces[-1] + (wall_area(bld == fid), lit_k.get(fid, 0.0) / max(area(fid), 1.0)))
     if lit_over is not None and walls is not None:
         for fid, a in lit.items():
             if a / max(area(fid), 1.0) <= cap:
@@ -438,6 +454,7 @@ def main(argv: list[str] | None = None) -> int:
     big_list: list[str] = []
     lit_list: list[str] = []
     lit_faces: dict[tuple, list] = {}
+    lit_faces_m: dict[tuple, list] = {}
     for W, H in sizes:
         for variant in variants:
             tot = {c: np.zeros(5, int) for c in CATS}  # GT, proposed, matched, GT >= 9 px, matched of those
@@ -458,9 +475,12 @@ def main(argv: list[str] | None = None) -> int:
                 offs: list | None = [] if args.list_big else None
                 lits: list | None = [] if args.list_lit else None
                 fcs: list = []
+                fcs_m: list = []
                 wr = window_rules(scene, kept, walls, pane_m2=pm2, gt_kinds=pk, offenders=offs, lit_over=lits,
-                                  faces=fcs)
+                                  faces=fcs, faces_m=fcs_m)
                 lit_faces.setdefault((W, H, variant), []).extend(fcs)
+                # a face showing less wall than the street's smallest pane cannot hold a window
+                lit_faces_m.setdefault((W, H, variant), []).extend(f + (min(pm2.values(), default=0.0),) for f in fcs_m)
                 for sh, npx, am2, (y0, y1, x0, x1), z, gsh, gall, wins, ax in lits or []:
                     ws = "; ".join(f"{i} y {b[0]}-{b[1]} x {b[2]}-{b[3]} ({b[3] - b[2] + 1}x{b[1] - b[0] + 1}) {k} "
                                    f"{props.confidence.get(i, 0.0):.2f} {c} px, {j} {iou:.2f} {jk}"
@@ -531,6 +551,24 @@ def main(argv: list[str] | None = None) -> int:
         thin = sum(1 for f in over if f[1] != 1 and min(f[2], f[3]) < 3)
         big = max((f[0] for f in fc if f[1] != 1 and min(f[2], f[3]) >= 3), default=0.0)
         print(f"| {W}x{H} | {v} | {len(over)} | {hor} | {thin} | {len(over) - hor - thin} | {big:.2f} |")
+    print(f"\nThe same faces over 40 % left once those that cannot hold a window are set apart: horizontal, under 3 px "
+          f"across, or showing less wall than the street's smallest pane (its visible part's area on the wall under "
+          f"the layout's smallest pane, pane_areas: 0.96 m^2 on the lights street; a slab's edge, a sliver between a "
+          f"tree and a wall, a corner at the frame's top -- the cap is on a facade's area, which such a part does "
+          f"not stand for); of the rest, those still over 40 % when each "
+          f"window matching a true pane (IoU >= 0.3) takes that pane's kind (dormer, gable, office band, shop: the "
+          f"truth's own share is under the cap only with its kinds); and the largest share over the facades left "
+          f"(literal / with the truth's kinds):\n")
+    print("| size | variant | faces over 40 % | not a facade (horizontal, < 3 px, less wall than a pane) | facades over 40 % | "
+          "of those, over with the truth's kinds | max lit share of a facade (literal / truth's kinds) |")
+    print("|---|---|---|---|---|---|---|")
+    for (W, H, v), fc in lit_faces_m.items():
+        real = [f for f in fc if f[1] != 1 and min(f[2], f[3]) >= 3 and f[4] >= f[6]]
+        n_over = sum(1 for f in fc if f[0] > 0.4)
+        r_over = [f for f in real if f[0] > 0.4]
+        print(f"| {W}x{H} | {v} | {n_over} | {n_over - len(r_over)} | {len(r_over)} | "
+              f"{sum(1 for f in r_over if f[5] > 0.4)} | {max((f[0] for f in real), default=0.0):.2f} / "
+              f"{max((f[5] for f in real), default=0.0):.2f} |")
     if args.list_big:
         print("\nProposed windows over the corrected 1.5x limit (--list-big):\n")
         print("| size | variant | seed | light id | confidence (truth: the ground truth's own) | box | "

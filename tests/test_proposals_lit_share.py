@@ -1,5 +1,7 @@
 """False windows on faces that are not a facade -- balcony soffits seen from below (issue #26; docs/proposals.md
-"Nineteenth pass: false windows on balcony soffits", windows._soffit_like).
+"Nineteenth pass: false windows on balcony soffits", windows._soffit_like), triangles of shaded wall
+(windows._wedge_like) -- and the lit-share measure's faces that cannot hold a window ("Twentieth pass: the 40 %
+lit share").
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import numpy as np
 from npsim_core.camera import Intrinsics
 from npsim_core.proposals import ProposalParams, propose_lights
 from npsim_core.proposals.core import Context, Light
-from npsim_core.proposals.windows import WINDOW_BUILDING, _soffit_like
+from npsim_core.proposals.windows import WINDOW_BUILDING, _soffit_like, _wedge_like
 
 W, H = 1024, 1024
 K = Intrinsics(1100.0, 1100.0, 511.5, 511.5, W, H)
@@ -92,3 +94,85 @@ def test_the_false_window_on_the_lights_streets_balcony_soffit_goes_and_the_true
     before, after = windows(0.0), windows(ProposalParams().window_soffit_tilt)
     assert len(on_soffits(before)) == 2 and len(on_soffits(after)) == 1
     assert matched(after) == matched(before)
+
+
+def _li(mask: np.ndarray) -> Light:
+    return Light(WINDOW_BUILDING, 100, 100, mask, 0.9)
+
+
+def test_a_window_shaped_as_a_solid_triangle_is_a_wedge_of_wall():
+    """A pane's image has vertical sides and its top and bottom along its wall's rows: its convex hull fills most
+    of its box, on a wall receding steeply too (a parallelogram 20 rows tall at the side sheared by 8 over its
+    width fills 0.71) -- or, receding steeply near the frame's top, a diagonal band 6 px wide that fills half its
+    box but has no row or column across it. A solid triangle -- a shaded face's corner under a roof's or a
+    gable's slope -- fills half of it and has a side across it: a wedge. Not under ``window_wedge_min_px`` either way (a far pane's few pixels quantise to any shape),
+    not a triangle's outline (two strips meeting: not solid), not with the test off."""
+    yy, xx = np.mgrid[0:20, 0:18]
+    tri = yy <= 20 - 20 * xx / 18.0  # the frame-top triangle's shape: 18 wide, 20 tall
+    ctx = Context(np.zeros((8, 8, 3), np.uint8), np.full((8, 8), 11, np.uint8), None, K, None, PARAMS)
+    assert _wedge_like(ctx, _li(tri)) and _wedge_like(ctx, _li(tri[:, ::-1])) and _wedge_like(ctx, _li(tri[::-1]))
+    assert not _wedge_like(ctx, _li(np.ones((20, 18), bool)))
+    yy, xx = np.mgrid[0:28, 0:18]
+    sheared = (yy >= 8 * xx / 17.0) & (yy < 20 + 8 * xx / 17.0)  # a receding pane: vertical sides
+    assert not _wedge_like(ctx, _li(sheared))
+    band = np.zeros((11, 11), bool)  # a pane receding steeply near the frame's top (lights street, 2048x1024)
+    for r in range(11):
+        band[r, max(0, r - 1):r + 5] = True
+    assert not _wedge_like(ctx, _li(band))  # no row or column across its box: no triangle's base
+    ys, xs = np.mgrid[0:9, 0:8]
+    assert not _wedge_like(ctx, _li(ys <= 9 - 9 * xs / 8.0))  # under window_wedge_min_px
+    outline = tri & ~(np.pad(tri, 3)[6:, 3:-3] & np.pad(tri, 3)[3:-3, 6:])
+    assert not _wedge_like(ctx, _li(outline))
+    ctx.params = replace(PARAMS, window_wedge_hull_fill=0.0)
+    assert not _wedge_like(ctx, _li(tri))
+
+
+def test_the_false_frame_top_wedge_on_the_lights_street_goes_and_the_true_windows_stay():
+    """The lights street at 512x256, seed 0: a false 14x12 window at the frame's top (a triangle of shaded wall
+    under a gable's slope, best true window IoU 0.22) goes with the wedge test on; with it off it stays, and no
+    window matching a true light goes with it."""
+    from npsim_core.synthetic import street_scene
+
+    sc = street_scene(512, 256, 0, "lights")
+    truth = sc.lights.instance_map
+
+    def windows(fill: float):
+        p = ProposalParams(categories=("windows",), window_wedge_hull_fill=fill)
+        m = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None, p).above(0.5).instance_map
+        return [m == i for i in np.unique(m) if i // 1000 == 1]
+
+    def iou_best(w):
+        js, c = np.unique(truth[w], return_counts=True)
+        return max((cj / float(w.sum() + (truth == j).sum() - cj) for j, cj in zip(js, c) if j), default=0.0)
+
+    def wedges(wins):
+        out = []
+        for w in wins:
+            ys, xs = np.nonzero(w)
+            if ys.min() == 0 and ys.max() + 1 >= 10 and xs.max() - xs.min() + 1 >= 10:
+                out.append((xs.max() - xs.min() + 1, ys.max() + 1, round(iou_best(w), 2)))
+        return out
+
+    before, after = windows(0.0), windows(ProposalParams().window_wedge_hull_fill)
+    assert (14, 12, 0.22) in wedges(before) and (14, 12, 0.22) not in wedges(after)
+    assert sum(iou_best(w) >= 0.3 for w in after) == sum(iou_best(w) >= 0.3 for w in before)
+
+
+def test_table_5b_gives_each_faces_area_on_the_wall_and_its_share_with_the_truths_kinds():
+    """``window_rules(..., faces_m=)``: each facade of ``faces`` with its visible part's area on the wall (m^2)
+    and its lit share when a window matching a true pane takes that pane's kind. The truth of the lights street at
+    512x256 (seed 0), every pane counted as a window, is over the cap on a dormer's cheek 1 px wide (3.5 m^2 on
+    the wall, ``--list-lit``); with the truth's kinds its dormer pane does not count there (share 0)."""
+    from benchmarks.proposals import frame_and_walls, pane_kinds, window_rules
+
+    scene, _, walls = frame_and_walls(512, 256, 0, "lights")
+    every = {str(i): "window" for i in scene.lights.instance_ids()}
+    faces: list = []
+    faces_m: list = []
+    window_rules(scene, scene.lights, walls, kinds=every, gt_kinds=pane_kinds(0, "lights"), faces=faces,
+                 faces_m=faces_m)
+    assert [f[:4] for f in faces_m] == faces
+    hot = [f for f in faces_m if f[0] > 0.4]
+    assert len(hot) == 1 and hot[0][5] == 0.0
+    assert 3.0 < hot[0][4] < 4.0
+    assert all(f[5] <= f[0] for f in faces_m)

@@ -2594,6 +2594,30 @@ def _soffit_like(ctx: Context, li: Light) -> bool:
     return float(median(slope / (zc / fy))) < tilt
 
 
+def _wedge_like(ctx: Context, li: Light) -> bool:
+    """A window shaped as a solid triangle (``window_wedge_*``; docs/proposals.md "Twentieth pass: the 40 %
+    lit share"): at least ``window_wedge_min_px`` px each way, its convex hull at most
+    ``window_wedge_hull_fill`` of its box, its pixels at least ``window_wedge_mask_fill`` of its hull, and a row
+    or a column of it at least ``window_wedge_base`` of the box across (a triangle's base). A pane's image has
+    vertical sides and a top and a bottom along its wall's rows: a quadrilateral whose hull fills most of its
+    box, or, receding steeply near the frame's top or bottom, a diagonal band with no row or column across its
+    box; a triangle is a shaded face's corner under a roof's or a gable's slope, a wedge of wall beside a
+    slanting edge."""
+    p = ctx.params
+    h, w = li.mask.shape
+    if p.window_wedge_hull_fill <= 0 or min(h, w) < p.window_wedge_min_px:
+        return False
+    sub = li.mask.astype(np.uint8)
+    hull = np.zeros_like(sub)
+    cv2.fillConvexPoly(hull, cv2.convexHull(cv2.findNonZero(sub)), 1)
+    n_hull = int(hull.sum())
+    if n_hull > p.window_wedge_hull_fill * h * w or int(sub.sum()) < p.window_wedge_mask_fill * n_hull:
+        return False
+    # a triangle has a side across its box (the frame's top, a vertical corner); a receding pane's image near
+    # the frame's top or bottom, a diagonal band of short vertical sides, has none
+    return bool(sub.sum(1).max() >= p.window_wedge_base * w or sub.sum(0).max() >= p.window_wedge_base * h)
+
+
 def propose(ctx: Context) -> list[Group]:
     """Window instances in one windows_group per floor of each wall (:func:`facades`).
 
@@ -2860,6 +2884,7 @@ def propose(ctx: Context) -> list[Group]:
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
                                           and wm < p.window_min_width_m)]
     found = [f for f in found if not _soffit_like(ctx, f[3])]  # a balcony soffit or a slab's face
+    found = [f for f in found if not _wedge_like(ctx, f[3])]  # a triangle of shaded wall, not a pane
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
