@@ -208,6 +208,29 @@ class ProposalParams:
     vehicle_lamp_conf_weights: tuple[float, float, float, float] = (2.08, 1.05, -0.69, 2.8)
     vehicle_pane_conf_bias: float = -2.71
     vehicle_pane_conf_weights: tuple[float, float, float, float, float, float] = (0.93, 0.23, 0.49, 0.72, -2.38, 1.34)
+    #: A far vehicle cut by the car in front with no lamp found gets its inner lamp's visible part at the cut
+    #: laid out from the geometry (``vehicles._cut_lamp``; docs/proposals.md "Twentieth pass: vehicle lamps at
+    #: 512x256"), at this confidence, not rescored: about half of them are right, so under the editor's slider
+    #: (0.9); 0: off.
+    vehicle_cut_lamp_conf: float = 0.55
+    #: ... on vehicles whose whole lamp (0.15 m) is under this many pixels tall (a taller lamp's part at the cut
+    #: is more than the one column laid out, and the sliver rules look for it by its colour).
+    vehicle_cut_lamp_max_px: float = 2.5
+    #: ... on vehicle instances from this many pixels (under ``vehicle_min_area_px`` only this lamp is looked for).
+    vehicle_cut_lamp_min_px: int = 8
+    #: ... on the rows whose pixel centres lie this high above the ground (m; a lamp's middle 0.07-0.22 m under
+    #: a body top of 0.8-0.95 m), ...
+    vehicle_cut_lamp_h_m: tuple[float, float] = (0.655, 0.805)
+    #: ... when the end face's strip beside the cut holds at least this many pixels of the lamp (its inner edge
+    #: ``vehicle_lamp_cols_m[0]`` in from the face's inner edge, where a side face this long (m) ending at the
+    #: silhouette's inner end starts), ...
+    vehicle_cut_lamp_vis_px: float = 0.75
+    vehicle_cut_lamp_length_m: float = 4.3
+    #: ... and a pixel of it departs from every blend of the occluder's colour and the paint by this many 8-bit
+    #: levels (largest channel).
+    vehicle_cut_lamp_blend_levels: float = 4.0
+    #: ... a rear lamp when what the blend leaves of it is darker or leans red by more than this (8-bit levels).
+    vehicle_cut_lamp_red_levels: float = 5.0
 
     # --- building windows
     #: A pixel is window-like when its luminance is below this fraction of the local wall luminance.

@@ -278,10 +278,11 @@ def _rescore(conf: float, bias: float, weights: tuple[float, ...], feats: tuple[
     return float(0.5 + 0.5 / (1.0 + np.exp(-t)))
 
 
-def _vehicles(ctx: Context):
+def _vehicles(ctx: Context, min_instance_px: int | None = None):
     """(labelId, y0, x0, local mask) per vehicle: instance ids where given, else connected components
-    split where depth jumps."""
+    split where depth jumps. Instances from ``min_instance_px`` pixels (default ``vehicle_min_area_px``)."""
     p = ctx.params
+    min_px = p.vehicle_min_area_px if min_instance_px is None else min_instance_px
     # The vehicles' pixels from one pass over the frame; each class's and instance's from them (full-frame
     # masks and maps per class took a sixth of the proposer's time).
     # By flat index, split into rows and columns only for the instances' boxes (np.nonzero of a 2-D mask and
@@ -304,7 +305,7 @@ def _vehicles(ctx: Context):
             ys, xs = np.divmod(f, ctx.shape[1])
             ids, starts, counts = np.unique(v, return_index=True, return_counts=True)
             for iid, a, n in zip(ids.tolist(), starts.tolist(), counts.tolist()):  # one object may show as
-                if n < p.vehicle_min_area_px:                                       # several components
+                if n < min_px:                                                      # several components
                     continue
                 yy, xx = ys[a:a + n], xs[a:a + n]
                 y0, y1, x0, x1 = int(yy.min()), int(yy.max()) + 1, int(xx.min()), int(xx.max()) + 1
@@ -1422,6 +1423,111 @@ def _in_traffic(ctx: Context, y0: int, x0: int, m: np.ndarray, face: tuple[int, 
     return True
 
 
+def _cut_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray) -> tuple[np.ndarray, bool] | None:
+    """The visible part of a far vehicle's inner lamp beside the cut of the car in front, laid out from the
+    geometry where the image shows next to nothing (local mask), or None (docs/proposals.md "Twentieth pass:
+    vehicle lamps at 512x256").
+
+    On a vehicle whose whole lamp (0.15 m) is under ``vehicle_cut_lamp_max_px`` tall, at depth ``z`` (the silhouette's
+    outer columns, away from the principal point), cut on that side by a nearer object (not background,
+    ``CUT_NEARER_M`` nearer two pixels beyond): the silhouette's last column on the rows whose pixel centres
+    lie at the lamp's heights (``vehicle_cut_lamp_h_m`` above the ground at ``z``; at least the nearest row).
+    Kept when the end face's strip left of the cut holds a lamp's pixel: the end face's inner edge lies where
+    a side face ``vehicle_cut_lamp_length_m`` long ending at the silhouette's inner end (over those rows and
+    two either side) would start at depth ``z``; the lamp begins ``vehicle_lamp_cols_m[0]`` in from it and
+    must reach ``vehicle_cut_lamp_vis_px`` pixels past it toward the cut. And when the image does not deny
+    it: some pixel of the column departs by ``vehicle_cut_lamp_blend_levels`` (8-bit, largest channel) or
+    more from every blend of the occluder's colour (two pixels beyond the cut) and the car's paint (its
+    pixels' median) -- what the blur leaves of a cut vehicle without a lamp there. With the mask, whether it
+    is a rear lamp: what the blend leaves of the most departing pixel is darker (its channels' mean) or leans
+    red by more than ``vehicle_cut_lamp_red_levels`` (a rear lamp's dark red lens by day), not brighter."""
+    p = ctx.params
+    if ctx.depth is None or p.vehicle_cut_lamp_conf <= 0:
+        return None
+    H, W = ctx.shape
+    h, w = m.shape
+    fy, cx = float(ctx.intrinsics.fy), float(ctx.intrinsics.cx)
+    d = np.where(m, ctx.depth[y0:y0 + h, x0:x0 + w], np.inf)
+    col = d.min(0)
+    ok = np.isfinite(col)
+    if not ok.any():
+        return None
+    left = x0 + float(np.nonzero(m)[1].mean()) < cx  # left of the principal point: cut on the left
+    k = max(1, w // 5)
+    near = col[:k] if left else col[-k:]
+    near = near[np.isfinite(near)]
+    z = float(median(near)) if near.size else float(median(col[ok]))
+    if not z > 0:
+        return None
+    ppm = fy / z
+    if 0.15 * ppm >= p.vehicle_cut_lamp_max_px:
+        return None
+
+    def row_at(height: float) -> float:
+        return float(ctx.intrinsics.cy + ((p.camera_height_m - height) / np.cos(p.camera_pitch_rad)
+                                          - z * np.tan(p.camera_pitch_rad)) * fy / z)
+
+    lo_h, hi_h = p.vehicle_cut_lamp_h_m
+    ra, rb = row_at(hi_h), row_at(lo_h)
+    r_a, r_b = int(np.ceil(ra - 0.5)), int(np.floor(rb + 0.5 - 1e-9))
+    if r_b < r_a:
+        r_a = r_b = int(round((ra + rb) / 2.0))
+    step = -1 if left else 1
+    rows, cols = [], []
+    for r in range(r_a, r_b + 1):
+        rr = r - y0
+        if not 0 <= rr < h or not m[rr].any():
+            continue
+        e = int(np.argmax(m[rr])) if left else w - 1 - int(np.argmax(m[rr, ::-1]))
+        b, bb = x0 + e + step, x0 + e + 2 * step
+        if not (0 <= b < W and 0 <= bb < W) or int(ctx.labels[r, b]) in BACKGROUND:
+            continue
+        if not ctx.depth[r, bb] < z - CUT_NEARER_M:  # (NaN: not nearer)
+            continue
+        rows.append(rr)
+        cols.append(e)
+    if not rows:
+        return None
+    # the end face's strip between its inner edge and the cut, from the side face's far end
+    band = m[max(min(rows) - 2, 0):max(rows) + 3]
+    bc = np.flatnonzero(band.any(0))
+    u_in = x0 + (bc[-1] + 0.5 if left else bc[0] - 0.5)
+    corner = cx + (u_in - cx) * (z + p.vehicle_cut_lamp_length_m) / z
+    c_cut = x0 + float(np.mean(cols))
+    strip = (corner - (c_cut - 0.5)) if left else ((c_cut + 0.5) - corner)
+    if strip - p.vehicle_lamp_cols_m[0] * ppm < p.vehicle_cut_lamp_vis_px:
+        return None
+    # the image: a pixel no blend of the occluder and the paint explains
+    img = ctx.image
+    paint = median(pixels(img[y0:y0 + h, x0:x0 + w].astype(np.float32), m), axis=0)
+    ys = y0 + np.asarray(rows)
+    xs = x0 + np.asarray(cols)
+    c = img[ys, xs].astype(np.float32)
+    o = img[ys, np.clip(xs + 2 * step, 0, W - 1)].astype(np.float32)
+    ab = paint[None, :] - o
+    t = np.clip(((c - o) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-6), 0.0, 1.0)
+    res = c - (o + t[:, None] * ab)
+    dev = _chan_max(np.abs(res))
+    if float(dev.max()) < p.vehicle_cut_lamp_blend_levels:
+        return None
+    out = np.zeros_like(m)
+    out[np.asarray(rows), np.asarray(cols)] = True
+    # What the blend leaves is the lamp's: darker or redder, a rear lamp's dark red lens; brighter, a front lamp
+    q = res[int(np.argmax(dev))]
+    rear = float(q.mean()) < 0 or float(q[0] - max(q[1], q[2])) > p.vehicle_cut_lamp_red_levels
+    return out, rear
+
+
+def _cut_lamp_light(ctx: Context, y0: int, x0: int, lamp: np.ndarray, rear: bool) -> Light:
+    """:func:`_cut_lamp`'s lamp as a parked vehicle's light: its rear lamp when its pixels are red by day or the
+    rule says so, else its front lamp; the rule's confidence ``vehicle_cut_lamp_conf``, not rescored (a guess
+    from the geometry: under the editor's slider)."""
+    p = ctx.params
+    h, w = lamp.shape
+    r, g, bl = pixels(ctx.image[y0:y0 + h, x0:x0 + w].astype(np.float32), lamp).mean(0)
+    rear = rear or (r > 1.5 * max(g, bl) and r > 50)
+    return Light(PARKED_REAR if rear else PARKED_FRONT, y0, x0, lamp, float(p.vehicle_cut_lamp_conf))
+
 def propose(ctx: Context) -> list[Group]:
     """Per car/truck/bus: two lamps on the visible end face and the dark window panes above its body.
 
@@ -1442,8 +1548,17 @@ def propose(ctx: Context) -> list[Group]:
     p = ctx.params
     fy = float(ctx.intrinsics.fy)
     out: list[Group] = []
-    for cls, y0, x0, m in _vehicles(ctx):
+    cut_min = min(p.vehicle_min_area_px, p.vehicle_cut_lamp_min_px) if p.vehicle_cut_lamp_conf > 0 \
+        else p.vehicle_min_area_px
+    for cls, y0, x0, m in _vehicles(ctx, cut_min):
         h, w = m.shape
+        if cut_min < p.vehicle_min_area_px and int(m.sum()) < p.vehicle_min_area_px:
+            # a vehicle too small for the end face and panes: only the lamp beside the car in front's cut
+            cut = _cut_lamp(ctx, y0, x0, m)
+            if cut is not None:
+                lamp = _cut_lamp_light(ctx, y0, x0, *cut)
+                out.append(Group(VEHICLE_GROUP[cls], [lamp], lamp.confidence))
+            continue
         face = _end_face(ctx, cls, y0, x0, m)
         if face is None:
             continue
@@ -1501,6 +1616,10 @@ def propose(ctx: Context) -> list[Group]:
                 conf, p.vehicle_lamp_conf_bias, p.vehicle_lamp_conf_weights,
                 (min(_ring_contrast(img, m, b) / SLIVER_DIFF, 3.0), pair, float(i >= n_pair),
                  float(np.log(_lamp_size_px(b)))))) for i, b in enumerate(lamps)]
+        if not lamps and p.vehicle_cut_lamp_conf > 0:  # nothing on the face: a far lamp beside the cut
+            cut = _cut_lamp(ctx, y0, x0, m)
+            if cut is not None:
+                members.append(_cut_lamp_light(ctx, y0, x0, *cut))
         # Window panes: the cabin band above the body face.
         # On a narrow face r0 is the typical body height's row; the panes, as its lamps, sit on the
         # silhouette's own body top when near (512x256 seeds 0-2: panes matched at IoU >= 0.7 64 -> 67).
