@@ -275,3 +275,24 @@ def test_the_lit_share_list_names_each_face_over_the_cap_with_its_windows():
     assert [(w[2], w[5] == 1.0, w[6]) for w in wins] == [("window", True, "dormer")]
     hot = [f for f in faces if f[0] > 0.4]
     assert hot == [(sh, 0, 1, y1 - y0 + 1)]
+
+
+def test_the_lights_streets_truth_passes_its_own_corrected_1_5x_count():
+    """The lights street records the kinds of the lights it adds, not of the panes its facades share with
+    the default street; its ground-floor shop windows (from 0.8 m, 2.1 m tall) counted as windows there,
+    so a far ground-floor pane of seed 1 was 1.68x the facade's upper-floor windows: the truth itself
+    over the corrected 1.5x count (docs/proposals.md "Twentieth pass: the 1.5x rule"). ``pane_kinds``
+    gives such panes the layout's rule, as on the default street: shop fronts (old code: 1 over, and
+    the seed's 54 unrecorded panes windows)."""
+    from benchmarks.proposals import frame_and_walls, pane_areas, pane_kinds, window_rules
+
+    kinds = pane_kinds(1, "lights")
+    assert kinds["1218"] == "shop"  # the old count's offender: from 0.8 m, 2.1 m tall
+    scene, _, walls = frame_and_walls(512, 256, 1, "lights")
+    offs: list = []
+    *_, big_corr = window_rules(scene, scene.lights, walls, kinds=kinds, pane_m2=pane_areas(1, "lights"),
+                                gt_kinds=kinds, offenders=offs)
+    assert big_corr == 0 and offs == []
+    # the kinds the street records stay its own (a gable, a dormer, an office band are not windows)
+    recorded = scene.provenance["layout"]["light_kinds"]
+    assert all(kinds[k] == v for k, v in recorded.items())
