@@ -96,21 +96,28 @@ def test_the_false_window_on_the_lights_streets_balcony_soffit_goes_and_the_true
     assert matched(after) == matched(before)
 
 
-def _li(mask: np.ndarray) -> Light:
-    return Light(WINDOW_BUILDING, 100, 100, mask, 0.9)
+def _li(mask: np.ndarray, y0: int = 0) -> Light:
+    return Light(WINDOW_BUILDING, y0, 100, mask, 0.9)
 
 
 def test_a_window_shaped_as_a_solid_triangle_is_a_wedge_of_wall():
     """A pane's image has vertical sides and its top and bottom along its wall's rows: its convex hull fills most
     of its box, on a wall receding steeply too (a parallelogram 20 rows tall at the side sheared by 8 over its
     width fills 0.71) -- or, receding steeply near the frame's top, a diagonal band 6 px wide that fills half its
-    box but has no row or column across it. A solid triangle -- a shaded face's corner under a roof's or a
-    gable's slope -- fills half of it and has a side across it: a wedge. Not under ``window_wedge_min_px`` either way (a far pane's few pixels quantise to any shape),
+    box but has no row or column across it. A solid triangle of one colour at the frame's top -- a face in shade
+    under a roof's or a gable's slope -- fills half of it and has a side across it: a wedge. Not below the
+    frame's top (a pane's part cut by a tree or a shadow's edge), not with a bright column in it (a pane
+    merged with a wedge of wall), not under ``window_wedge_min_px`` either way (a far pane's few pixels quantise to any shape),
     not a triangle's outline (two strips meeting: not solid), not with the test off."""
     yy, xx = np.mgrid[0:20, 0:18]
     tri = yy <= 20 - 20 * xx / 18.0  # the frame-top triangle's shape: 18 wide, 20 tall
-    ctx = Context(np.zeros((8, 8, 3), np.uint8), np.full((8, 8), 11, np.uint8), None, K, None, PARAMS)
+    img = np.full((64, 256, 3), 60, np.uint8)
+    ctx = Context(img, np.full((64, 256), 11, np.uint8), None, K, None, PARAMS)
     assert _wedge_like(ctx, _li(tri)) and _wedge_like(ctx, _li(tri[:, ::-1])) and _wedge_like(ctx, _li(tri[::-1]))
+    assert not _wedge_like(ctx, _li(tri, y0=20))  # below the frame's top: a pane's part a tree or a shadow cuts
+    two = img.copy()
+    two[:, 100:106] = 200  # a bright pane's column beside the wedge of wall: two colours
+    assert not _wedge_like(Context(two, ctx.labels, None, K, None, PARAMS), _li(tri))
     assert not _wedge_like(ctx, _li(np.ones((20, 18), bool)))
     yy, xx = np.mgrid[0:28, 0:18]
     sheared = (yy >= 8 * xx / 17.0) & (yy < 20 + 8 * xx / 17.0)  # a receding pane: vertical sides

@@ -420,16 +420,18 @@ class ProposalParams:
     #: ... and a window at least as wide as it is tall (4 rows at least) under ``window_soffit_square_tilt``:
     #: a pane's shape, so only a face read as nearly horizontal (true panes that size read 0.35 and up).
     window_soffit_square_tilt: float = 0.2
-    #: A final window at least ``window_wedge_min_px`` px wide and tall whose convex hull fills at most
-    #: ``window_wedge_hull_fill`` of its box while it fills ``window_wedge_mask_fill`` of its hull or more and
-    #: one of its rows (columns) spans ``window_wedge_base`` of the box's width (height) -- a solid triangle: a
-    #: shaded face's corner under a roof's or a gable's slope, a wedge of wall -- is not a pane, whose image has
-    #: vertical sides and a top and a bottom along its wall (shares; 0: no test; windows._wedge_like).
+    #: A final window touching the frame's top, at least ``window_wedge_min_px`` px wide and tall, whose convex
+    #: hull fills at most ``window_wedge_hull_fill`` of its box while it fills ``window_wedge_mask_fill`` of its
+    #: hull or more, one of whose rows (columns) spans ``window_wedge_base`` of the box's width (height) and
+    #: ``window_wedge_one_colour`` of whose pixels lie within the window threshold of its median luminance -- a
+    #: solid triangle of one colour: a face in shade under a roof's or a gable's slope -- is not a pane, whose
+    #: image has vertical sides and a top and a bottom along its wall (shares; 0: no test; windows._wedge_like).
     #: docs/proposals.md "Twentieth pass: the 40 % lit share".
     window_wedge_min_px: int = 10
     window_wedge_hull_fill: float = 0.62
     window_wedge_mask_fill: float = 0.85
     window_wedge_base: float = 0.8
+    window_wedge_one_colour: float = 0.7
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Without depth, a building region whose luminance departs from its 3x3 mean (1.4826 x the median

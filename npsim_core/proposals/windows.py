@@ -2595,17 +2595,19 @@ def _soffit_like(ctx: Context, li: Light) -> bool:
 
 
 def _wedge_like(ctx: Context, li: Light) -> bool:
-    """A window shaped as a solid triangle (``window_wedge_*``; docs/proposals.md "Twentieth pass: the 40 %
-    lit share"): at least ``window_wedge_min_px`` px each way, its convex hull at most
-    ``window_wedge_hull_fill`` of its box, its pixels at least ``window_wedge_mask_fill`` of its hull, and a row
-    or a column of it at least ``window_wedge_base`` of the box across (a triangle's base). A pane's image has
-    vertical sides and a top and a bottom along its wall's rows: a quadrilateral whose hull fills most of its
-    box, or, receding steeply near the frame's top or bottom, a diagonal band with no row or column across its
-    box; a triangle is a shaded face's corner under a roof's or a gable's slope, a wedge of wall beside a
-    slanting edge."""
+    """A window at the frame's top shaped as a solid triangle of one colour (``window_wedge_*``;
+    docs/proposals.md "Twentieth pass: the 40 % lit share"): touching the top row, at least
+    ``window_wedge_min_px`` px each way, its convex hull at most ``window_wedge_hull_fill`` of its box, its
+    pixels at least ``window_wedge_mask_fill`` of its hull, a row or a column of it at least ``window_wedge_base``
+    of the box across (a triangle's base), and ``window_wedge_one_colour`` of its pixels within the window
+    threshold (-ln ``window_dark_ratio``, log luminance) of its median. A pane's image has vertical sides and
+    a top and a bottom along its wall's rows: a quadrilateral whose hull fills most of its box, or, receding
+    steeply near the frame's top, a diagonal band with no row or column across its box; the frame cuts it
+    along a row. A triangle there is a face in shade under a roof's or a gable's slope. (Below the frame's top
+    a pane's visible part is a triangle where a tree, a post or a cast shadow's edge cuts it diagonally.)"""
     p = ctx.params
     h, w = li.mask.shape
-    if p.window_wedge_hull_fill <= 0 or min(h, w) < p.window_wedge_min_px:
+    if p.window_wedge_hull_fill <= 0 or min(h, w) < p.window_wedge_min_px or li.y0 > 0:
         return False
     sub = li.mask.astype(np.uint8)
     hull = np.zeros_like(sub)
@@ -2615,7 +2617,11 @@ def _wedge_like(ctx: Context, li: Light) -> bool:
         return False
     # a triangle has a side across its box (the frame's top, a vertical corner); a receding pane's image near
     # the frame's top or bottom, a diagonal band of short vertical sides, has none
-    return bool(sub.sum(1).max() >= p.window_wedge_base * w or sub.sum(0).max() >= p.window_wedge_base * h)
+    if not (sub.sum(1).max() >= p.window_wedge_base * w or sub.sum(0).max() >= p.window_wedge_base * h):
+        return False
+    # one colour, as a face in shade is: a pane merged with a wedge of wall beside it is not this test's
+    lum = np.log(np.maximum(ctx.lum[li.y0:li.y0 + h, li.x0:li.x0 + w][li.mask], 1e-4))
+    return bool(np.mean(np.abs(lum - median(lum)) <= -np.log(p.window_dark_ratio)) >= p.window_wedge_one_colour)
 
 
 def propose(ctx: Context) -> list[Group]:
