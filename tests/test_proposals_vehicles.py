@@ -1089,30 +1089,30 @@ def test_a_near_cars_pane_of_dark_glass_takes_the_row_of_glass_below_its_band():
 
 
 def test_a_far_cars_lamp_beside_the_cut_of_the_car_in_front_is_laid_out_from_the_geometry_under_the_slider():
-    """512x256 default seed 1: a parked row whose far cars (19 and 37 px at 82-86 m) the car in front hides but
-    a strip of their end face beside its cut, each showing its inner lamp as one pixel blended with the
-    occluder (2 and 12 levels off the paint: nothing the snap, the sliver or the blur across the cut sees).
-    The cut column at the lamp's heights is proposed where the end face's strip (from the side face's far
-    end) holds a lamp's pixel and the column is no blend of the occluder and the paint: both lamps matched
-    (IoU >= 0.3; none on the old code, which looked at no car under 40 px), at the rule's confidence, under
-    the editor's slider (``vehicles._cut_lamp``). Off (``vehicle_cut_lamp_conf`` 0), with no strip to hold a
-    lamp (``vehicle_cut_lamp_vis_px``) or every pixel taken for a blend (``vehicle_cut_lamp_blend_levels``):
-    neither."""
+    """512x256 default seed 0: a parked row whose far cars (115 px at 38 m, 22 px at 95 m) the car in front hides
+    but a strip of their end face beside its cut, each showing its inner rear lamp as a pixel or two blended with
+    the occluder (34 and 19 levels off the paint: nothing the snap, the sliver or the blur across the cut sees).
+    The cut column at the lamp's heights is proposed where the end face's strip (from the side face's far end)
+    holds a lamp's pixel and the column is no blend of the occluder and the paint: both lamps matched (IoU >=
+    0.3; none on the old code, which looked at no car under 40 px), as rear lamps (what the blend leaves of them
+    is darker), at the rule's confidence, under the editor's slider (``vehicles._cut_lamp``). Off
+    (``vehicle_cut_lamp_conf`` 0), with no strip to hold a lamp (``vehicle_cut_lamp_vis_px``) or every pixel
+    taken for a blend (``vehicle_cut_lamp_blend_levels``): neither."""
     from benchmarks.proposals import frame
     from benchmarks.vehicle_lamps import lamp_matches
 
-    scene, inst = frame(512, 256, 1, "default")
-    far = (3016, 3020)
+    scene, inst = frame(512, 256, 0, "default")
+    far = (4019, 4029)
 
     def found(**kw):
         params = replace(ProposalParams(), categories=("vehicles",), **kw)
         props = propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst, params)
         match, _ = lamp_matches(scene.lights, props.above(0.5))
-        return {g: props.confidence[match[g]] for g in far if g in match}
+        return {g: (props.confidence[match[g]], class_of(match[g])) for g in far if g in match}
 
     got = found()
     assert sorted(got) == list(far)
-    assert all(c == ProposalParams().vehicle_cut_lamp_conf < 0.9 for c in got.values())
+    assert all(c == ProposalParams().vehicle_cut_lamp_conf < 0.9 and k == 4 for c, k in got.values())
     assert found(vehicle_cut_lamp_conf=0.0) == {}
     assert found(vehicle_cut_lamp_vis_px=5.0) == {}
     assert found(vehicle_cut_lamp_blend_levels=255.0) == {}
