@@ -349,6 +349,14 @@ class ProposalParams:
     window_unblur_ratio: float = 0.5
     #: ... and so does a wider one (a pane's edge blurred into the wall's next column: 2048x1024).
     window_unblur_any_width: bool = True
+    #: A window at most ``window_row_pane_max_px`` wide, after its end rows are trimmed, loses its edge
+    #: columns under this share of its strongest column's, as many a side as there are: a far 1-px pane
+    #: shown in 3 columns by its blur (windows._unblur_narrow; 0: off).
+    window_unblur_narrow_ratio: float = 0.55
+    #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
+    #: departure from the wall is under this share of that window's strongest column's is dropped: the
+    #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).
+    window_blur_column_ratio: float = 0.33
     #: A window grows by the rows above its top / below its bottom that depart from the wall by at least
     #: ``window_extend_dev`` of the window thresholds over two thirds of its columns, on mean
     #: ``window_extend_side_ratio`` x the departure of the columns beside it (the rest of its pane:

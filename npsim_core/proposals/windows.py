@@ -2152,6 +2152,98 @@ def _trim_ends(li: Light, dev: np.ndarray, p) -> None:
     li.mask = m[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
 
 
+def _unblur_narrow(found: list, dev: np.ndarray, p) -> None:
+    """Take off a narrow window's faint edge columns where it is wider than its floor-mates, in place:
+    a window of kind ``window`` at most ``window_row_pane_max_px`` wide, wider than the median width
+    of its (up to four) nearest floor-mates (``found`` rows [wall id, level, tolerance, Light]: the
+    same wall, levels within its tolerance; two at least), loses its edge columns whose mean departure
+    from the wall (``dev``, HxW, in window thresholds) is under ``window_unblur_narrow_ratio`` x its
+    strongest column's, as many a side as there are (:func:`_faint_sides_off`; the strongest column
+    stays). A far pane 1 px wide on a receding wall shows in 3 columns -- its glass and its blur into
+    the wall either side at half its departure, or its blur and a column of the next face --, its
+    floor's panes in 1-2; :func:`_unblur` takes one column a side before the ends are trimmed, and a
+    3-px window of a 1-px pane is twice its facade's median (docs/proposals.md "Eighteenth pass: the
+    1.5x rule -- far panes merged with their blur")."""
+    r = float(p.window_unblur_narrow_ratio)
+    if r <= 0 or len(found) < 3:
+        return
+    box = np.array([[f[3].y0, f[3].x0, f[3].mask.shape[0], f[3].mask.shape[1]] for f in found], float)
+    bid = np.array([f[0] for f in found])
+    lev = np.array([f[1] for f in found], float)
+    cy, cx = box[:, 0] + box[:, 2] / 2.0, box[:, 1] + box[:, 3] / 2.0
+    ids = np.zeros(dev.shape, np.int32)  # each window's pixels: its index + 1
+    for i, f in enumerate(found):
+        li = f[3]
+        ids[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = i + 1
+    for i, f in enumerate(found):
+        li = f[3]
+        w = li.mask.shape[1]
+        if w < 2 or w > p.window_row_pane_max_px or (li.kind or "window") != "window":
+            continue
+        mate = (bid == f[0]) & (np.abs(lev - f[1]) <= f[2])
+        mate[i] = False
+        j = np.flatnonzero(mate)
+        if j.size < 1:
+            continue
+        j = j[np.argsort(np.hypot(cx[j] - cx[i], cy[j] - cy[i]))[:4]]
+        mw = float(median(box[j, 3]))
+        if w <= mw + 1.0:  # a pane 1.5 px wide shows as 1 or 2 px
+            continue
+        cnt = li.mask.sum(0)
+        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + w]
+        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+        lim = r * float(prof.max())
+        a, b = 0, w - 1
+        while b - a + 1 > max(int(np.ceil(mw)), 1):  # the fainter end first, to the mates' width
+            k = a if prof[a] <= prof[b] else b
+            if prof[k] >= lim:
+                break
+            a, b = (a + 1, b) if k == a else (a, b - 1)
+        if a == 0 and b == w - 1:
+            continue
+        # a window beside the columns kept, its column there as strong: the pane's glass goes on into it
+        # (split between two windows), so this window's width is not its pane's -- left as it is
+        rs = slice(li.y0, li.y0 + li.mask.shape[0])
+        sides = ([li.x0 - 1] if a == 0 and li.x0 > 0 else []) + \
+            ([li.x0 + w] if b == w - 1 and li.x0 + w < dev.shape[1] else [])
+        if any(((o := (ids[rs, c] > 0) & (ids[rs, c] != i + 1)).any() and float(dev[rs, c][o].mean()) >= lim)
+               for c in sides):
+            continue
+        m = li.mask[:, a:b + 1]
+        ys = np.flatnonzero(m.any(1))
+        li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+
+
+def _blur_columns_off(found: list, dev: np.ndarray, ratio: float) -> list:
+    """The windows less the far panes' blur columns split off as windows of their own: a window of kind
+    ``window`` 1 px wide beside another window of its wall (no column between them, half its rows at
+    least beside it) whose mean departure from the wall (``dev``, HxW, in window thresholds) is under
+    ``ratio`` (``window_blur_column_ratio``) x that window's strongest column's is the other's glass
+    blurred into the wall, not a pane (512x256 seeds 0-5: every one under 0.33 false, IoU under 0.1; a
+    true 1-px pane beside another is at 0.4 or more; docs/proposals.md "Twentieth pass: the 1.5x rule")."""
+    if ratio <= 0 or len(found) < 2:
+        return found
+    prof = []
+    for f in found:
+        li = f[3]
+        cnt = li.mask.sum(0)
+        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]]
+        prof.append(np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0))
+    box = np.array([[f[3].y0, f[3].x0, f[3].mask.shape[0], f[3].mask.shape[1]] for f in found], int)
+    bid = np.array([f[0] for f in found])
+    drop = set()
+    for i, f in enumerate(found):
+        y0, x0, h, w = box[i]
+        if w != 1 or (f[3].kind or "window") != "window":
+            continue
+        side = (bid == f[0]) & ((box[:, 1] + box[:, 3] == x0) | (box[:, 1] == x0 + 1))
+        side &= np.minimum(box[:, 0] + box[:, 2], y0 + h) - np.maximum(box[:, 0], y0) >= 0.5 * h
+        side[i] = False
+        if any(float(prof[i][0]) < ratio * float(prof[j].max()) for j in np.flatnonzero(side)):
+            drop.add(i)
+    return [f for i, f in enumerate(found) if i not in drop]
+
+
 def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
     """Give a window found in part the rows its floor-mates' sill and lintel lines say its pane has, in
     place: the windows of one floor share their size, so where a pane shows a bright band or a curtain
@@ -2891,6 +2983,8 @@ def propose(ctx: Context) -> list[Group]:
                                           and wm < p.window_min_width_m)]
     found = [f for f in found if not _soffit_like(ctx, f[3])]  # a balcony soffit or a slab's face
     found = [f for f in found if not _wedge_like(ctx, f[3])]  # a triangle of shaded wall, not a pane
+    _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
+    found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio)
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
