@@ -920,7 +920,8 @@ def test_a_far_lamp_beside_the_cut_only_its_middle_row_forty_levels_off_the_pain
     on_car = [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
     assert max((_iou(ann.mask(i), visible) for i in on_car), default=0.0) >= 0.7
     img, lab, depth, inst, intr, visible = _far_lamp_at_the_cut(36.0)
-    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=FLAT))
+    # (the lamp the geometry lays out in the strip, ``vehicles._cut_strip_lamp``, off: this is the image's rule)
+    ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst, params=replace(FLAT, vehicle_cut_strip_length_m=0.0)))
     assert not [i for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
 
 
@@ -1036,7 +1037,8 @@ def test_a_lamp_one_pixel_across_at_the_cut_blended_with_the_car_in_front_is_fou
     def on_car(frame, levels=6.0):
         img, lab, depth, inst, intr, visible = frame
         ann, lamps = _lamps(propose_lights(img, lab, depth, intr, inst,
-                                           params=replace(FLAT, vehicle_sliver_blend_levels=levels)))
+                                           params=replace(FLAT, vehicle_sliver_blend_levels=levels,
+                                                          vehicle_cut_strip_length_m=0.0)))
         return [_iou(ann.mask(i), visible) for i in lamps if (ann.mask(i) & (inst == CAR * 1000 + 1)).any()]
 
     assert on_car(_faint_sliver_at_the_cut((15, 15, 18))) == [1.0]
@@ -1116,3 +1118,31 @@ def test_a_far_cars_lamp_beside_the_cut_of_the_car_in_front_is_laid_out_from_the
     assert found(vehicle_cut_lamp_conf=0.0) == {}
     assert found(vehicle_cut_lamp_vis_px=5.0) == {}
     assert found(vehicle_cut_lamp_blend_levels=255.0) == {}
+
+
+def test_a_cut_cars_inner_lamp_is_laid_out_from_its_side_faces_far_end_where_the_strip_beside_the_cut_holds_it():
+    """512x256 lights seed 1: three cars of the right-hand parked row (20-29 m) that the car in front hides but a
+    strip of their end face, their inner lamps showing at the cut as 1-6 columns no image cue tells from the
+    occluder's blend. The end face's inner edge lies where a side face ``vehicle_cut_strip_length_m`` long
+    ends at the silhouette's centre-side end, the body's top from where that end reaches its body rows; the
+    lamp 0.07-0.40 m in from that edge, its part on the silhouette beside the cut, is proposed when it reaches
+    ``vehicle_cut_strip_margin`` past the cut column's centre (``vehicles._cut_strip_lamp``; the same on the
+    2048x1024 hard street's far cars). All three matched (IoU >= 0.3), rear lamps as the truth (a row on the
+    right is seen from behind: ``vehicle_cut_strip_rear_right``; by its blended colour one reads as a front
+    lamp); none with the rule off, none when the lamp must reach 6 px past the cut."""
+    from benchmarks.proposals import frame
+    from benchmarks.vehicle_lamps import lamp_matches
+
+    scene, inst = frame(512, 256, 1, "lights")
+    cut = (4033, 4035, 4037)
+
+    def found(**kw):
+        params = replace(ProposalParams(), categories=("vehicles",), **kw)
+        props = propose_lights(scene.image, scene.labels, scene.depth, scene.intrinsics, inst, params)
+        match, _ = lamp_matches(scene.lights, props.above(0.5))
+        return {g: class_of(match[g]) for g in cut if g in match}
+
+    assert found() == {4033: 4, 4035: 4, 4037: 4}
+    assert found(vehicle_cut_strip_rear_right=False)[4037] == 3
+    assert found(vehicle_cut_strip_length_m=0.0) == {}
+    assert found(vehicle_cut_strip_margin=(6.0, 0.1)) == {}

@@ -131,6 +131,19 @@ class ProposalParams:
     vehicle_sliver_blend_shift: tuple[float, float] = (8.0, 40.0)
     #: ... and each column's shift within this share of the mean's length from the mean.
     vehicle_sliver_blend_spread: float = 0.55
+    #: A vehicle cut by the car in front whose image shows no lamp there gets its inner lamp's visible part
+    #: laid out from the silhouette's other end, the side face's far end: the end face's inner edge where a
+    #: side face this long (m) would end (``vehicles._cut_strip_lamp``); 0: off.
+    vehicle_cut_strip_length_m: float = 4.3
+    #: ... where the body's top edge at the side face's far end lies this high (m above the ground) ...
+    vehicle_cut_strip_top_m: tuple[float, float] = (0.75, 1.05)
+    #: ... and the lamp's inner end lies past the cut column's pixel centre by at least the larger of this many
+    #: pixels and this share of the side face's width (its length's spread moves the inner edge by as much).
+    vehicle_cut_strip_margin: tuple[float, float] = (0.65, 0.1)
+    #: ... and such a lamp alone on a vehicle right of the principal point is a rear lamp, whatever its colour (a
+    #: blend of the occluder's and the paint's: a parked row on the right is parked with the traffic and seen
+    #: from behind; on the left either way, so its colour decides).
+    vehicle_cut_strip_rear_right: bool = True
     #: A lamp box's snapped blob reaching the image's left or right border and darker than the paint by more
     #: than this many 8-bit levels in every channel is no lamp (a near car's dark end trim or glass the frame
     #: cuts; a lamp by day is red or brighter): the box is laid out as unsnapped; 0: off

@@ -1286,6 +1286,75 @@ def _sliver_blend(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, face_
     return out & m
 
 
+def _cut_strip_lamp(ctx: Context, y0: int, x0: int, m: np.ndarray, z: float, face_top: int) -> np.ndarray | None:
+    """The part of a cut vehicle's inner lamp its end face's visible strip holds, laid out from the
+    silhouette's other end (local mask), or None (docs/proposals.md "Twentieth pass: vehicle lamps")."""
+    p = ctx.params
+    length = p.vehicle_cut_strip_length_m
+    if length <= 0:
+        return None
+    cut = _cut_band(ctx, y0, x0, m, z)
+    if cut is None:
+        return None
+    ppm, _, br, end, out_step = cut
+    if 0.15 * ppm < p.vehicle_cut_lamp_max_px:
+        return None  # a far lamp: :func:`_cut_lamp`'s, from the same geometry with the image's test
+    h, w = m.shape
+    H, W = ctx.shape
+    cx = float(ctx.intrinsics.cx)
+    if x0 - 0.5 < cx < x0 + w - 0.5:
+        return None  # astride the principal point: no side face on one side only
+    has = m.any(1)
+    # per row the silhouette's end on the centre side: the side face's far end, a vertical edge over the body
+    far = np.where(has, w - 1 - m[:, ::-1].argmax(1), -1) if out_step < 0 else np.where(has, m.argmax(1), w)
+    hts = ctx.height_above_ground(y0 + np.arange(h), z + length)
+    body = has & (hts >= 0.35) & (hts <= p.vehicle_body_top_m[1])
+    if not body.any():
+        return None
+    ext = int(far[body].max() if out_step < 0 else far[body].min())
+    at = np.flatnonzero(body & (far == ext))
+    r_bt = int(at[0])  # the body's top row at the far end (the cabin above ends short of it, and inset)
+    bt_h = float(ctx.height_above_ground(y0 + r_bt - 0.5, z + length))
+    lo_h, hi_h = p.vehicle_cut_strip_top_m
+    if not lo_h <= bt_h <= hi_h:
+        return None
+    fy = float(ctx.intrinsics.fy)
+    top = float(ctx.intrinsics.cy + ((p.camera_height_m - bt_h) / np.cos(p.camera_pitch_rad)
+                                     - z * np.tan(p.camera_pitch_rad)) * fy / z) - y0  # the end face's top edge
+    ra, rb = _centres_in(top + p.vehicle_lamp_rows_m[0] * ppm, top + p.vehicle_lamp_rows_m[1] * ppm)
+    ra, rb = max(ra, 0), min(rb, h - 1)
+    if rb < ra:
+        return None
+    rows = np.arange(ra, rb + 1)
+    rows = rows[has[rows]]
+    if rows.size == 0:
+        return None
+    e = x0 + ext + (0.5 if out_step < 0 else -0.5)
+    inner = cx + (e - cx) * (z + length) / z  # the end face's inner edge: the side face spans z..z+length
+    a_m, b_m = p.vehicle_lamp_cols_m
+    lo, hi = (inner - b_m * ppm, inner - a_m * ppm) if out_step < 0 else (inner + a_m * ppm, inner + b_m * ppm)
+    c_a, c_b = max(int(np.ceil(lo - x0)), 0), min(int(np.floor(hi - x0)), w - 1)
+    if c_b < c_a:
+        return None
+    cut_c = end[rows]
+    if ((x0 + cut_c + out_step < 0) | (x0 + cut_c + out_step >= W)).any():
+        return None  # cut by the frame's border
+    c_cut = int(np.round(median(cut_c)))
+    # the lamp's inner end past the cut's pixel centre (px): under the margin it may lie behind the cut -- the
+    # side face's length (3.9-4.8 m on the streets) moves the inner edge by a tenth of its width either way
+    margin_px, margin_share = p.vehicle_cut_strip_margin
+    if ((hi - x0 - c_cut) if out_step < 0 else (x0 + c_cut - lo)) < max(margin_px, margin_share * abs(inner - e)):
+        return None
+    out = np.zeros_like(m)
+    out[rows[:, None], np.arange(c_a, c_b + 1)[None, :]] = True
+    out &= m
+    if not out.any():
+        return None
+    # a part of the lamp beside the cut: the whole lamp's columns not all on the silhouette
+    if np.abs(np.flatnonzero(out.any(0))[:, None] - cut_c[None, :]).min() > 1:
+        return None
+    return out
+
 def _sliver_grown(lab: np.ndarray, stats: np.ndarray, beside: np.ndarray, win: np.ndarray, box: tuple,
                   sub: np.ndarray, paint: np.ndarray, ppm: float, rows: tuple[int, int],
                   share: float, max_px: float) -> np.ndarray | None:
@@ -1574,6 +1643,7 @@ def propose(ctx: Context) -> list[Group]:
         conf = 0.75 if z is not None else 0.55
         if z is not None and fw * z / fy < 1.0:
             conf -= 0.3
+        geo = None  # a lamp laid out from the geometry alone (:func:`_cut_strip_lamp`)
         lamps, distinct = _lamp_pair(ctx, y0, x0, m, img, paint, (r0, r1, c0, c1), z) if placed else ([], 0)
         n_pair = len(lamps)
         if z is not None:
@@ -1585,6 +1655,8 @@ def propose(ctx: Context) -> list[Group]:
                     sliver = _sliver_lamp(ctx, y0, x0, m, img, z, centre_side=True)
                 if sliver is None:  # a lamp at the cut too faint for the sliver: its blur across the cut
                     sliver = _sliver_blend(ctx, y0, x0, m, z, r0)
+                if sliver is None and not lamps:  # nothing the image shows: the strip's lamp from the geometry
+                    sliver = geo = _cut_strip_lamp(ctx, y0, x0, m, z, r0)
                 if sliver is not None and distinct == 0 and len(lamps) == 1 and \
                         _sliver_under_box(lamps[0], sliver, p.vehicle_sliver_box_tol_px):
                     lamps, n_pair = [], 0  # the box laid out over the sliver is that lamp, rows off
@@ -1606,6 +1678,9 @@ def propose(ctx: Context) -> list[Group]:
             dr, dg, db = float(r - paint[0]), float(g - paint[1]), float(bl - paint[2])
             dn = float(np.sqrt(dr * dr + dg * dg + db * db))
             rear = (r > 1.5 * max(g, bl) and r > 50) or (dn > 10.0 and dr - max(dg, db) > p.vehicle_rear_red_share * dn)
+            if p.vehicle_cut_strip_rear_right and geo is not None and len(lamps) == 1 and lamps[0] is geo and \
+                    x0 > float(ctx.intrinsics.cx):  # its pixels are the occluder's blend: the row's side tells
+                rear = True
             # A face not placed (laid out from a nearer object's edge) says nothing of where the vehicle
             # stands sideways -- it may lie in our lane while the car is parked beyond the car ahead
             # (2048x1024 lights seeds 1, 2) --: parked, as without depth.
