@@ -20,6 +20,13 @@ K = Intrinsics(1100.0, 1100.0, 511.5, 511.5, W, H)
 PARAMS = ProposalParams(categories=("windows",), camera_pitch_rad=0.0)
 
 
+def _window_masks(sc, **params) -> list[np.ndarray]:
+    """The window proposals (confidence >= 0.5) on scene ``sc`` with ``params`` changed, one mask each."""
+    p = ProposalParams(categories=("windows",), **params)
+    m = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None, p).above(0.5).instance_map
+    return [m == i for i in np.unique(m) if i // 1000 == 1]
+
+
 def _band(soffit: float, noise: float = 0.0) -> tuple[Context, Light]:
     """A dark band 1.4 m wide, ~21 px tall, 9.2 m up a wall facing a level camera (1.22 m high) at 30 m: a
     balcony slab's underside from the wall to 2 m out of it (``soffit`` 1: its depth per row that of a horizontal
@@ -77,9 +84,7 @@ def test_the_false_window_on_the_lights_streets_balcony_soffit_goes_and_the_true
     truth = sc.lights.instance_map
 
     def windows(tilt: float):
-        p = ProposalParams(categories=("windows",), window_soffit_tilt=tilt)
-        m = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None, p).above(0.5).instance_map
-        return [m == i for i in np.unique(m) if i // 1000 == 1]
+        return _window_masks(sc, window_soffit_tilt=tilt)
 
     def matched(wins):
         n = 0
@@ -144,9 +149,7 @@ def test_the_false_frame_top_wedge_on_the_lights_street_goes_and_the_true_window
     truth = sc.lights.instance_map
 
     def windows(fill: float):
-        p = ProposalParams(categories=("windows",), window_wedge_hull_fill=fill)
-        m = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None, p).above(0.5).instance_map
-        return [m == i for i in np.unique(m) if i // 1000 == 1]
+        return _window_masks(sc, window_wedge_hull_fill=fill)
 
     def iou_best(w):
         js, c = np.unique(truth[w], return_counts=True)
