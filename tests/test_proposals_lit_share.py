@@ -186,3 +186,74 @@ def test_table_5b_gives_each_faces_area_on_the_wall_and_its_share_with_the_truth
     assert len(hot) == 1 and hot[0][5] == 0.0
     assert 3.0 < hot[0][4] < 4.0
     assert all(f[5] <= f[0] for f in faces_m)
+
+
+def _side_wall(band_h: tuple[float, float], z_span: tuple[float, float], x_wall: float = 6.0):
+    """A level camera (``PARAMS``) looking down a street whose right-hand wall (the plane x = ``x_wall`` m) recedes
+    along the optical axis; the depth of every pixel right of the centre is that wall's; a window on it from
+    ``band_h`` (m above the ground, bottom and top) over depths ``z_span`` (m): its mask, a parallelogram whose top
+    and bottom slope to the vanishing point. Returns (context, window)."""
+    u = np.arange(W, dtype=np.float64)
+    zc = np.where(u > K.cx + 1, K.fx * x_wall / np.maximum(u - K.cx, 1e-9), np.nan)
+    depth = np.tile(zc.astype(np.float32), (H, 1))
+    lo, hi = (PARAMS.camera_height_m - b for b in band_h)  # camera y (down) of the bottom and the top
+    c0, c1 = int(np.ceil(K.cx + K.fx * x_wall / z_span[1])), int(np.floor(K.cx + K.fx * x_wall / z_span[0]))
+    z = zc[c0:c1 + 1]
+    top, bot = np.ceil(K.cy + K.fy * hi / z).astype(int), np.floor(K.cy + K.fy * lo / z).astype(int)
+    y0, y1 = top.min(), bot.max()
+    rows = np.arange(y0, y1 + 1)[:, None]
+    mask = (rows >= top[None]) & (rows <= bot[None])
+    ctx = Context(np.zeros((H, W, 3), np.uint8), np.full((H, W), 11, np.uint8), depth, K, None, PARAMS)
+    return ctx, Light(WINDOW_BUILDING, int(y0), c0, mask, 0.9)
+
+
+def test_a_glass_band_receding_down_the_street_is_an_office_band_measured_along_its_wall():
+    """A floor band 2.5 m tall and 10 m long, 8 m up a wall receding down the street (z 20-30 m, 6 m to the side):
+    its box is 110 px wide and its face-on measure (width and height times depth / f) calls it a window; along
+    its wall (the slope of its top and bottom edges gives the wall's direction) it is 10 m long: an office band.
+    A pane of a window row on that wall (1.2 m long, 1.5 m tall) is not; nor the band below 3 m up (a shop
+    front's height) or with the measure off."""
+    from npsim_core.proposals.windows import _along_wall_m, _kind, _receding_band
+
+    ctx, band = _side_wall((8.0, 10.5), (20.0, 30.0))
+    assert _kind(ctx, band) == "window"  # face on: 110 px at 25 m is 2.5 m, its box 1.6x taller than the band
+    length, height = _along_wall_m(ctx, band)
+    assert 9.0 < length < 11.0 and 2.3 < height < 2.7
+    assert _receding_band(ctx, band)
+    band.kind = "shop"
+    assert not _receding_band(ctx, band)  # another kind stays
+    _, pane = _side_wall((8.5, 10.0), (24.4, 25.6))
+    assert not _receding_band(ctx, pane)
+    _, low = _side_wall((0.3, 2.8), (20.0, 30.0))
+    assert not _receding_band(ctx, low)
+    ctx.params = replace(PARAMS, window_band_edge_px=0)
+    assert not _receding_band(ctx, Light(WINDOW_BUILDING, band.y0, band.x0, band.mask, 0.9))
+
+
+def test_the_office_bands_receding_on_the_lights_street_are_office_bands():
+    """The lights street at 512x256, seed 2: the two windows matching a true office band (a 14x18 cut by the frame's
+    top at 42 m, IoU 0.97; an 8x15 at 101 m, IoU 0.41), both on walls receding down the street, are kind
+    ``office_band`` (``window`` with ``window_band_edge_px`` 0, as before the twenty-first pass); no window
+    matching a true pane of another kind is; the masks are the same either way (the kind only)."""
+    from benchmarks.proposals import _best_true, pane_kinds
+    from npsim_core.synthetic import street_scene
+
+    sc = street_scene(512, 256, 2, "lights")
+    truth, tk = sc.lights.instance_map, pane_kinds(2, "lights")
+
+    def kinds(**params):
+        a = propose_lights(sc.image, sc.labels, sc.depth, sc.intrinsics, None,
+                           ProposalParams(categories=("windows",), **params)).above(0.5)
+        im, kd = a.instance_map, a.meta.get("light_kinds", {})
+        out = {}
+        for i in np.unique(im):
+            if i // 1000 == 1:
+                j, iou = _best_true(im == i, truth)
+                out[(im == i).tobytes()] = (kd.get(str(int(i)), "window"), tk.get(str(j), "-") if iou >= 0.3 else "-")
+        return out
+
+    on, off = kinds(), kinds(window_band_edge_px=0)
+    assert on.keys() == off.keys()
+    assert sum(k == "office_band" for k, t in on.values() if t == "office_band") == 2
+    assert all(k != "office_band" for k, t in off.values() if t == "office_band")
+    assert all(k != "office_band" for k, t in on.values() if t not in ("office_band", "-"))

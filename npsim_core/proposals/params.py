@@ -487,6 +487,21 @@ class ProposalParams:
     window_dormer_below_m: tuple[float, float] = (1.0, 4.0)
     #: Office floor bands: glazing at least this many times wider than tall (m).
     window_band_min_aspect: float = 3.5
+    #: Fewest columns (px) of a window whose top and bottom edges' slope gives its wall's direction
+    #: (:func:`windows._along_wall_m`): a narrower one is measured face on.
+    window_band_edge_px: int = 6
+    #: ... such a window at least this many times longer along its wall than tall (m), its bottom at
+    #: least ``window_band_min_sill_m`` above the ground (wide glazing lower down is a shop front's), is
+    #: an office floor band (0 edge px: off).
+    window_band_wall_aspect: float = 3.0
+    window_band_min_sill_m: float = 3.0
+    #: ... and at least this tall (m) on its wall (the second: when the frame's top or bottom row cuts it):
+    #: taller than a pane of a window row, which a wall seen at an angle can stretch along it.
+    window_band_min_h_m: float = 2.2
+    window_band_cut_min_h_m: float = 1.0
+    #: Top and bottom edges whose directions on the wall differ by more than this (degrees): the one
+    #: nearer the wall's direction from the depth around the window is taken.
+    window_band_edge_agree_deg: float = 15.0
     #: An empty facade-grid cell is a window when this share of its pixels differs from the wall by
     #: half the window thresholds.
     window_cell_min_share: float = 0.5

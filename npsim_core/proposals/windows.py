@@ -1411,6 +1411,76 @@ def _is_dormer(ctx: Context, li: Light) -> bool:
     return s is not None and lo <= s <= hi
 
 
+def _along_wall_m(ctx: Context, li: Light) -> tuple[float, float] | None:
+    """(length along its wall, height) in metres of a window, from its outline and its median depth z. Its top
+    and bottom edges are level lines on its wall: a line fitted to each edge's rows (slope s rows a column, over
+    the columns where the pixel beyond the edge is building or sky: not the frame's border, nothing in front;
+    the first and last columns left out) gives the wall's direction in the level plane, the angle t of
+    dz/dx with tan t = s / (s (u - cx) / fx - e), e the edge's elevation below the level, (v - cy) / fy +
+    tan(pitch), at the box's middle column u. Directions are taken modulo 180 degrees (the mean of the doubled
+    angles when both edges give one); when they differ by more than ``window_band_edge_agree_deg`` (one edge
+    flattened by a ledge or a cut) the one nearer the direction from the depth around the window
+    (:func:`_wall_direction` on the building pixels within 15 % of z, the box widened by its size) is taken. A
+    column at u then spans z / (fx |cos t - sin t (u - cx) / fx|) m along the wall (at most 20 times the face-on
+    z / fx). The height is the median column's run of rows times z / fy (a receding band's box is taller than
+    the band), over the columns the frame's top and bottom rows do not cut. A window under
+    ``window_band_edge_px`` columns, or with no usable edge, is measured face on (w z / fx). None without depth."""
+    if ctx.depth is None:
+        return None
+    z = _median_depth(ctx, li)  # (memoised)
+    if z is None:
+        return None
+    p = ctx.params
+    K = ctx.intrinsics
+    H, W = ctx.shape
+    h, w = li.mask.shape
+    has = li.mask.any(0)
+    cols = np.flatnonzero(has)
+    top = np.argmax(li.mask, axis=0)[has]
+    bot = h - 1 - np.argmax(li.mask[::-1], axis=0)[has]
+    gy_t, gy_b, gx = li.y0 + top, li.y0 + bot, li.x0 + cols
+    run = bot - top + 1
+    tp = float(np.tan(p.camera_pitch_rad))
+    u = li.x0 + (w - 1) / 2.0
+    ang = []  # the wall's direction in the level plane, atan(dz/dx), from each usable edge
+    if cols.size >= p.window_band_edge_px:
+        for gy, step in ((gy_t, -1), (gy_b, 1)):
+            nb = gy + step
+            ok = (nb >= 0) & (nb < H)
+            ok[ok] = _in_labels(ctx.labels[nb[ok], gx[ok]], (BUILDING, SKY))
+            ok[:1] = ok[-1:] = False  # a corner's column is rounded by the outline's quantisation
+            if ok.sum() < max(3, p.window_band_edge_px - 2):
+                continue
+            sl, c0 = np.polyfit(gx[ok].astype(np.float64), gy[ok].astype(np.float64), 1)
+            e = (sl * u + c0 - K.cy) / float(K.fy) + tp
+            ang.append(float(np.arctan2(sl, sl * (u - K.cx) / float(K.fx) - e)))
+    if len(ang) == 2 and abs(np.sin(ang[0] - ang[1])) > np.sin(np.radians(p.window_band_edge_agree_deg)):
+        # the edges disagree (one flattened by a ledge, a cut or a blur): the one nearer the wall's
+        # direction from the depth around the window (building pixels within 15 % of its depth)
+        ya, yb = max(0, li.y0 - h), min(H, li.y0 + 2 * h)
+        xa, xb = max(0, li.x0 - 2 * w), min(W, li.x0 + 3 * w)
+        fm = np.zeros(ctx.shape, bool)
+        dz = ctx.depth[ya:yb, xa:xb]
+        with np.errstate(invalid="ignore"):
+            fm[ya:yb, xa:xb] = (ctx.labels[ya:yb, xa:xb] == BUILDING) & (np.abs(dz - z) < 0.15 * z)
+        t = _wall_direction(ctx, fm, (slice(ya, yb), slice(xa, xb)))
+        if t is None:
+            ang = []
+        else:
+            ref = float(np.arctan2(t[1], t[0]))
+            ang = [min(ang, key=lambda a_: abs(np.sin(a_ - ref)))]
+    if ang:
+        # directions are defined modulo pi: the mean of the doubled angles
+        th = 0.5 * float(np.arctan2(np.mean(np.sin(2 * np.asarray(ang))), np.mean(np.cos(2 * np.asarray(ang)))))
+        d = max(abs(np.cos(th) - np.sin(th) * (u - K.cx) / float(K.fx)), 0.05)
+        length = w * z / (float(K.fx) * d)
+    else:
+        length = w * z / float(K.fx)
+    both = (gy_t > 0) & (gy_b < H - 1)
+    height = float(median(run[both] if both.any() else run)) * z / float(K.fy)
+    return length, height
+
+
 def _kind(ctx: Context, li: Light) -> str:
     """``shop`` (glazing from near the ground, at least ``window_shop_min_h_m`` tall: a shop front),
     ``office_band`` (at least ``window_band_min_aspect`` times wider than tall in metres: a glass
@@ -1432,6 +1502,31 @@ def _kind(ctx: Context, li: Light) -> str:
     if w_m >= p.window_band_min_aspect * h_m and h_m >= p.window_height_m[0]:
         return "office_band"
     return "window"
+
+
+def _receding_band(ctx: Context, li: Light) -> bool:
+    """Whether a final window is an office floor band seen along its wall (:func:`_along_wall_m`): at
+    least ``window_band_wall_aspect`` times longer along its wall than tall, at least
+    ``window_band_min_h_m`` tall (``window_band_cut_min_h_m`` when the frame's top or bottom row cuts it) and
+    its bottom at least ``window_band_min_sill_m`` above the ground (wide glazing lower down is a shop
+    front's). :func:`_kind` measures a window face on (its box's width and height times depth / f), which
+    a band receding down the street fails; judged on the final windows, after the facade rules (which
+    take it as a window of its wall: its pieces and the panes beside it are cut the same), the kind only."""
+    p = ctx.params
+    if p.window_band_edge_px <= 0 or (li.kind or "window") != "window" or ctx.depth is None:
+        return False
+    z = _median_depth(ctx, li)  # (memoised)
+    if z is None:
+        return False
+    h = li.mask.shape[0]
+    if float(ctx.height_above_ground(li.y0 + h - 0.5, z)) < p.window_band_min_sill_m:
+        return False
+    wall = _along_wall_m(ctx, li)
+    if wall is None:
+        return False
+    cut = li.y0 == 0 or li.y0 + h == ctx.shape[0]  # the frame cuts it: its height is a part's
+    return wall[0] >= p.window_band_wall_aspect * wall[1] and \
+        wall[1] >= (p.window_band_cut_min_h_m if cut else p.window_band_min_h_m)
 
 
 def _fit_line(x: np.ndarray, y: np.ndarray):
@@ -2986,6 +3081,9 @@ def propose(ctx: Context) -> list[Group]:
     _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
     found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio)
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
+    for f in found:  # the kind only: a glass floor band receding down the street
+        if _receding_band(ctx, f[3]):
+            f[3].kind = "office_band"
     # Floors: sort by building then level, split where the level jumps by more than the tolerance.
     found.sort(key=lambda f: (f[0], f[1]))
     rows: list[list] = []
