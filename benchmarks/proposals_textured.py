@@ -8,7 +8,8 @@ textured facade the window proposer then finds hundreds to thousands of candidat
 stages that compare candidates pairwise set the time (docs/proposals.md "Eleventh pass: one pass
 over the occluder joins"). The frame: the default fixture street, its walls textured twice by
 tests/test_proposals_fuzz.py's ``_expose(..., "texture")`` (rng = seed). Per size, seed and depth:
-the time of ``propose_lights`` (the scene's intrinsics; no instance ids), the parts of it in the
+the time of ``propose_lights`` (the scene's intrinsics; no instance ids; wall clock, and the process's CPU
+time: on the 2 shared cores the wall clock also counts the waits for a core), the parts of it in the
 windows' occluder joins, in the window groups and confidences (``regroup_windows``,
 ``rescore_windows``) and in the groups alone, the window candidates entering the joins, the windows proposed
 and their recall / precision against the scene's true lights (the proposals of confidence >= 0.5, IoU >= 0.3:
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
 
     wmod._join_across_occluders = timed
     gmod.regroup_windows, cmod.rescore_windows = after(regroup, "groups"), after(rescore)
-    print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'joins s':>8} {'groups+conf s':>13} {'groups s':>8} {'cands':>6} "
+    print(f"{'size':>10} {'seed':>4} {'depth':>5} {'total s':>8} {'cpu s':>6} {'joins s':>8} {'groups+conf s':>13} {'groups s':>8} {'cands':>6} "
           f"{'windows':>7} {'recall':>6} {'prec':>6} {'load':>5}")
     try:
         for size in a.sizes.split(","):
@@ -84,12 +85,12 @@ def main(argv: list[str] | None = None) -> int:
                 for dmode in a.depth.split(","):
                     spent.update(join=0.0, n=0, after=0.0, groups=0.0)
                     depth = None if dmode == "none" else s.depth
-                    t = time.perf_counter()
+                    t, c = time.perf_counter(), time.process_time()
                     props = propose_lights(img, s.labels, depth, s.intrinsics, None)
-                    total = time.perf_counter() - t
+                    total, cpu = time.perf_counter() - t, time.process_time() - c
                     nwin = len(props.category_ids("windows"))
                     sc = score_category(s.lights, props.above(0.5), "windows")
-                    print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {spent['join']:8.2f} {spent['after']:13.2f} {spent['groups']:8.2f} {spent['n']:6d} "
+                    print(f"{size:>10} {seed:>4} {dmode:>5} {total:8.2f} {cpu:6.2f} {spent['join']:8.2f} {spent['after']:13.2f} {spent['groups']:8.2f} {spent['n']:6d} "
                           f"{nwin:7d} {sc.recall:6.2f} {sc.precision:6.2f} {os.getloadavg()[0]:5.2f}", flush=True)
     finally:
         wmod._join_across_occluders = join

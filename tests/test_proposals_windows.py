@@ -1531,6 +1531,42 @@ def test_the_fast_lookups_give_numpys_values():
     assert np.array_equal(_in_labels(lab, (11, 23)), np.isin(lab, (11, 23)))
 
 
+def test_the_wall_colour_counts_and_small_lattice_pieces_are_the_pairwise_ones():
+    """Speed helpers of the twenty-first pass (docs/proposals.md "Twenty-first pass: the textured street's
+    time"): ``_hypot_le`` is ``np.hypot(a, b) <= d`` exactly, also for pairs on the threshold;
+    ``_alike_counts`` (sorted by luminance, in blocks) sums the counts of the ring colours alike as the
+    full pairwise comparison does; ``_triu`` is ``np.triu_indices(n, 1)``; ``_fill_holes`` is scipy's
+    ``binary_fill_holes``."""
+    from scipy import ndimage
+
+    from npsim_core.proposals.windows import _alike_counts, _fill_holes, _hypot_le, _triu
+
+    rng = np.random.default_rng(0)
+    d = 6.0
+    a = rng.normal(0, 5, (300, 40)).astype(np.float32)
+    b = rng.normal(0, 5, (300, 40)).astype(np.float32)
+    ang = rng.uniform(0, 2 * np.pi, 40)  # pairs on the circle of radius d, and a hair either side
+    for k, r in enumerate((d, np.nextafter(np.float32(d), 0), np.nextafter(np.float32(d), 10), d * (1 + 2e-6))):
+        a[k] = (r * np.cos(ang)).astype(np.float32)
+        b[k] = (r * np.sin(ang)).astype(np.float32)
+    assert np.array_equal(_hypot_le(a, b, d), np.hypot(a, b) <= d)
+    t = -np.log(0.72)
+    for n_b, n_r in ((1, 1), (37, 5), (700, 256), (3000, 180)):
+        bu = (rng.normal(0, 1, (n_b, 3)) * (0.4, 8, 8)).astype(np.float32)
+        ru = (rng.normal(0, 1, (n_r, 3)) * (0.4, 8, 8)).astype(np.float32)
+        ru[: n_r // 3] = bu[: n_r // 3]  # colours shared with the blob: on both thresholds' edges
+        ru[: n_r // 4, 0] += np.float32(t)
+        cnt = rng.integers(1, 4, n_r)
+        same = (np.abs(bu[:, None, 0] - ru[None, :, 0]) <= t) & \
+            (np.hypot(bu[:, None, 1] - ru[None, :, 1], bu[:, None, 2] - ru[None, :, 2]) <= d)
+        assert np.array_equal(_alike_counts(bu, ru, cnt, t, d), same @ cnt)
+    for n in (0, 1, 2, 5, 30, 300):
+        assert all(np.array_equal(x, y) for x, y in zip(_triu(n), np.triu_indices(n, 1)))
+    for _ in range(300):  # holes 4-connected to the border or not, single pixels, all or nothing set
+        m = rng.random(tuple(rng.integers(1, 40, 2))) < rng.uniform(0.2, 1.0)
+        assert np.array_equal(_fill_holes(m), ndimage.binary_fill_holes(m))
+
+
 def test_the_first_blobs_are_the_blobs_less_those_only_small():
     """``_first_blobs`` (the blobs of a frame judged at once: a textured facade makes thousands) gives
     the blobs of ``components`` + ``_ledge_split`` in their order, less only blobs that the per-blob

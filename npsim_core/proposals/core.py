@@ -162,13 +162,16 @@ def median(a: np.ndarray, axis: int | None = None):
     if axis is None:
         a, axis = a.reshape(-1), 0
     n = a.shape[axis]
-    if n == 0 or a.dtype.kind not in "fiu":
+    kind = a.dtype.kind
+    if n == 0 or kind not in "fiu":
         return np.median(a, axis=axis)
-    s = np.sort(a, axis=axis)
+    s = a.copy(order="K")  # np.sort's own steps, without its wrapper
+    s.sort(axis=axis)
     if axis:
         s = np.moveaxis(s, axis, 0)
-    if a.dtype.kind == "f":
-        if np.isnan(s[-1]).any():  # NaN sorts last
+    if kind == "f":
+        last = s[-1]  # NaN sorts last (a scalar for 1-D: no ufunc call)
+        if (last != last).any() if s.ndim > 1 else last != last:
             return np.median(a, axis=axis)
     else:
         s = s.astype(np.float64)  # numpy's mean of two integers

@@ -456,6 +456,7 @@ def _join_inside_panes(t: dict, idx_of: dict[int, np.ndarray], col_of: dict[int,
     cluster's wall colour (``col_of``) and on its plane; of several, the one whose two panes' mean centre row
     is nearest. Returns {single pane's root: the cluster's root}."""
     res: dict[int, int] = {}
+    order: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # a cluster's windows along the floor, sorted once
     for r in roots:
         if idx_of[r].size != 1:
             continue
@@ -465,12 +466,14 @@ def _join_inside_panes(t: dict, idx_of: dict[int, np.ndarray], col_of: dict[int,
             ib = idx_of[r2]
             if r2 == r or ib.size < 2:
                 continue
-            o = ib[np.argsort(t["cu"][ib])]
-            m = int(np.searchsorted(t["cu"][o], t["cu"][q])) - 1
+            if r2 not in order:
+                o = ib[np.argsort(t["cu"][ib])]
+                order[r2] = (o, t["cu"][o])
+            o, cu = order[r2]
+            m = int(np.searchsorted(cu, t["cu"][q])) - 1
             if not (0 <= m < o.size - 1 and t["x1"][o[m]] <= t["x0"][q] and t["x1"][q] <= t["x0"][o[m + 1]]):
                 continue
             # it fills a bay: its steps to the two at most INSIDE_STEPS x the cluster's other steps (image columns)
-            cu = t["cu"][o]
             rest = np.delete(np.diff(cu), m)
             if not rest.size or max(t["cu"][q] - cu[m], cu[m + 1] - t["cu"][q]) > INSIDE_STEPS * float(median(rest)):
                 continue

@@ -9,11 +9,12 @@ import cv2
 import numpy as np
 
 from .ads import _union
-from .core import Context, Group, Light, components, median, nanmedian
+from .core import Context, Group, Light, components, median, nanmedian, pixels
 
 BUILDING, VEGETATION, SKY = 11, 21, 23
 GROUND = (6, 7, 8, 9, 22)  # ground, road, sidewalk, parking, terrain
 WINDOW_BUILDING, WINDOWS_GROUP = 1, 13
+_Z8 = np.zeros(1, np.int8)  # a run's border for np.diff (np.concatenate: np.r_ costs ~10 us a call)
 
 
 def _unique_rows(a: np.ndarray, **kw):
@@ -234,8 +235,10 @@ def _texture_walls(feat: np.ndarray, B: np.ndarray, params) -> tuple[np.ndarray,
         return feat, None
     tex = bad[reg]
     k = _texture_period(hp, tex, params)
-    sm = np.stack([_masked_mean(feat[..., c], w, k)[0] for c in range(feat.shape[2])], -1)
-    return np.where(tex[..., None], sm, feat).astype(np.float32), tex
+    # the channels' masked means at once (one weight blur; OpenCV blurs each channel as alone)
+    den = np.maximum(cv2.blur(w, (k, k), borderType=cv2.BORDER_REPLICATE), 1e-6)
+    sm = cv2.blur(feat * w[..., None], (k, k), borderType=cv2.BORDER_REPLICATE) / den[..., None]
+    return np.where(tex[..., None], sm, feat).astype(np.float32, copy=False), tex
 
 
 def _texture_period(hp: np.ndarray, tex: np.ndarray, params) -> int:
@@ -290,7 +293,7 @@ def _gap_split(m: np.ndarray, dev: np.ndarray, contrast: float,
     if not gap.any():
         return [(0, 0, m)]
     out = []
-    d = np.diff(np.r_[0, (~gap).astype(np.int8), 0])
+    d = np.diff(np.concatenate((_Z8, (~gap).astype(np.int8), _Z8)))
     for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
         sub = m[:, a:b] if axis == 0 else m[a:b, :]
         if not sub.any():
@@ -319,7 +322,7 @@ def _extent_m(ctx: Context, y: int, x: int, m: np.ndarray) -> tuple[float, float
     zc = nanmedian(d[:, cols], axis=0)
     z_med = float(nanmedian(d))
     ci, zi = (cols[1:-1], zc[1:-1]) if cols.size >= 5 else (cols, zc)
-    i, j = np.triu_indices(ci.size, 1)
+    i, j = _triu(ci.size)
     slope = float(median((zi[j] - zi[i]) / (ci[j] - ci[i])))
     K = ctx.intrinsics
     c0, c1 = float(cols[0]), float(cols[-1])
@@ -763,7 +766,7 @@ def _occupancy_split(m: np.ndarray, gap: float) -> list[tuple[int, int, np.ndarr
             continue
         out = []
         keep = ~cut
-        d = np.diff(np.r_[0, keep.astype(np.int8), 0])
+        d = np.diff(np.concatenate((_Z8, keep.astype(np.int8), _Z8)))
         for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
             sub = m[:, a:b] if axis == 0 else m[a:b, :]
             if not sub.any():
@@ -834,7 +837,7 @@ def _ring_contrast(feat: np.ndarray, B: np.ndarray, y: int, x: int, sub: np.ndar
     if ring.sum() < 3 or not blob.any():
         return None
     f = feat[ya:yb, xa:xb]
-    inner, outer = median(f[blob > 0], axis=0), median(f[ring], axis=0)
+    inner, outer = median(pixels(f, blob > 0), axis=0), median(pixels(f, ring), axis=0)
     t = -np.log(p.window_dark_ratio)
     return (abs(float(inner[0] - outer[0])) / t,
             float(np.hypot(inner[1] - outer[1], inner[2] - outer[2])) / p.window_chroma_delta)
@@ -860,6 +863,59 @@ def _on_ground_floor(ctx: Context, y: int, x: int, m: np.ndarray) -> bool:
     return float(ctx.height_above_ground(y + m.shape[0] - 0.5, float(median(d)))) <= ctx.params.window_shop_max_top_m
 
 
+def _fill_holes(m: np.ndarray) -> np.ndarray:
+    """``scipy.ndimage.binary_fill_holes(m)`` (2-D bool; holes: background not 4-connected to the border),
+    the same mask by one flood fill from a 1-px frame around it (scipy's dilates until nothing changes:
+    ~20x slower on a shop front's blob)."""
+    h, w = m.shape
+    bg = np.ones((h + 2, w + 2), np.uint8)
+    bg[1:-1, 1:-1] = ~m
+    cv2.floodFill(bg, None, (0, 0), 2, flags=4)
+    return bg[1:-1, 1:-1] != 2
+
+
+def _hypot_le(a: np.ndarray, b: np.ndarray, d: float) -> np.ndarray:
+    """``np.hypot(a, b) <= d``, the same bools, by the square sum (hypot costs ~12 ns an element): a
+    square sum within 1e-5 of ``d``'s square either way is decided by hypot itself, as before (the
+    square sum's rounding is ~1e-7 of it)."""
+    s = np.square(a)
+    s += np.square(b)
+    out = s <= (d * (1 - 1e-5)) ** 2
+    near = ~out & (s < (d * (1 + 1e-5)) ** 2)
+    if near.any():
+        out[near] = np.hypot(a[near], b[near]) <= d
+    return out
+
+
+def _alike_counts(bu: np.ndarray, ru: np.ndarray, cnt: np.ndarray, t: float, d: float) -> np.ndarray:
+    """For each colour (row: log luminance, Lab a, b) of ``bu``: the sum of ``cnt`` over the colours of
+    ``ru`` within ``t`` in log luminance and ``d`` in chroma (``(np.abs(dl) <= t) & (np.hypot(da, db)
+    <= d)`` per pair, the same sums). A textured wall's blob holds thousands of distinct colours
+    against its ring's 256 (docs/proposals.md "Twenty-first pass: the textured street's time"): both
+    sorted by luminance, a block of the blob's is compared only with the ring's within ``t`` (and a
+    hair) of the block's range, about a third of the pairs."""
+    o = np.argsort(ru[:, 0], kind="stable")
+    rl, ra, rb = (np.ascontiguousarray(ru[o, k]) for k in range(3))
+    # the sums by a float32 product: counts of at most 2^24 add exactly
+    cf = cnt[o].astype(np.float32)
+    assert cf.sum() < 2 ** 24
+    r64 = rl.astype(np.float64)
+    ob = np.argsort(bu[:, 0], kind="stable")
+    bl, ba, bb = (np.ascontiguousarray(bu[ob, k]) for k in range(3))
+    out = np.zeros(len(bu), cnt.dtype)
+    step = 256
+    for i in range(0, len(bl), step):
+        j = min(i + step, len(bl))
+        lo = int(np.searchsorted(r64, float(bl[i]) - t - 1e-3, "left"))
+        hi = int(np.searchsorted(r64, float(bl[j - 1]) + t + 1e-3, "right"))
+        if hi <= lo:
+            continue
+        same = np.abs(bl[i:j, None] - rl[None, lo:hi]) <= t
+        same &= _hypot_le(ba[i:j, None] - ra[None, lo:hi], bb[i:j, None] - rb[None, lo:hi], d)
+        out[ob[i:j]] = same.astype(np.float32) @ cf[lo:hi]
+    return out
+
+
 def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarray, p,
                    r: int = 3, like: float = 0.1) -> np.ndarray:
     """Pixels of a blob (``m``, local bool, at (y, x)) that have the colour of the wall around it: within
@@ -872,28 +928,24 @@ def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarra
     H, W = B.shape
     h, w = m.shape
     ya, yb, xa, xb = max(0, y - r), min(H, y + h + r), max(0, x - r), min(W, x + w + r)
-    from scipy import ndimage
-
     blob = np.zeros((yb - ya, xb - xa), np.uint8)
     # around its outline: glass inside it that matches the reference (its holes) is no wall around it
-    blob[y - ya:y - ya + h, x - xa:x - xa + w] = ndimage.binary_fill_holes(m)
+    blob[y - ya:y - ya + h, x - xa:x - xa + w] = _fill_holes(m)
     ring = (cv2.dilate(blob, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) \
         & ~(cv2.dilate(blob, np.ones((3, 3), np.uint8)) > 0) & B[ya:yb, xa:xb]
     out = np.zeros(m.shape, bool)
     if ring.sum() < 8:
         return out
-    rs = feat[ya:yb, xa:xb][ring]
+    rs = pixels(feat[ya:yb, xa:xb], ring)
     if len(rs) > 256:  # a sample of the ring is enough to say which colours it has
         rs = rs[np.linspace(0, len(rs) - 1, 256).astype(np.int64)]
-    bf = feat[y:y + h, x:x + w][m]
+    bf = pixels(feat[y:y + h, x:x + w], m)
     t = -np.log(p.window_dark_ratio)
     # features come from 8-bit colours: a blob and its ring hold few distinct ones, so each distinct
     # pair is compared once (the share of ring samples alike: a count over the same total)
     bu, inv = _unique_rows(bf, return_inverse=True)
     ru, cnt = _unique_rows(rs, return_counts=True)
-    same = (np.abs(bu[:, None, 0] - ru[None, :, 0]) <= t) & \
-        (np.hypot(bu[:, None, 1] - ru[None, :, 1], bu[:, None, 2] - ru[None, :, 2]) <= p.window_chroma_delta)
-    out[m] = ((same @ cnt) / len(rs))[inv.ravel()] >= like
+    out[m] = (_alike_counts(bu, ru, cnt, t, p.window_chroma_delta) / len(rs))[inv.ravel()] >= like
     return out
 
 
@@ -1088,9 +1140,9 @@ def _blob_columns(lab: np.ndarray, keep: np.ndarray, ya: int, xa: int) -> dict:
     key = ls * lab.shape[1] + xs
     o = np.argsort(key, kind="stable")
     key, Y, X, ls = key[o], ys[o] + ya, xs[o] + xa, ls[o]
-    first = np.r_[True, key[1:] != key[:-1]]
+    first = np.concatenate(([True], key[1:] != key[:-1]))  # (np.r_ costs more than the rest here)
     gs = np.flatnonzero(first)
-    ge = np.r_[gs[1:], key.size] - 1
+    ge = np.concatenate((gs[1:], [key.size])) - 1
     return dict(Y=Y, X=X, L=ls, G=np.cumsum(first) - 1, lab=ls[gs], col=X[gs], top=Y[gs], bot=Y[ge],
                 cnt=ge - gs + 1, ya=ya, Hs=lab.shape[0])
 
@@ -1115,7 +1167,7 @@ def _never_windows(ctx: Context, c: dict, n: int, bw: np.ndarray, bh: np.ndarray
     o = np.lexsort((df, lf))
     lf, df = lf[o], df[o]
     nf = np.bincount(lf, minlength=n)
-    st = np.r_[0, np.cumsum(nf)[:-1]]
+    st = np.concatenate(([0], np.cumsum(nf)[:-1]))
     has = nf > 0
     zmed = np.full(n, np.nan)
     zmed[has] = (df[(st + (nf - 1) // 2)[has]] + df[(st + nf // 2)[has]]) / 2
@@ -1140,7 +1192,7 @@ def _never_windows(ctx: Context, c: dict, n: int, bw: np.ndarray, bh: np.ndarray
             lo_, full = occ < gap * (1 + 1e-9), occ >= 2 * gap * (1 - 1e-9)
             cf = np.cumsum(full)
             tot = np.bincount(g_l, weights=full, minlength=n)
-            s0 = np.r_[0, np.cumsum(np.bincount(g_l, minlength=n))[:-1]][g_l]  # its label's first group
+            s0 = np.concatenate(([0], np.cumsum(np.bincount(g_l, minlength=n))[:-1]))[g_l]  # its label's first group
             before = cf - cf[s0] + full[s0]  # full ones up to here within the label
             inside = lo_ & (before > 0) & (tot[g_l] - before > 0)
             # (a blob's box column (row) without pixels: empty, to be cut -- a piece of _gap_split)
@@ -2381,7 +2433,7 @@ def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
         best = None
         # every pair at once (rows in the order of a loop over u < v; the same float operations per
         # element, and the residuals of each row summed in order: the same sums)
-        U, V = np.triu_indices(j.size, 1)
+        U, V = _triu(j.size)
         A_, B_ = j[U], j[V]
         keep = ~(np.abs(cx[A_] - cx[B_]) < 1.0)
         A_, B_ = A_[keep], B_[keep]
@@ -3332,6 +3384,23 @@ def _wall_vp(ctx: Context, fm: np.ndarray, t: tuple[float, float] | None,
     return float(u_vp)
 
 
+_TRIU: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _triu(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)``, made once per ``n`` (it costs more than the rest of a small lattice
+    fit or a floor's mates; the arrays are shared: read only)."""
+    iu = _TRIU.get(n)
+    if iu is None:
+        iu = np.triu_indices(n, 1)
+        if n > 256:  # (kept only for small n)
+            return iu
+        _TRIU[n] = iu
+        for a in iu:
+            a.flags.writeable = False
+    return iu
+
+
 def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float, float, float] | None:
     """Period, phase and fit (P, phi, score) of centres ``c`` lying on phi + k P (bays).
 
@@ -3346,11 +3415,11 @@ def _fit_lattice(c: np.ndarray, width: float, tol: float = 0.12) -> tuple[float,
     n = c.size
     if n < 3:
         return None
-    d = np.abs(c[:, None] - c[None, :])[np.triu_indices(n, 1)]
+    d = np.abs(c[:, None] - c[None, :])[_triu(n)]
     d = np.sort(d[d > 1.4 * width])
     if d.size == 0:
         return None
-    d = d[np.r_[True, np.diff(np.log(d)) > 0.01]][:150]  # distinct to 1 %, the shortest
+    d = d[np.concatenate(([True], np.diff(np.log(d)) > 0.01))][:150]  # distinct to 1 %, the shortest
 
     def score(P, phi):
         r = (c - phi) / P
@@ -3531,19 +3600,22 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
             rr = np.arange(ya, yb + 1)[:, None]
             m = (rr >= t[None, :]) & (rr <= b[None, :])
             grid.append((ya, ca, m))
-    # windows spanning two or more cells: merged panes, replaced by the cells
-    for i, q in enumerate(box):
-        n_in = 0
-        for ya, xa, m in grid:
-            h, w = m.shape
-            oy = min(q[1], ya + h - 1) - max(q[0], ya) + 1
-            ox = min(q[3], xa + w - 1) - max(q[2], xa) + 1
-            if oy > 0 and ox > 0 and oy * ox >= 0.5 * m.sum():
-                n_in += 1
-        if n_in >= 2:
-            merged.add(i)
+    # windows spanning two or more cells: merged panes, replaced by the cells (each window's overlap
+    # with every cell at once: integer boxes, the same counts as a loop over the pairs)
+    if grid:
+        gy = np.array([ya for ya, _, _ in grid], np.int64)[None, :]
+        gx = np.array([xa for _, xa, _ in grid], np.int64)[None, :]
+        gh = np.array([m.shape[0] for _, _, m in grid], np.int64)[None, :]
+        gw = np.array([m.shape[1] for _, _, m in grid], np.int64)[None, :]
+        half = 0.5 * np.array([m.sum() for _, _, m in grid], np.int64)[None, :]
+        q = np.array([b[:4] for b in box], np.int64)
+        oy = np.minimum(q[:, 1:2], gy + gh - 1) - np.maximum(q[:, 0:1], gy) + 1
+        ox = np.minimum(q[:, 3:4], gx + gw - 1) - np.maximum(q[:, 2:3], gx) + 1
+        n_in = ((oy > 0) & (ox > 0) & (oy * ox >= half)).sum(1)
+        merged.update(int(i) for i in np.flatnonzero(n_in >= 2))
     t = -np.log(p.window_dark_ratio)
     gone = [(li.y0, li.y0 + li.mask.shape[0] - 1, li.x0, li.x0 + li.mask.shape[1] - 1) for li in dropped]
+    spans = [box[i] for i in merged] + gone
     for ya, xa0, m in grid:
         h, w = m.shape
         vis = fm[ya:ya + h, xa0:xa0 + w] & m
@@ -3555,7 +3627,7 @@ def lattice_cells(ctx: Context, fm: np.ndarray, wins: list, ratio: np.ndarray, c
         # narrow cells (a wider pane is found as a blob where there is one), or the cells of a
         # blob over several cells
         in_merged = any(min(ya + h - 1, q[1]) >= max(ya, q[0]) and min(xa0 + w - 1, q[3]) >= max(xa0, q[2])
-                        for q in [box[i] for i in merged] + gone)
+                        for q in spans)
         if (odd & vis).sum() >= p.window_cell_min_share * vis.sum() and (w <= p.window_cell_max_px or in_merged):
             cells.append((ya, xa0, m))
     return cells, merged
