@@ -1699,3 +1699,40 @@ def test_a_one_pixel_blur_column_beside_a_window_is_dropped_but_not_a_pane():
     dev[5:11, 42] = 0.2
     kept = _blur_columns_off(found, dev, PARAMS.window_blur_column_ratio)
     assert [f[3].x0 for f in kept] == [10, 21, 20, 30, 40, 42]
+
+
+def test_the_pane_in_a_frame_top_wedge_replaces_the_wedge():
+    """``_wedge_pane``: a frame-top triangle of wall (one luminance) holding a pane whose frame is brighter and
+    whose glass is in the wall's luminance (2048x1024 lights seed 0: the wedge was proposed as one window, IoU
+    0.16 with its pane) gives that pane, its frame's hull; a bright patch at the wedge's end (no wall beside
+    it on that side), a diagonal streak along the wedge, or the pane test off give none."""
+    from dataclasses import replace
+
+    from npsim_core.proposals.core import Context, Light
+    from npsim_core.proposals.windows import WINDOW_BUILDING, _wedge_pane
+    K = Intrinsics(1100.0, 1100.0, 127.5, 31.5, 256, 64)
+
+    def run(paint, params=PARAMS):
+        img = np.full((64, 256, 3), 120, np.uint8)
+        paint(img)
+        yy, xx = np.mgrid[0:40, 0:44]
+        tri = yy <= 40 - 40 * xx / 44.0
+        ctx = Context(img, np.full((64, 256), 11, np.uint8), None, K, None, params)
+        pane = _wedge_pane(ctx, Light(WINDOW_BUILDING, 0, 100, tri, 0.8, kind="window"))
+        return None if pane is None else (pane.y0, pane.x0, pane.mask.shape)
+
+    def framed(img):  # a pane x 108-115, rows 0-13: a white frame 1 px wide, its glass the wall's grey
+        img[0:14, 108:116] = 250
+        img[0:13, 109:115] = 120
+
+    assert run(framed) == (0, 108, (14, 8))
+
+    def at_end(img):  # a bright patch at the wedge's left end: no wall to its left
+        img[0:8, 100:106] = 250
+    assert run(at_end) is None
+
+    def streak(img):  # a bright diagonal line along the wedge
+        for r in range(30):
+            img[r, 110 + r // 3] = 250
+    assert run(streak) is None
+    assert run(framed, replace(PARAMS, window_wedge_pane_min_px=0)) is None

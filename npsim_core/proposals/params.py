@@ -450,9 +450,17 @@ class ProposalParams:
     #: docs/proposals.md "Twentieth pass: the 40 % lit share".
     window_wedge_min_px: int = 10
     window_wedge_hull_fill: float = 0.62
-    window_wedge_mask_fill: float = 0.85
+    window_wedge_mask_fill: float = 0.8
     window_wedge_base: float = 0.8
     window_wedge_one_colour: float = 0.7
+    #: The pane in such a wedge: its pixels off the wedge's median log luminance by more than the window
+    #: threshold, their largest part (8-connected) filled to its hull, at least ``window_wedge_pane_min_px`` px
+    #: wide and tall with the wedge either side, filling half its box and under ``window_wedge_pane_share`` of
+    #: the wedge's pixels, replaces the wedge (windows._wedge_pane; 0: the wedge goes whole; docs/proposals.md
+    #: "Twenty-first pass: the 1.5x rule"). ``window_wedge_mask_fill`` was 0.85 before that pass: a wedge whose
+    #: hull a thin leg of wall at its foot widens (2048x1024 lights seed 0) fills 0.83 of it.
+    window_wedge_pane_min_px: int = 4
+    window_wedge_pane_share: float = 0.3
     #: A window must differ from the wall in a ring this wide (pixels) around it (0: no test).
     window_ring_px: int = 2
     #: Without depth, a building region whose luminance departs from its 3x3 mean (1.4826 x the median

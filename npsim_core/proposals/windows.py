@@ -2863,6 +2863,38 @@ def _wedge_like(ctx: Context, li: Light) -> bool:
     return bool(np.mean(np.abs(lum - median(lum)) <= -np.log(p.window_dark_ratio)) >= p.window_wedge_one_colour)
 
 
+def _wedge_pane(ctx: Context, li: Light) -> Light | None:
+    """The pane inside a frame-top wedge (:func:`_wedge_like`), or None: the wedge's pixels departing from
+    its median log luminance by more than the window threshold (-ln ``window_dark_ratio``: a pane's frame and
+    glint; its glass is often in the wall's own luminance), their largest 8-connected part filled to its
+    convex hull within the wedge, kept when at least ``window_wedge_pane_min_px`` px each way with the wedge
+    either side of it (a patch at the wedge's end is its shade), filling half its box (a diagonal streak along
+    the wedge's edge does not) and under ``window_wedge_pane_share`` of the wedge's pixels. A gable or a wall
+    under a roof's slope cut by the frame's top is a triangle of one colour with its window in it
+    (docs/proposals.md "Twenty-first pass: the 1.5x rule -- the pane in a frame-top wedge")."""
+    p = ctx.params
+    if p.window_wedge_pane_min_px <= 0:
+        return None
+    h, w = li.mask.shape
+    lum = np.log(np.maximum(ctx.lum[li.y0:li.y0 + h, li.x0:li.x0 + w], 1e-4))
+    off = li.mask & (np.abs(lum - median(lum[li.mask])) > -np.log(p.window_dark_ratio))
+    if not off.any():
+        return None
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(off.astype(np.uint8), connectivity=8)
+    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    x, y, cw, ch = (int(v) for v in stats[k, :4])
+    if min(cw, ch) < p.window_wedge_pane_min_px or x == 0 or x + cw >= w \
+            or not (li.mask[y:y + ch, x - 1].any() and li.mask[y:y + ch, x + cw].any()):
+        return None
+    part = (lab[y:y + ch, x:x + cw] == k).astype(np.uint8)
+    filled = np.zeros_like(part)
+    cv2.fillConvexPoly(filled, cv2.convexHull(cv2.findNonZero(part)), 1)
+    filled = filled.astype(bool) & li.mask[y:y + ch, x:x + cw]
+    if filled.sum() > p.window_wedge_pane_share * li.mask.sum() or filled.sum() < 0.5 * cw * ch:
+        return None
+    return Light(li.class_id, li.y0 + y, li.x0 + x, filled, li.confidence, kind=li.kind)
+
+
 def propose(ctx: Context) -> list[Group]:
     """Window instances in one windows_group per floor of each wall (:func:`facades`).
 
@@ -3129,7 +3161,13 @@ def propose(ctx: Context) -> list[Group]:
         found = [f for f in found if not ((wm := _strip_width_m(ctx, f[3])) is not None
                                           and wm < p.window_min_width_m)]
     found = [f for f in found if not _soffit_like(ctx, f[3])]  # a balcony soffit or a slab's face
-    found = [f for f in found if not _wedge_like(ctx, f[3])]  # a triangle of shaded wall, not a pane
+    kept = []
+    for f in found:  # a triangle of shaded wall is not a pane; the pane in it is
+        if not _wedge_like(ctx, f[3]):
+            kept.append(f)
+        elif (pane := _wedge_pane(ctx, f[3])) is not None:
+            kept.append(f[:3] + [pane])
+    found = kept
     _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
     found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio)
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
