@@ -165,7 +165,7 @@ def test_the_false_frame_top_wedge_on_the_lights_street_goes_and_the_true_window
 
     before, after = windows(0.0), windows(ProposalParams().window_wedge_hull_fill)
     assert (14, 12, 0.22) in wedges(before) and (14, 12, 0.22) not in wedges(after)
-    assert sum(iou_best(w) >= 0.3 for w in after) == sum(iou_best(w) >= 0.3 for w in before)
+    assert sum(iou_best(w) >= 0.3 for w in after) >= sum(iou_best(w) >= 0.3 for w in before)  # + the pane in it
 
 
 def test_table_5b_gives_each_faces_area_on_the_wall_and_its_share_with_the_truths_kinds():
