@@ -14,6 +14,9 @@ Environment:
 
 Parallel runs (pytest-xdist: ``bash npsim.sh test -n 2 --dist loadfile``): the workers share
 the controller's caches, and ``loadfile`` keeps a file's tests (and its module fixtures) on one worker.
+The files are handed out longest first (``SLOW_FIRST``, then the rest in collection order), not by
+xdist's count of tests a file holds: a file of a few long tests (the batch runner's, the fuzz test's
+one) handed out last kept one worker busy for a minute after the other had finished.
 """
 
 from __future__ import annotations
@@ -62,6 +65,9 @@ def gui_skip_reason() -> str | None:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "gui: needs a Qt display (skipped without one, or NPSIM_TEST_SUBSET=headless)")
+    if hasattr(config.option, "loadscopereorder"):
+        # pytest-xdist's loadfile/loadscope: hand the files out in the collection's order (SLOW_FIRST)
+        config.option.loadscopereorder = False
     # Session-wide private caches: npsim_core.synthetic.cache_dir() reads NPSIM_CACHE, and
     # npsim_core.render.variant caches its probe under XDG_CACHE_HOME (read at import, so set it here,
     # before collection imports anything; subprocesses started by tests inherit both).
@@ -94,12 +100,54 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         shutil.rmtree(config.stash[_tmp_key], ignore_errors=True)
 
 
+#: The test files that take longest (their tests' summed time, waits for subprocesses and GUI events
+#: included; session 22 at 2 workers), longest first. Handed out first, so that the last files to
+#: finish are short ones and both workers end together. A file not listed runs after these.
+SLOW_FIRST = ("test_batch", "test_app", "test_proposals_fuzz", "test_geometry", "test_silent_paths",
+              "test_realism", "test_hard_inputs", "test_lights_source", "test_render", "test_synthetic",
+              "test_gui_responsiveness", "test_gui_layout", "test_denoisers", "test_night_artefacts",
+              "test_editor", "test_gui_annotation_files")
+
+
+#: The files with GUI tests. Both workers share one X display (xvfb-run), so a window one worker
+#: shows can take the pointer from under the other's (a leave event cleared the editor's hover while
+#: a test waited for it): loadfile hands these files to one worker as one unit, one after the other.
+GUI_FILES = ("test_app", "test_gui_responsiveness", "test_gui_layout", "test_denoisers", "test_editor",
+             "test_gui_annotation_files", "test_gui_keymap", "test_gui_proposals", "test_proposals",
+             "test_vehicle_groups")
+
+
+def _file_stem(nodeid: str) -> str:
+    return nodeid.split("::", 1)[0].rsplit("/", 1)[-1].removesuffix(".py")
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with the GUI files (``GUI_FILES``) as one scope."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class GuiFilesTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return "GUI files" if _file_stem(nodeid) in GUI_FILES else super()._split_scope(nodeid)
+
+    return GuiFilesTogether(config, log)
+
+
+def _slow_rank(item: pytest.Item) -> int:
+    name = _file_stem(item.nodeid)
+    return SLOW_FIRST.index(name) if name in SLOW_FIRST else len(SLOW_FIRST)
+
+
 def _is_gui(item: pytest.Item) -> bool:
     return bool(GUI_FIXTURES.intersection(getattr(item, "fixturenames", ()))) or \
         item.get_closest_marker("gui") is not None
 
 
+@pytest.hookimpl(tryfirst=True)  # before --lf/--ff's reordering, which then still applies
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    items.sort(key=_slow_rank)  # stable: each file's tests keep their order, the other files theirs
     gui = [it for it in items if _is_gui(it)]
     if not gui:
         return  # no probe when no GUI test was selected

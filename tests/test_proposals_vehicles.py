@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -1054,6 +1055,17 @@ def test_a_lamp_one_pixel_across_at_the_cut_blended_with_the_car_in_front_is_fou
         assert on_car((img.astype(np.uint8), lab, depth, inst, intr, visible)) == []
 
 
+@functools.lru_cache(maxsize=None)
+def _proposed_street(seed: int):
+    """(512x256 default street ``seed``, its proposals by ``propose_for_scene``), made once per module:
+    the pane tests below read the same frames (neither changes the scene or the proposals)."""
+    from npsim_core.proposals import propose_for_scene
+    from npsim_core.synthetic import street_scene
+
+    scene = street_scene(512, 256, seed, "default")
+    return scene, propose_for_scene(scene)
+
+
 def _best_pane_iou(scene, props, truth_id: int) -> float:
     t = scene.lights.instance_map == truth_id
     ann = props.annotation
@@ -1067,27 +1079,18 @@ def test_a_near_cars_pane_is_proposed_without_the_sunlit_body_its_cabin_band_run
     band's last 3 rows are body. Their panes are proposed without the body's rows and columns (IoU >= 0.7:
     no touch-up at the slider; the old code 0.64, 0.68 and 0.65). A far car's pane (seed 0, 81 m: under
     ``vehicle_pane_body_min_ppm``) is left as it was (IoU 0.82)."""
-    from npsim_core.proposals import propose_for_scene
-    from npsim_core.synthetic import street_scene
-
-    scene = street_scene(512, 256, 1, "default")
-    props = propose_for_scene(scene)
+    scene, props = _proposed_street(1)
     for truth_id in (2045, 2010, 2011):
         assert _best_pane_iou(scene, props, truth_id) >= 0.7, truth_id
-    scene = street_scene(512, 256, 0, "default")
-    assert _best_pane_iou(scene, propose_for_scene(scene), 2019) >= 0.8
+    assert _best_pane_iou(*_proposed_street(0), 2019) >= 0.8
 
 
 def test_a_near_cars_pane_of_dark_glass_takes_the_row_of_glass_below_its_band():
     """512x256 default seeds 0 and 2: red cars at 33 m whose cabin band ends a row or two above their dark
     glass (the band ends 0.07 m above the end face's body top; the cabin stands behind the face). A pane whose
     row below is its glass takes that row (IoU >= 0.7: no touch-up at the slider; the old code 0.64 and 0.68)."""
-    from npsim_core.proposals import propose_for_scene
-    from npsim_core.synthetic import street_scene
-
     for seed, truth_id in ((0, 2007), (2, 2015)):
-        scene = street_scene(512, 256, seed, "default")
-        assert _best_pane_iou(scene, propose_for_scene(scene), truth_id) >= 0.7, (seed, truth_id)
+        assert _best_pane_iou(*_proposed_street(seed), truth_id) >= 0.7, (seed, truth_id)
 
 
 def test_a_far_cars_lamp_beside_the_cut_of_the_car_in_front_is_laid_out_from_the_geometry_under_the_slider():
