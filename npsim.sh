@@ -60,7 +60,8 @@ case "$verb" in
     # the layers first: core, app and command line keep to their import contracts (pyproject.toml)
     "$VENV/bin/lint-imports" --config pyproject.toml
     # Xvfb: the pyvista 3D view only renders on a real X display (docs/stack.md §3).
-    # Two pytest-xdist workers, one test file each at a time (2 cores: 98 s instead of 255 s);
+    # Two pytest-xdist workers, one test file each at a time, the longest files first and the GUI files on
+    # one worker (tests/conftest.py; where the time goes: docs/testing.md);
     # 'bash npsim.sh test -n 0' runs serially.
     exec xvfb-run -a -s "-screen 0 1280x1024x24" "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
   *) echo "usage: bash npsim.sh [start|test|setup] [args...]" >&2; exit 2 ;;
