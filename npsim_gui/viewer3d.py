@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyvista as pv
+import shiboken6
 from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QPushButton, QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
@@ -234,5 +235,17 @@ class MeshViewer(QWidget):
         return self.plotter.screenshot(return_img=True)
 
     def close_viewer(self) -> None:
-        """Close the interactor explicitly (pyvistaqt segfaults at teardown otherwise)."""
+        """Close the interactor explicitly (pyvistaqt segfaults at teardown otherwise).
+
+        The interactor keeps a wrapper of its GL context's surface, a ``QSurface``: not a QObject,
+        so PySide never learns when Qt deletes it, and a closed window's Python object lives on
+        (signal connections to lambdas). Until then the stale wrapper claims its address, and the
+        next Qt object allocated there (a dock's toggle action, a timer) came back to Python as a
+        ``QSurface`` — a failed test setup in CI. The wrapper is let go here, after the last GL
+        teardown that needs it."""
         self.plotter.close()
+        interactor = self.plotter.interactor
+        surface = getattr(interactor, "_surface", None)
+        if surface is not None:
+            interactor._surface = None  # pyvistaqt then skips makeCurrent: the window is finalised
+            shiboken6.invalidate(surface)

@@ -183,7 +183,7 @@ def test_project_round_trip(window, qtbot, tmp_path):
     assert scene.lights is not None and scene.lights.instance_ids() == window.chain.scene.lights.instance_ids()
 
 
-def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(qtbot):
+def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(qtbot, settings):
     """The window's application-wide event filter sees events of watched objects that PySide hands
     over as a non-QObject (the 3D view's QSurface with a timer event, seen in CI): it lets them
     pass instead of raising in the Qt event loop (which failed a test's setup)."""
@@ -196,6 +196,31 @@ def test_window_filter_passes_events_of_objects_pyside_cannot_treat_as_qobjects(
     window.show()
     assert window.eventFilter(object(), QTimerEvent(1)) is False
     window.close()
+
+
+def test_a_closed_3d_view_lets_go_of_its_gl_surface_wrapper(qtbot, settings):
+    """The 3D view's GL surface is no QObject: PySide never learns of its deletion, and while a
+    closed window's Python object lived on, the stale wrapper claimed the address, so the next Qt
+    object allocated there came back as a ``QSurface`` (a dock's toggle action in CI: a failed
+    window construction). Closing the window must drop and invalidate that wrapper."""
+    import shiboken6
+
+    from npsim_gui.main_window import MainWindow
+
+    window = MainWindow()
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    window.viewer_dock.show()
+    window.viewer_dock.raise_()
+    window.viewer.request_render()
+    interactor = window.viewer.plotter.interactor
+    qtbot.waitUntil(lambda: getattr(interactor, "_surface", None) is not None, timeout=10_000)
+    surface = interactor._surface  # initializeGL ran: the wrapper exists
+    assert shiboken6.isValid(surface)
+    window.close()
+    assert interactor._surface is None
+    assert not shiboken6.isValid(surface)  # its address no longer maps to a QSurface
 
 
 @preview_closed
