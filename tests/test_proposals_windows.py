@@ -1736,3 +1736,36 @@ def test_the_pane_in_a_frame_top_wedge_replaces_the_wedge():
             img[r, 110 + r // 3] = 250
     assert run(streak) is None
     assert run(framed, replace(PARAMS, window_wedge_pane_min_px=0)) is None
+
+
+def test_a_far_panes_blur_on_a_face_of_its_own_colour_is_judged_against_that_colour():
+    """``_own_colour_dev`` and ``_blur_columns_off(dev_own=, own_ratio=)``: a bluish face the smooth wall reference
+    missed (Lab b 7 off the reference: all of it departs, 1.17 thresholds) with three bright 1-px panes 2 px apart
+    and the panes' blur between them (0.1 brighter than the face): against the reference the blur columns depart
+    0.4 of the panes (over ``window_blur_column_ratio``, kept), against the face's own colour 0.1 (under
+    ``window_blur_own_ratio``: they go, the panes stay); with ``window_blur_own_ratio`` 0, or outside the face,
+    the reference's measure alone (512x256 lights seed 0's gable faces, docs/proposals.md "Twenty-second pass")."""
+    from dataclasses import replace
+
+    from npsim_core.proposals.windows import _blur_columns_off, _own_colour_dev
+    t = -np.log(PARAMS.window_dark_ratio)
+    feat = np.zeros((20, 30, 3), np.float32)
+    feat[..., 0] = -0.85  # the wall reference's colour
+    ref = feat.copy()
+    face = np.zeros((20, 30), bool)
+    face[0:12, 2:10] = True
+    feat[face] = (-0.95, 0.0, -7.0)
+    feat[1:9, 3:9:2, 0] = 0.0            # panes at columns 3, 5, 7
+    feat[1:9, 4:9:2, 0] = -0.85          # their blur between them, the face's hue
+    dev = np.maximum(np.abs(feat[..., 0] - ref[..., 0]) / t,
+                     np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2]) / PARAMS.window_chroma_delta)
+    own = [(0, 2, face[0:12, 2:10], np.array([-0.95, 0.0, -7.0], np.float32))]
+    found = [_found_at(0, 1.0, 1, x, 8, 1) for x in range(3, 8)]
+    assert [f[3].x0 for f in _blur_columns_off(found, dev, PARAMS.window_blur_column_ratio)] == [3, 4, 5, 6, 7]
+    dev_own = _own_colour_dev(feat, ref, dev, own, PARAMS)
+    assert np.array_equal(dev_own[~face], dev[~face]) and dev_own[1, 4] < 0.5 < dev[1, 4]
+    kept = _blur_columns_off(found, dev, PARAMS.window_blur_column_ratio, dev_own, PARAMS.window_blur_own_ratio)
+    assert [f[3].x0 for f in kept] == [3, 5, 7]
+    off = replace(PARAMS, window_blur_own_ratio=0.0)
+    assert _own_colour_dev(feat, ref, dev, own, off) is dev
+    assert len(_blur_columns_off(found, dev, off.window_blur_column_ratio, dev, off.window_blur_own_ratio)) == 5

@@ -370,6 +370,10 @@ class ProposalParams:
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).
     window_blur_column_ratio: float = 0.33
+    #: ... or, on a blob whose own wall colour the smooth reference missed (windows._blob_panes found it:
+    #: a face of its own colour, all of it candidate), under this share measured against that colour
+    #: (windows._own_colour_dev: a far pane's blur between two others on a bluish gable face; 0: off).
+    window_blur_own_ratio: float = 0.25
     #: A window grows by the rows above its top / below its bottom that depart from the wall by at least
     #: ``window_extend_dev`` of the window thresholds over two thirds of its columns, on mean
     #: ``window_extend_side_ratio`` x the departure of the columns beside it (the rest of its pane:

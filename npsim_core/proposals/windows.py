@@ -949,7 +949,8 @@ def _wall_coloured(feat: np.ndarray, B: np.ndarray, y: int, x: int, m: np.ndarra
     return out
 
 
-def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tuple[int, int, np.ndarray]]:
+def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p,
+                colour: list | None = None) -> list[tuple[int, int, np.ndarray]]:
     """The panes inside a blob (``m`` at (y, x)) that is mostly wall: a wall piece whose colour the
     smooth wall reference missed (a narrow building of its own colour, a shaded face) is one blob
     with its panes, too large for a window. The blob's own wall colour is the mode of its log
@@ -959,7 +960,8 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     blob); else, where a second colour of wall lies on the piece (:func:`_shadow_colour`: a cast
     shadow), the pixels that differ from both when the two fill that share, two parts at least and
     ``window_blob_second_pane_share`` of the blob; else none (no colour fills that much of it: panes
-    of several colours merged)."""
+    of several colours merged). ``colour``: when given and panes are found, the blob's own wall colour
+    (log luminance, Lab a, b) is appended to it (the first colour's, with a shadow's too)."""
     h, w = m.shape
     if m.sum() < 8 * p.window_min_area_px:
         return []
@@ -979,7 +981,10 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     base = np.array([mode, ab[0], ab[1]], np.float32)
     odd = _differs(f, np.broadcast_to(base, f.shape), p) & m
     if (m & ~odd).sum() >= p.window_blob_wall_share * m.sum():
-        return [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+        parts = [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
+        if colour is not None and parts:
+            colour.append(base)
+        return parts
     base2 = _shadow_colour(f, m, lum, hist, lo, step, mode, ab, p)
     if base2 is None:
         return []
@@ -989,11 +994,13 @@ def _blob_panes(feat: np.ndarray, y: int, x: int, m: np.ndarray, p) -> list[tupl
     parts = [(py, px, pm) for py, px, pm, _ in components(odd, p.window_min_area_px, connectivity=4)]
     if len(parts) < 2 or sum(int(pm.sum()) for _, _, pm in parts) < p.window_blob_second_pane_share * m.sum():
         return []  # a few flecks: the two colours were the panes' and the wall's (a lit street's panes)
+    if colour is not None:
+        colour.append(base)
     return parts
 
 
 def _panes_side_by_side(ctx: Context, feat: np.ndarray, y: int, x: int, m: np.ndarray,
-                        p) -> list[tuple[int, int, np.ndarray]]:
+                        p, colour: list | None = None) -> list[tuple[int, int, np.ndarray]]:
     """The panes of a blob kept as one window (``m`` at (y, x)) that is a row of them on a face of its own
     colour: a narrow sunlit face the wall reference missed is candidate all over, so its panes and the
     face between them pass as one window (512x256 default street seed 1: four 1-2 px panes at 80-90 m in
@@ -1003,16 +1010,19 @@ def _panes_side_by_side(ctx: Context, feat: np.ndarray, y: int, x: int, m: np.nd
     that spans at least ``window_row_min_m_per_px`` of wall per pixel column (:func:`_extent_m`: a far
     receding row; a single framed pane leaves two sides of its frame, a pane with a curtain or a
     reflection band one part, a near window's lights between its mullions and stripes of its reflection
-    span a few centimetres a pixel); else []."""
+    span a few centimetres a pixel); else []. ``colour``: as :func:`_blob_panes`'s, when the parts are returned."""
     n = int(p.window_blob_row_min_panes)
     if n <= 0 or m.shape[1] < n or m.sum() < 8 * p.window_min_area_px:
         return []
     ext = _extent_m(ctx, y, x, m)
     if ext is None or ext[0] < p.window_row_min_m_per_px * (m.shape[1] - 1):
         return []  # not a far receding row: a near window's lights between its mullions, its frame
-    parts = _blob_panes(feat, y, x, m, p)
+    got: list = []
+    parts = _blob_panes(feat, y, x, m, p, got)
     if sum(pm.shape[0] >= 0.5 * m.shape[0] and pm.shape[1] <= p.window_row_pane_max_px for _, _, pm in parts) < n:
         return []
+    if colour is not None:
+        colour.extend(got)
     return parts
 
 
@@ -2361,21 +2371,31 @@ def _unblur_narrow(found: list, dev: np.ndarray, p) -> None:
         li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
 
 
-def _blur_columns_off(found: list, dev: np.ndarray, ratio: float) -> list:
+def _blur_columns_off(found: list, dev: np.ndarray, ratio: float, dev_own: np.ndarray | None = None,
+                      own_ratio: float = 0.0) -> list:
     """The windows less the far panes' blur columns split off as windows of their own: a window of kind
     ``window`` 1 px wide beside another window of its wall (no column between them, half its rows at
     least beside it) whose mean departure from the wall (``dev``, HxW, in window thresholds) is under
     ``ratio`` (``window_blur_column_ratio``) x that window's strongest column's is the other's glass
     blurred into the wall, not a pane (512x256 seeds 0-5: every one under 0.33 false, IoU under 0.1; a
-    true 1-px pane beside another is at 0.4 or more; docs/proposals.md "Twentieth pass: the 1.5x rule")."""
+    true 1-px pane beside another is at 0.4 or more; docs/proposals.md "Twentieth pass: the 1.5x rule").
+    ``dev_own``: ``dev`` with a face's own colour as the reference where the smooth one missed it
+    (:func:`_own_colour_dev`): a window under ``own_ratio`` of its neighbour's by that measure goes too
+    (docs/proposals.md "Twenty-second pass: the gable faces")."""
     if ratio <= 0 or len(found) < 2:
         return found
-    prof = []
-    for f in found:
-        li = f[3]
-        cnt = li.mask.sum(0)
-        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]]
-        prof.append(np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0))
+
+    def profiles(dv: np.ndarray) -> list:
+        out = []
+        for f in found:
+            li = f[3]
+            cnt = li.mask.sum(0)
+            d = dv[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]]
+            out.append(np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0))
+        return out
+
+    prof = profiles(dev)
+    prof_own = profiles(dev_own) if dev_own is not None and dev_own is not dev and own_ratio > 0 else None
     box = np.array([[f[3].y0, f[3].x0, f[3].mask.shape[0], f[3].mask.shape[1]] for f in found], int)
     bid = np.array([f[0] for f in found])
     drop = set()
@@ -2388,7 +2408,31 @@ def _blur_columns_off(found: list, dev: np.ndarray, ratio: float) -> list:
         side[i] = False
         if any(float(prof[i][0]) < ratio * float(prof[j].max()) for j in np.flatnonzero(side)):
             drop.add(i)
+        elif prof_own is not None and any(float(prof_own[i][0]) < own_ratio * float(prof_own[j].max())
+                                          for j in np.flatnonzero(side)):
+            drop.add(i)
     return [f for i, f in enumerate(found) if i not in drop]
+
+
+def _own_colour_dev(feat: np.ndarray, ref: np.ndarray, dev: np.ndarray, own: list, p) -> np.ndarray:
+    """``dev`` (HxW, departure from the wall reference in window thresholds) with the pixels of each blob
+    whose own wall colour :func:`_blob_panes` found (``own``: (y, x, mask, colour (log luminance, Lab a,
+    b))) measured against that colour instead: a face the smooth reference missed (a bluish gable at
+    512x256 `lights` seed 0) departs from it all over, its far panes' blur between them as much as the
+    panes (2.0-2.4 against 2.6), and against its own colour a quarter as much (docs/proposals.md
+    "Twenty-second pass: the gable faces"). ``dev`` itself when ``own`` is empty or
+    ``window_blur_own_ratio`` is 0."""
+    if not own or p.window_blur_own_ratio <= 0:
+        return dev
+    out = dev.copy()
+    t = -np.log(p.window_dark_ratio)
+    for y, x, m, c in own:
+        h, w = m.shape
+        f = feat[y:y + h, x:x + w]
+        d = np.maximum(np.abs(f[..., 0] - c[0]) / t,
+                       np.hypot(f[..., 1] - c[1], f[..., 2] - c[2]) / p.window_chroma_delta)
+        out[y:y + h, x:x + w][m] = d[m]
+    return out
 
 
 def _floor_ends(found: list, dev: np.ndarray, free: np.ndarray, p) -> None:
@@ -2947,6 +2991,7 @@ def propose(ctx: Context) -> list[Group]:
         cand = _open2(cand) if min(H, W) >= 512 else cand
     fy = float(ctx.intrinsics.fy)
     found = []  # [building id, centre height or row, floor tolerance, Light]
+    own: list = []  # blobs whose own wall colour _blob_panes found: (y, x, mask, colour)
 
     def accept(y: int, x: int, sub: np.ndarray) -> str | None:
         """Keep the blob ``sub`` at (y, x) as a window, or say why not ("small", "size", "fill")."""
@@ -3043,8 +3088,10 @@ def propose(ctx: Context) -> list[Group]:
         if why is None and depth_ == 0 and p.window_blob_row_min_panes > 0:
             # kept as one window, but a row of panes on a face of its own colour that the wall reference
             # missed: the face between them is candidate too, and the blob passes as one window
-            inner = _panes_side_by_side(ctx, feat, y0, x0, m, p)
+            col: list = []
+            inner = _panes_side_by_side(ctx, feat, y0, x0, m, p, col)
             if inner:
+                own.extend((y0, x0, m, c) for c in col[:1])
                 found.pop()
                 stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in inner)
                 continue
@@ -3076,8 +3123,10 @@ def propose(ctx: Context) -> list[Group]:
         if why == "size" and depth_ == 0 and p.window_blob_wall_share > 0:
             # A wall piece whose colour the reference missed, with its panes: one blob too large for
             # a window. Its own colour is the mode of it; what differs from that are its panes.
-            inner = _blob_panes(feat, y0, x0, m, p)
+            col = []
+            inner = _blob_panes(feat, y0, x0, m, p, col)
             if inner:
+                own.extend((y0, x0, m, c) for c in col[:1])
                 stack.extend((y0 + py, x0 + px, pm, p.window_split_steps + 1) for py, px, pm in inner)
                 continue
         if why in ("fill", "size") and depth_ <= p.window_split_steps and p.window_band_split_share > 0:
@@ -3169,7 +3218,8 @@ def propose(ctx: Context) -> list[Group]:
             kept.append(f[:3] + [pane])
     found = kept
     _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
-    found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio)
+    found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio, _own_colour_dev(feat, ref, dev_all, own, p),
+                              p.window_blur_own_ratio)
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     for f in found:  # the kind only: a glass floor band receding down the street
         if _receding_band(ctx, f[3]):
