@@ -262,9 +262,10 @@ def test_the_office_bands_receding_on_the_lights_street_are_office_bands():
 def test_the_false_slivers_between_the_gable_panes_on_the_lights_street_go():
     """The lights street at 512x256, seed 0: the stepped gable's faces (7x21 and 5x11 px at 117 m, a bluish wall the
     smooth reference missed) hold five 1-px gable panes 2 px apart, and the lattice's cells proposed the columns
-    between them, brightened by both panes' blur (x 328, 329, 330; best true IoU 0): measured against the face's own
-    colour they depart a quarter of the panes or less and go (``window_blur_own_ratio``); with it 0 they stay. The
-    windows matching a true light are the same."""
+    between them, brightened by both panes' blur (x 328, 329, 330), and the face's edge column against the sky
+    beside the lowest pane (x 326; best true IoU 0 all): measured against the face's own colour they depart a
+    quarter of the panes or less and go (``window_blur_own_ratio``); with it 0 they stay. The windows matching a
+    true light are the same."""
     from benchmarks.proposals import _best_true
     from npsim_core.synthetic import street_scene
 
@@ -275,7 +276,7 @@ def test_the_false_slivers_between_the_gable_panes_on_the_lights_street_go():
         out = set()
         for w in wins:
             ys, xs = np.nonzero(w)
-            if xs.min() == xs.max() and 328 <= xs[0] <= 330 and ys.max() <= 20 and _best_true(w, truth)[1] < 0.3:
+            if xs.min() == xs.max() and 326 <= xs[0] <= 330 and ys.max() <= 22 and _best_true(w, truth)[1] < 0.3:
                 out.add(int(xs[0]))
         return out
 
@@ -283,5 +284,5 @@ def test_the_false_slivers_between_the_gable_panes_on_the_lights_street_go():
         return {w.tobytes() for w in wins if _best_true(w, truth)[1] >= 0.3}
 
     on, off = _window_masks(sc), _window_masks(sc, window_blur_own_ratio=0.0)
-    assert slivers(off) == {328, 329, 330} and slivers(on) == set()
+    assert slivers(off) == {326, 328, 329, 330} and slivers(on) == set()
     assert matched(on) == matched(off)

@@ -1769,3 +1769,29 @@ def test_a_far_panes_blur_on_a_face_of_its_own_colour_is_judged_against_that_col
     off = replace(PARAMS, window_blur_own_ratio=0.0)
     assert _own_colour_dev(feat, ref, dev, own, off) is dev
     assert len(_blur_columns_off(found, dev, off.window_blur_column_ratio, dev, off.window_blur_own_ratio)) == 5
+
+
+def test_a_blur_column_at_a_faces_edge_beside_two_panes_is_judged_against_the_faces_colour():
+    """``_blur_columns_off`` on a face of its own colour: a 1-px window at the face's edge (7 rows) beside two
+    panes of the next column that each cover under half its rows (3 and 2 of them) but together over half is
+    their blur (512x256 lights seed 0: x 326 beside the gable's lowest pane and the window under it) and goes;
+    off the face (the reference's measure) the rows beside it must be one window's, and it stays."""
+    from npsim_core.proposals.windows import _blur_columns_off, _own_colour_dev
+    t = -np.log(PARAMS.window_dark_ratio)
+    feat = np.zeros((24, 20, 3), np.float32)
+    feat[..., 0] = -0.85
+    ref = feat.copy()
+    face = np.zeros((24, 20), bool)
+    face[0:20, 2:10] = True
+    feat[face] = (-0.95, 0.0, -7.0)
+    feat[1:9, 3, 0] = 0.0     # pane A: rows 1-8
+    feat[11:17, 3, 0] = 0.0   # pane B: rows 11-16
+    feat[6:13, 2, 0] = -0.9   # the edge column's blur: rows 6-12
+    dev = np.maximum(np.abs(feat[..., 0] - ref[..., 0]) / t,
+                     np.hypot(feat[..., 1] - ref[..., 1], feat[..., 2] - ref[..., 2]) / PARAMS.window_chroma_delta)
+    own = [(0, 2, face[0:20, 2:10], np.array([-0.95, 0.0, -7.0], np.float32))]
+    found = [_found_at(0, 1.0, 6, 2, 7, 1), _found_at(0, 1.0, 1, 3, 8, 1), _found_at(0, 1.0, 11, 3, 6, 1)]
+    dev_own = _own_colour_dev(feat, ref, dev, own, PARAMS)
+    kept = _blur_columns_off(found, dev, PARAMS.window_blur_column_ratio, dev_own, PARAMS.window_blur_own_ratio)
+    assert [(f[3].y0, f[3].x0) for f in kept] == [(1, 3), (11, 3)]
+    assert len(_blur_columns_off(found, dev, PARAMS.window_blur_column_ratio)) == 3

@@ -2380,8 +2380,9 @@ def _blur_columns_off(found: list, dev: np.ndarray, ratio: float, dev_own: np.nd
     blurred into the wall, not a pane (512x256 seeds 0-5: every one under 0.33 false, IoU under 0.1; a
     true 1-px pane beside another is at 0.4 or more; docs/proposals.md "Twentieth pass: the 1.5x rule").
     ``dev_own``: ``dev`` with a face's own colour as the reference where the smooth one missed it
-    (:func:`_own_colour_dev`): a window under ``own_ratio`` of its neighbour's by that measure goes too
-    (docs/proposals.md "Twenty-second pass: the gable faces")."""
+    (:func:`_own_colour_dev`): a window under ``own_ratio`` of its neighbour's by that measure goes too, and
+    there its neighbours are the windows beside it that together hold half its rows (the strongest's
+    departure the measure; docs/proposals.md "Twenty-second pass: the gable faces")."""
     if ratio <= 0 or len(found) < 2:
         return found
 
@@ -2411,6 +2412,19 @@ def _blur_columns_off(found: list, dev: np.ndarray, ratio: float, dev_own: np.nd
         elif prof_own is not None and any(float(prof_own[i][0]) < own_ratio * float(prof_own[j].max())
                                           for j in np.flatnonzero(side)):
             drop.add(i)
+        elif prof_own is not None and (dev_own[y0:y0 + h, x0] != dev[y0:y0 + h, x0])[f[3].mask[:, 0]].any():
+            # on a face of its own colour, half its rows beside windows of the next column together (a
+            # face's edge column beside two panes of a receding row a few rows apart)
+            near = (bid == f[0]) & ((box[:, 1] + box[:, 3] == x0) | (box[:, 1] == x0 + 1))
+            near &= np.minimum(box[:, 0] + box[:, 2], y0 + h) - np.maximum(box[:, 0], y0) >= 1
+            near[i] = False
+            js = np.flatnonzero(near)
+            rows = np.zeros(h, bool)
+            for j in js:
+                rows[max(box[j, 0] - y0, 0):max(min(box[j, 0] + box[j, 2] - y0, h), 0)] = True
+            if js.size and rows.sum() >= 0.5 * h and \
+                    float(prof_own[i][0]) < own_ratio * max(float(prof_own[j].max()) for j in js):
+                drop.add(i)
     return [f for i, f in enumerate(found) if i not in drop]
 
 
