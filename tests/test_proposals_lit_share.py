@@ -83,8 +83,8 @@ def test_the_false_window_on_the_lights_streets_balcony_soffit_goes_and_the_true
     horizontal = np.abs(np.nan_to_num(sc.normals_gt[..., 1])) > 0.9
     truth = sc.lights.instance_map
 
-    def windows(tilt: float):
-        return _window_masks(sc, window_soffit_tilt=tilt)
+    def windows(tilt: float):  # the soffit rule alone: windows._shaded_patches takes the second (a far patch of shade)
+        return _window_masks(sc, window_soffit_tilt=tilt, window_shaded_patch_ratio=0.0)
 
     def matched(wins):
         n = 0

@@ -1795,3 +1795,68 @@ def test_a_blur_column_at_a_faces_edge_beside_two_panes_is_judged_against_the_fa
     kept = _blur_columns_off(found, dev, PARAMS.window_blur_column_ratio, dev_own, PARAMS.window_blur_own_ratio)
     assert [(f[3].y0, f[3].x0) for f in kept] == [(1, 3), (11, 3)]
     assert len(_blur_columns_off(found, dev, PARAMS.window_blur_column_ratio)) == 3
+
+
+def test_a_narrow_window_larger_than_the_panes_around_it_loses_its_faint_columns():
+    """``_oversized_narrow_off``: a 3-px window at 100 m, its columns at 1.0 / 0.4 / 0.3 of the window
+    thresholds (a far 1-px pane and its blur), among 1-px panes at its depth on walls of their own (a far
+    facade in pieces: no floor-mates for ``_unblur_narrow``) is three times their size and is trimmed to
+    their width, one column; among 2-px panes (a nearer row) only to two columns; not at all when it is
+    not larger than its neighbours, nor with ``window_narrow_oversized_ratio`` 0."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _oversized_narrow_off
+
+    def run(mate_w, mate_h=6, params=PARAMS):
+        h, w = 30, 60
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 100.0, np.float32), K, None, params)
+        dev = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, mate_h, mate_w) for k, x in enumerate((2, 8, 14, 36, 42, 48))]
+        for f in found:
+            dev[5:5 + mate_h, f[3].x0:f[3].x0 + mate_w] = 1.0
+        found.append(_found_at(9, 1.0, 5, 24, 6, 3))
+        dev[5:11, 24:27] = (1.0, 0.4, 0.3)
+        _oversized_narrow_off(ctx, found, dev, params)
+        li = found[-1][3]
+        return li.x0, li.mask.shape[1]
+
+    assert run(1) == (24, 1)
+    assert run(2) == (24, 2)
+    assert run(1, mate_h=18) == (24, 3)  # no larger than its neighbours
+    assert run(1, params=dataclasses.replace(PARAMS, window_narrow_oversized_ratio=0.0)) == (24, 3)
+
+
+def test_a_patch_of_shaded_wall_among_far_panes_gives_its_lit_pane_or_goes():
+    """``_shaded_patches``: a 6x12 window at 100 m among 1-px panes at its depth (twelve times their size,
+    six times their width), high on its wall, darker than the wall by 1.5 window thresholds (a shadow:
+    dark glass departs by 3-6) with a 1x5 column brighter by 3 (a lit pane's pixels) is replaced by that
+    column; without the lit column it goes; as dark as glass, or with ``window_shaded_patch_ratio`` 0,
+    it stays as it is."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _shaded_patches
+
+    t = -np.log(PARAMS.window_dark_ratio)
+
+    def run(dark, lit=True, params=PARAMS):
+        h, w = 40, 60
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 100.0, np.float32), K, None, params)
+        ratio = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, 6, 1) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
+        for f in found:
+            ratio[5:11, f[3].x0] = -4 * t
+        found.append(_found_at(9, 1.0, 5, 24, 12, 6))
+        ratio[5:17, 24:30] = dark * t
+        if lit:
+            ratio[10:15, 26] = 3 * t
+        out = _shaded_patches(ctx, found, ratio, params)
+        return [(f[3].y0, f[3].x0, f[3].mask.shape) for f in out if f[0] == 9]
+
+    assert run(-1.5) == [(10, 26, (5, 1))]
+    assert run(-1.5, lit=False) == []
+    assert run(-4.0) == [(5, 24, (12, 6))]
+    assert run(-1.5, params=dataclasses.replace(PARAMS, window_shaded_patch_ratio=0.0)) == [(5, 24, (12, 6))]

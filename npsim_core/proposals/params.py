@@ -366,6 +366,17 @@ class ProposalParams:
     #: columns under this share of its strongest column's, as many a side as there are: a far 1-px pane
     #: shown in 3 columns by its blur (windows._unblur_narrow; 0: off).
     window_unblur_narrow_ratio: float = 0.55
+    #: ... and so does a window 2 to ``window_row_pane_max_px`` wide over this many times the size of the
+    #: panes around it (a ratio: pixels x depth^2 against the median of its six nearest windows at its
+    #: depth, any wall), down to their median width: a far pane and its blur on a wall too short of windows
+    #: for the floor-mates' test (0: off; windows._oversized_narrow_off).
+    window_narrow_oversized_ratio: float = 1.3
+    #: A window over this many times the size of the panes around it (a ratio, as
+    #: ``window_narrow_oversized_ratio``), they at most 2 px wide and it twice as wide and a pixel, above the
+    #: ground floor, mostly darker than the wall by under twice the window threshold (shade, not glass), is
+    #: replaced by its largest part brighter by twice the threshold (a lit pane), else dropped (0: off;
+    #: windows._shaded_patches).
+    window_shaded_patch_ratio: float = 1.8
     #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).

@@ -2027,6 +2027,137 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
     return out
 
 
+def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Each window's size over its neighbours': its pixels x z^2 (its median depth z) over the median of
+    that of its ``k`` nearest windows (centre distance in the image) of kind ``window`` at its depth
+    (within ``window_pitch_cut_depth_tol``) on any wall, ``min_n`` of them at least -- what a window is
+    against the panes around it where its own wall has too few windows to say (:func:`_median_rule`
+    needs ``window_median_min_count``; a far facade's walls are pieces of a few windows each).
+    ``found``: [wall id, level, tol, Light]; NaN for other kinds, without depth or neighbours. And the
+    median width (px) of those neighbours."""
+    n = len(found)
+    out, mw = np.full(n, np.nan), np.full(n, np.nan)
+    if ctx.depth is None or n <= min_n:
+        return out, mw
+    tol = float(ctx.params.window_pitch_cut_depth_tol)
+    z = np.full(n, np.nan)
+    cy, cx, a, wd = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    win = np.zeros(n, bool)
+    for i, f in enumerate(found):
+        li = f[3]
+        zi = _median_depth(ctx, li)
+        win[i] = (li.kind or "window") == "window" and zi is not None
+        if win[i]:
+            z[i] = zi
+            cy[i], cx[i] = li.y0 + li.mask.shape[0] / 2.0, li.x0 + li.mask.shape[1] / 2.0
+            a[i] = float(li.mask.sum()) * zi * zi
+            wd[i] = li.mask.shape[1]
+    for i in np.flatnonzero(win):
+        j = np.flatnonzero(win & (np.abs(z - z[i]) <= tol * z[i]))
+        j = j[j != i]
+        if j.size < min_n:
+            continue
+        j = j[np.argsort(np.hypot(cy[j] - cy[i], cx[j] - cx[i]), kind="stable")[:k]]
+        out[i] = a[i] / float(median(a[j]))
+        mw[i] = float(median(wd[j]))
+    return out, mw
+
+
+def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
+    """Take off the faint edge columns of a narrow window larger than the panes around it, in place: a
+    window of kind ``window`` 2 to ``window_row_pane_max_px`` wide over ``window_narrow_oversized_ratio``
+    x its neighbours' size (:func:`_neighbour_ratios`) loses its edge columns whose mean departure from
+    the wall (``dev``, HxW, in window thresholds) is under ``window_unblur_narrow_ratio`` x its strongest
+    column's, the fainter end first, down to its neighbours' median width (rounded down, one column at
+    least: a near pane is 2-3 px) -- the trim of :func:`_unblur_narrow`, which judges a window against
+    its floor-mates' width on its own wall; a far wall is often a piece of a few windows with no
+    floor-mates, or mates as blurred. A far pane 1 px wide shows in 2-3 columns, its glass and its blur
+    into the wall or the next face, and is then twice its facade's median (docs/proposals.md
+    "Twenty-second pass: the 1.5x rule"). Not where a window beside the columns kept is as strong there
+    (the glass goes on into it)."""
+    g = float(p.window_narrow_oversized_ratio)
+    r = float(p.window_unblur_narrow_ratio)
+    if g <= 0 or r <= 0 or len(found) < 4:
+        return
+    nb, nbw = _neighbour_ratios(ctx, found)
+    cand = [i for i, f in enumerate(found) if nb[i] > g and 2 <= f[3].mask.shape[1] <= p.window_row_pane_max_px]
+    if not cand:
+        return
+    ids = np.zeros(dev.shape, np.int32)  # each window's pixels: its index + 1
+    for i, f in enumerate(found):
+        li = f[3]
+        ids[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = i + 1
+    for i in cand:
+        li = found[i][3]
+        w = li.mask.shape[1]
+        cnt = li.mask.sum(0)
+        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + w]
+        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+        lim = r * float(prof.max())
+        a, b = 0, w - 1
+        keep = max(int(np.floor(nbw[i])), 1)  # not below the panes around it: a near pane is 2-3 px
+        while b - a + 1 > keep:  # the fainter end first
+            k = a if prof[a] <= prof[b] else b
+            if prof[k] >= lim:
+                break
+            a, b = (a + 1, b) if k == a else (a, b - 1)
+        if a == 0 and b == w - 1:
+            continue
+        rs = slice(li.y0, li.y0 + li.mask.shape[0])
+        sides = ([li.x0 - 1] if a == 0 and li.x0 > 0 else []) + \
+            ([li.x0 + w] if b == w - 1 and li.x0 + w < dev.shape[1] else [])
+        if any(((o := (ids[rs, c] > 0) & (ids[rs, c] != i + 1)).any() and float(dev[rs, c][o].mean()) >= lim)
+               for c in sides):
+            continue
+        m = li.mask[:, a:b + 1]
+        ys = np.flatnonzero(m.any(1))
+        li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+
+
+def _shaded_patches(ctx: Context, found: list, ratio: np.ndarray, p) -> list:
+    """The windows less the patches of shaded wall among far panes, each replaced by the lit pane in it
+    where it holds one: a window of kind ``window`` over ``window_shaded_patch_ratio`` x its neighbours'
+    size (:func:`_neighbour_ratios`), those far panes at most 2 px wide and it at least twice as wide and a
+    pixel, its bottom over ``window_shop_max_top_m`` above the ground (not a shop front), at least half of
+    it darker than the wall by the window threshold (-ln ``window_dark_ratio``) and the median of those
+    under twice it (a shadow keeps the wall's colour in less light; dark glass departs by 3-6 thresholds),
+    at most 0.35 of it brighter by twice the threshold (lit glass). Its largest 8-connected bright part,
+    ``window_min_area_px`` and two rows at least, is the window; without one it goes. A balcony slab's
+    shadow on a far facade is one such patch, and the 1-px lit panes in it are its only glass
+    (docs/proposals.md "Twenty-second pass: the 1.5x rule"). ``found``: [wall id, level, tol, Light];
+    ``ratio``: HxW log luminance minus the wall reference's."""
+    g = float(p.window_shaded_patch_ratio)
+    if g <= 0 or len(found) < 4 or ctx.depth is None:
+        return found
+    t = -np.log(p.window_dark_ratio)
+    nb, nbw = _neighbour_ratios(ctx, found)
+    out = []
+    for i, f in enumerate(found):
+        li = f[3]
+        h, w = li.mask.shape
+        if not (nb[i] > g and nbw[i] <= 2.0 and w >= 2 * nbw[i] + 1):
+            out.append(f)
+            continue
+        z = _median_depth(ctx, li)
+        if z is None or float(ctx.height_above_ground(li.y0 + h - 0.5, z)) <= p.window_shop_max_top_m:
+            out.append(f)
+            continue
+        r = ratio[li.y0:li.y0 + h, li.x0:li.x0 + w]
+        dark = (r < -t) & li.mask
+        bright = (r > 2 * t) & li.mask
+        n = int(li.mask.sum())
+        if dark.sum() < 0.5 * n or float(median(r[dark])) < -2 * t or bright.sum() > 0.35 * n:
+            out.append(f)
+            continue
+        parts = sorted(components(bright, p.window_min_area_px), key=lambda c: -c[3])
+        parts = [c for c in parts if c[2].shape[0] >= 2]
+        if parts:
+            py, px, pm, _ = parts[0]
+            li.y0, li.x0, li.mask = li.y0 + py, li.x0 + px, pm
+            out.append(f)
+    return out
+
+
 def _pitch_cut(ctx: Context, f: list, wins: list, area: float, limit: float, ratio: np.ndarray,
                chroma: np.ndarray) -> list:
     """The panes of a window ``f`` ([wall id, level, tol, Light]) that the 1.5x rule drops (``area``, m^2 on
@@ -3234,6 +3365,8 @@ def propose(ctx: Context) -> list[Group]:
     _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
     found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio, _own_colour_dev(feat, ref, dev_all, own, p),
                               p.window_blur_own_ratio)
+    _oversized_narrow_off(ctx, found, dev_all, p)  # a far pane and its blur, larger than the panes around it
+    found = _shaded_patches(ctx, found, ratio, p)  # a far patch of shade: the lit pane in it, else nothing
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     for f in found:  # the kind only: a glass floor band receding down the street
         if _receding_band(ctx, f[3]):
