@@ -64,6 +64,9 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
     app.setApplicationName("NPSim")
     win = MainWindow()
     win.show()
+    if screenshot:  # the shot waits for the night: a saved layout may have its tab behind the 3D view's
+        win.render_dock.show()
+        win.render_dock.raise_()
     if dataset is not None:
         win.open_dataset(dataset)
     else:
@@ -76,7 +79,8 @@ def main(path: str | None = None, *, sample_size: tuple[int, int] = (512, 256), 
             win.confirm_close = lambda: True  # unattended: never block on a dialog
             win.close()
             app.quit()
+        # timers with the window as context: they die with it instead of firing on a deleted window
         if screenshot:
-            win.render_jobs.finished.connect(lambda *_: QTimer.singleShot(500, finish))
-        QTimer.singleShot(int((quit_after or 600) * 1000), finish)
+            win.render_jobs.finished.connect(lambda *_: QTimer.singleShot(500, win, finish))
+        QTimer.singleShot(int((quit_after or 600) * 1000), win, finish)
     return app.exec()

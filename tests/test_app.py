@@ -384,3 +384,38 @@ def test_export_of_an_unchanged_frame_reuses_the_last_one_and_asks_before_overwr
         assert getattr(window, "export_reports", 0) == before
     finally:
         chain_mod.export_frame = real
+
+
+def test_an_unattended_screenshot_shows_the_night_preview_whatever_the_saved_layout(qtbot, settings, monkeypatch):
+    """`npsim gui --screenshot` grabs the window after the first night render; the render runs only while
+    the preview is on screen, so with a saved layout that put the 3D view's tab in front it never came
+    and the shot waited for the 600 s fallback."""
+    from PySide6.QtWidgets import QApplication
+
+    from npsim_gui import app as app_mod
+    from npsim_gui.main_window import MainWindow
+
+    first = MainWindow()
+    qtbot.addWidget(first)
+    first.show()
+    qtbot.waitExposed(first)
+    first.viewer_dock.show()
+    first.viewer_dock.raise_()  # the 3D view's tab in front of the night preview's
+    qtbot.waitUntil(lambda: not first.night_preview_shown(), timeout=5_000)
+    first.close()  # saves the layout
+
+    shown = []
+    real_show = MainWindow.show
+
+    def show(self):
+        shown.append(self)
+        real_show(self)
+
+    monkeypatch.setattr(MainWindow, "show", show)
+    monkeypatch.setattr(QApplication, "exec", lambda self: 0)  # the test drives the event loop itself
+    assert app_mod.main(None, sample_size=(128, 64), screenshot=str(settings / "shot.png")) == 0
+    win = shown[-1]
+    qtbot.addWidget(win)
+    win.ask = lambda *a: "Discard"
+    qtbot.waitUntil(win.night_preview_shown, timeout=5_000)
+    win.close()
