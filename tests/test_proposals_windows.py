@@ -1610,6 +1610,83 @@ def test_the_first_blobs_are_the_blobs_less_those_only_small():
     assert i == len(got)
 
 
+def test_the_pieces_judged_at_once_are_judged_as_each_alone():
+    """The twenty-second pass's batch helpers (docs/proposals.md "Twenty-second pass: the textured street's
+    time"): ``_dead_pieces`` judges pieces of any blobs -- cut, eroded and grown back, overlapping -- in one
+    table as ``_never_windows`` judges each piece labelled alone (none without depth); a piece
+    ``_may_ledge`` (the windows' ledge test at once) rules out is left whole by ``_ledge_split``; ``_row_groups``
+    groups a blob's colours as ``_unique_rows`` (bitwise, -0.0 apart from 0.0); ``_building_inside`` is
+    the building labels eroded as ``_set_back`` eroded its band's box (the frame's edges replicated)."""
+    import cv2
+
+    from npsim_core.proposals.core import Context, components
+    from npsim_core.proposals.windows import (_blob_columns, _building_inside, _dead_pieces, _ledge_split,
+                                              _may_ledge, _never_windows, _occupancy_split, _pieces_columns,
+                                              _row_groups, _unique_rows)
+
+    rng = np.random.default_rng(3)
+    Hh, Ww = 120, 200
+    labels = np.full((Hh, Ww), 11, np.uint8)
+    labels[90:, :] = 7            # road
+    labels[40:70, 150:160] = 26   # a car's part in front
+    labels[:3, 60:90] = 23        # sky over a roof
+    depth = np.full((Hh, Ww), 20.0, np.float32) + rng.normal(0, 0.05, (Hh, Ww)).astype(np.float32)
+    depth[30:34, 20:60] = 18.0
+    depth[5:15, 120:140] = np.nan
+    cand = (rng.random((Hh, Ww)) < 0.35) & (labels == 11)
+    cand[10:22, 30:40] = True     # a pane
+    cand[30:34, 20:60] = True     # a balcony slab
+    cand[35:60, 100:104] = True   # panes joined by a sill line
+    cand[35:60, 108:112] = True
+    cand[58:60, 100:112] = True
+    cand[36:64, 145:152] = True   # a pane the car cuts
+    K = Intrinsics(150.0, 150.0, 99.5, 59.5, Ww, Hh)
+    ctx = Context(np.zeros((Hh, Ww, 3), np.uint8), labels, depth, K, None, PARAMS)
+    p, fy = ctx.params, 150.0
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    pieces = []
+    for y0, x0, m, _ in components(cand, 1, connectivity=4):
+        pieces += [(y0 + py, x0 + px, pm) for py, px, pm in _occupancy_split(m, p.window_gap_occupancy)]
+        for py, px, pm, _ in components(cv2.erode(m.astype(np.uint8), cross) > 0, 1, connectivity=4):
+            grown = (cv2.dilate(np.pad(pm.astype(np.uint8), 1), cross) > 0) & \
+                np.pad(m, 1)[py:py + pm.shape[0] + 2, px:px + pm.shape[1] + 2]  # overlapping parts
+            ys, xs = np.nonzero(grown)
+            pieces.append((y0 + py - 1 + ys.min(), x0 + px - 1 + xs.min(),
+                           grown[ys.min():ys.max() + 1, xs.min():xs.max() + 1]))
+    got = _dead_pieces(ctx, pieces, fy, p)
+    want = []
+    for y, x, m in pieces:
+        keep = np.array([False, True])
+        want.append(_never_windows(ctx, _blob_columns(m.astype(np.int32), keep, y, x), 2, np.array([0, m.shape[1]]),
+                                   np.array([0, m.shape[0]]), np.array([0, int(m.sum())]), fy, p)[1])
+    assert got.tolist() == want and 0 < sum(want) < len(want)
+    c, _, _, area = _pieces_columns(ctx, pieces)  # _ledge_split's first test for all at once
+    may = _may_ledge(ctx, c, len(pieces) + 1, area, p)[1:]
+    assert 0 < may.sum() < len(may)
+    for (y, x, m), m_ in zip(pieces, may):
+        if not m_:
+            rest = _ledge_split(depth, labels, fy, y, x, m, p)
+            assert len(rest) == 1 and rest[0][2] is m
+    assert not _dead_pieces(Context(ctx.image, labels, None, K, None, PARAMS), pieces, fy, p).any()
+    assert _dead_pieces(ctx, [], fy, p).size == 0
+    for n in (1, 2, 40, 3000):
+        a = rng.integers(-3, 3, (n, 3)).astype(np.float32) / 2
+        a[: n // 3, 1] = -0.0
+        u, inv, cnt = _row_groups(a)
+        ref, ref_cnt = _unique_rows(a, return_counts=True)
+        assert np.array_equal(u[inv].view(np.uint32), a.view(np.uint32))
+        assert np.array_equal(np.sort(u.view(np.uint32), axis=0), np.sort(ref.view(np.uint32), axis=0))
+        assert len(u) == len(ref) and np.array_equal(np.sort(cnt), np.sort(ref_cnt))
+        assert np.array_equal(cnt, np.bincount(inv))
+    inside = _building_inside(ctx)
+    for ya, yb, xa, xb in ((0, 10, 0, 15), (80, 120, 150, 200), (30, 75, 140, 170), (0, 120, 0, 200)):
+        box = cv2.erode((labels[ya:yb, xa:xb] == 11).astype(np.uint8), np.ones((3, 3), np.uint8),
+                        borderType=cv2.BORDER_REPLICATE) > 0
+        assert np.array_equal(inside[ya + 1:yb - 1, xa + 1:xb - 1], box[1:-1, 1:-1])
+        if (ya, xa) == (0, 0):
+            assert np.array_equal(inside[:yb - 1, :xb - 1], box[:-1, :-1])
+
+
 def test_a_far_pane_blurred_on_both_sides_is_trimmed_to_its_floors_width():
     """A far pane 1 px wide on a receding wall shows in 3 columns: its glass and its blur into the wall
     on either side at just over half its departure, which ``_unblur`` (one column a side, under half)

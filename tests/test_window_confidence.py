@@ -328,3 +328,29 @@ def test_the_fit_tool_scores_the_fitted_weights_with_the_rule_tiny_windows_cap_a
     got = rule_confidences(recs, p)
     assert np.allclose(got, [r["conf"] for r in recs])
     assert np.all(got[np.array(tiny)] <= p.window_tiny_max_confidence)
+
+
+def test_the_edge_contrasts_of_all_windows_at_once_are_each_window_s_own():
+    """``edge_contrasts`` (every window's sides' medians by one sort per feature: docs/proposals.md
+    "Twenty-second pass: the textured street's time") gives ``edge_contrast`` of each window, the same
+    floats: boxes on the frame's edges, masks read along their edge or their box, even and odd sides,
+    a window with no side inside the frame."""
+    from npsim_core.proposals.core import Light
+    from npsim_core.proposals.window_confidence import edge_contrast, edge_contrasts
+
+    rng = np.random.default_rng(5)
+    p = ProposalParams()
+    H, W = 40, 60
+    feat = (rng.normal(0, 1, (H, W, 3)) * (0.5, 6, 6)).astype(np.float32)
+    feat[10:20, 10:30] = feat[10, 10]  # ties
+    lights = [Light(1, 0, 0, np.ones((H, W), bool), 0.5)]  # the whole frame: no side inside
+    for _ in range(200):
+        h, w = (int(v) for v in rng.integers(1, 15, 2))
+        y0, x0 = int(rng.integers(0, H - h + 1)), int(rng.integers(0, W - w + 1))
+        m = rng.random((h, w)) < rng.uniform(0.3, 1.0)
+        m[rng.integers(0, h), rng.integers(0, w)] = True
+        lights.append(Light(1, y0, x0, m, 0.5))
+    want = [edge_contrast(feat, li.y0, li.x0, li.mask.shape[0], li.mask.shape[1], p, li.mask) for li in lights]
+    got = edge_contrasts(feat, lights, p)
+    assert got == want and want[0] == 0.0 and len(set(want)) > 100
+    assert edge_contrasts(feat, [], p) == []

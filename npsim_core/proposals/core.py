@@ -226,10 +226,9 @@ def components(mask: np.ndarray, min_area: int = 1, connectivity: int = 8):
     ya, xa = int(rows[0]) & ~1, int(cols[0]) & ~1
     sub = mask[ya:int(rows[-1]) + 1, xa:int(cols[-1]) + 1]
     n, lab, stats, _ = cv2.connectedComponentsWithStats(sub.astype(np.uint8), connectivity=connectivity)
-    for k in range(1, n):
-        x, y, w, h, a = (int(v) for v in stats[k])
-        if a < min_area:
-            continue
+    # (the areas tested at once: a textured wall's blob less its wall colour leaves thousands of flecks)
+    for k in (np.flatnonzero(stats[1:, 4] >= min_area) + 1).tolist():
+        x, y, w, h, a = stats[k].tolist()
         yield ya + y, xa + x, lab[y:y + h, x:x + w] == k, a
 
 
