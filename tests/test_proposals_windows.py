@@ -1937,3 +1937,34 @@ def test_a_patch_of_shaded_wall_among_far_panes_gives_its_lit_pane_or_goes():
     assert run(-1.5, lit=False) == []
     assert run(-4.0) == [(5, 24, (12, 6))]
     assert run(-1.5, params=dataclasses.replace(PARAMS, window_shaded_patch_ratio=0.0)) == [(5, 24, (12, 6))]
+
+
+def test_two_far_panes_a_column_apart_merged_into_one_window_are_split():
+    """``_split_two_panes``: a 5x14 window at 100 m among 1-px panes (twelve times their size): its columns
+    depart 5.5 / 1.2 / 5.0 / 5.0 / 1.0 window thresholds (two panes a column apart and their blur, 512x256
+    hard seed 0 at the frame's top) and it is cut at the dip into a 1-px and a 3-px window; where the dip
+    is shallow (3.0: one pane), among panes of its size, where a side would be wider than tall, or with
+    ``window_split_oversized_ratio`` 0, it stays one window."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _split_two_panes
+
+    def run(dip=1.2, mate_h=6, h_win=14, params=PARAMS, mate_w=1):
+        h, w = 40, 60
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 100.0, np.float32), K, None, params)
+        dev = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, mate_h, mate_w) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
+        for f in found:
+            dev[5:5 + mate_h, f[3].x0:f[3].x0 + mate_w] = 5.0
+        found.append(_found_at(9, 1.0, 5, 24, h_win, 5))
+        dev[5:5 + h_win, 24:29] = (5.5, dip, 5.0, 5.0, 1.0)
+        out = _split_two_panes(ctx, found, dev, params)
+        return [(f[3].y0, f[3].x0, f[3].mask.shape) for f in out if f[0] == 9]
+
+    assert run() == [(5, 24, (14, 1)), (5, 26, (14, 3))]
+    assert run(dip=3.0) == [(5, 24, (14, 5))]
+    assert run(mate_h=30, mate_w=2) == [(5, 24, (14, 5))]
+    assert run(h_win=2) == [(5, 24, (2, 5))]
+    assert run(params=dataclasses.replace(PARAMS, window_split_oversized_ratio=0.0)) == [(5, 24, (14, 5))]

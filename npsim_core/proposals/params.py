@@ -377,6 +377,13 @@ class ProposalParams:
     #: replaced by its largest part brighter by twice the threshold (a lit pane), else dropped (0: off;
     #: windows._shaded_patches).
     window_shaded_patch_ratio: float = 1.8
+    #: A window 3 px wide or more over this many times the size of the panes around it (a ratio, as
+    #: ``window_narrow_oversized_ratio``), they at most 2 px wide, whose columns' strongest departure dips
+    #: between two peaks to under ``window_split_dip_ratio`` of the weaker, is cut in two at the dip: two far
+    #: panes a column apart merged by their blur (0: off; windows._split_two_panes).
+    window_split_oversized_ratio: float = 2.0
+    #: The dip of windows._split_two_panes, a share of the weaker peak's departure (0: off).
+    window_split_dip_ratio: float = 0.4
     #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).

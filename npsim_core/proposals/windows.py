@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import cv2
@@ -2169,6 +2170,48 @@ def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None
         li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
 
 
+def _split_two_panes(ctx: Context, found: list, dev: np.ndarray, p) -> list:
+    """The windows with each merged pair of far panes split into its panes: a window of kind ``window`` 3
+    px wide or more over ``window_split_oversized_ratio`` x its neighbours' size (:func:`_neighbour_ratios`),
+    those far panes at most 2 px wide, whose column profile (each column's strongest departure from the
+    wall, ``dev``: HxW in window thresholds) dips between two peaks to under ``window_split_dip_ratio`` of
+    the weaker one, is cut at its weakest inner column (that column goes): each side, ``window_min_area_px``
+    and two rows at least and as many rows as columns (a far pane is tall), is a window. Two panes a column
+    apart blur into one another at a far facade's top (docs/proposals.md "Twenty-second pass: the 1.5x rule
+    -- the merged pair").
+    ``found``: [wall id, level, tol, Light]."""
+    g, r = float(p.window_split_oversized_ratio), float(p.window_split_dip_ratio)
+    if g <= 0 or r <= 0 or len(found) < 4:
+        return found
+    nb, nbw = _neighbour_ratios(ctx, found)
+    out = []
+    for i, f in enumerate(found):
+        li = f[3]
+        h, w = li.mask.shape
+        if not (nb[i] > g and nbw[i] <= 2.0 and w >= 3):
+            out.append(f)
+            continue
+        d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
+        prof = np.where(li.mask, d, -np.inf).max(0)
+        lo = np.maximum.accumulate(prof)[:-2]  # the strongest column left of each inner column
+        hi = np.maximum.accumulate(prof[::-1])[::-1][2:]  # ... and right of it
+        q = prof[1:-1] / np.maximum(np.minimum(lo, hi), 1e-6)
+        c = 1 + int(np.argmin(q))
+        if not q[c - 1] < r:
+            out.append(f)
+            continue
+        parts = []
+        for a, b in ((0, c), (c + 1, w)):
+            m = li.mask[:, a:b]
+            ys = np.flatnonzero(m.any(1))
+            if ys.size < max(2, b - a) or int(m.sum()) < p.window_min_area_px:  # a far pane is tall
+                break
+            parts.append(f[:3] + [dataclasses.replace(li, y0=li.y0 + int(ys[0]), x0=li.x0 + a,
+                                                      mask=m[ys[0]:ys[-1] + 1])])
+        out.extend(parts if len(parts) == 2 else [f])
+    return out
+
+
 def _shaded_patches(ctx: Context, found: list, ratio: np.ndarray, p) -> list:
     """The windows less the patches of shaded wall among far panes, each replaced by the lit pane in it
     where it holds one: a window of kind ``window`` over ``window_shaded_patch_ratio`` x its neighbours'
@@ -3464,6 +3507,7 @@ def propose(ctx: Context) -> list[Group]:
     _unblur_narrow(found, dev_all, p)  # the final shapes: what the steps above grew by their mates stays
     found = _blur_columns_off(found, dev_all, p.window_blur_column_ratio, _own_colour_dev(feat, ref, dev_all, own, p),
                               p.window_blur_own_ratio)
+    found = _split_two_panes(ctx, found, dev_all, p)  # two far panes a column apart, merged by their blur
     _oversized_narrow_off(ctx, found, dev_all, p)  # a far pane and its blur, larger than the panes around it
     found = _shaded_patches(ctx, found, ratio, p)  # a far patch of shade: the lit pane in it, else nothing
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
