@@ -1968,3 +1968,41 @@ def test_two_far_panes_a_column_apart_merged_into_one_window_are_split():
     assert run(mate_h=30, mate_w=2) == [(5, 24, (14, 5))]
     assert run(h_win=2) == [(5, 24, (2, 5))]
     assert run(params=dataclasses.replace(PARAMS, window_split_oversized_ratio=0.0)) == [(5, 24, (14, 5))]
+
+
+def test_the_rest_of_a_dropped_shaded_patchs_shadow_goes_with_it():
+    """``_shaded_patches(window_shaded_patch_overlap=)``: a 6x9 patch of shade at 100 m among 1-px panes
+    (nine times their size, no lit pane in it) goes; a 6x5 window over its lower rows darker than the wall by
+    2.1 thresholds (past the patch test's 2) and a 2x5 window under that one, as dark, are the same shadow
+    cut in pieces by the proposer's passes (512x256 lights seed 0, docs/proposals.md "Twenty-second pass: the
+    1.5x rule -- the merged pair ...") and go with it; a dark window apart from them, one touching them with
+    a lit pixel, and with ``window_shaded_patch_overlap`` 0 all of them stay."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _shaded_patches
+
+    t = -np.log(PARAMS.window_dark_ratio)
+
+    def run(params=PARAMS):
+        h, w = 40, 60
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 100.0, np.float32), K, None, params)
+        ratio = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, 6, 1) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
+        for f in found:
+            ratio[5:11, f[3].x0] = -4 * t
+        found.append(_found_at(9, 1.0, 5, 24, 9, 6))    # the patch: rows 5-13
+        found.append(_found_at(10, 1.0, 10, 24, 5, 6))  # over its lower rows: rows 10-14
+        found.append(_found_at(11, 1.0, 15, 25, 5, 2))  # under that one: rows 15-19
+        found.append(_found_at(12, 1.0, 10, 33, 5, 2))  # apart: three columns off
+        found.append(_found_at(13, 1.0, 5, 30, 4, 1))   # beside the patch, with a lit pixel
+        ratio[5:14, 24:30] = -1.5 * t
+        ratio[10:20, 24:30] = -2.1 * t
+        ratio[10:15, 33:35] = -2.1 * t
+        ratio[5:9, 30] = -2.1 * t
+        ratio[6, 30] = 3 * t
+        return sorted(f[0] for f in _shaded_patches(ctx, found, ratio, params) if f[0] >= 9)
+
+    assert run() == [12, 13]
+    assert run(dataclasses.replace(PARAMS, window_shaded_patch_overlap=0.0)) == [10, 11, 12, 13]

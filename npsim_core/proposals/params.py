@@ -377,6 +377,10 @@ class ProposalParams:
     #: replaced by its largest part brighter by twice the threshold (a lit pane), else dropped (0: off;
     #: windows._shaded_patches).
     window_shaded_patch_ratio: float = 1.8
+    #: A window on or touching a shaded patch windows._shaded_patches dropped, at least this share of it
+    #: darker than the wall by the window threshold and none of it brighter by twice it, goes with it: the
+    #: same shadow in pieces (0: off).
+    window_shaded_patch_overlap: float = 0.5
     #: A window 3 px wide or more over this many times the size of the panes around it (a ratio, as
     #: ``window_narrow_oversized_ratio``), they at most 2 px wide, whose columns' strongest departure dips
     #: between two peaks to under ``window_split_dip_ratio`` of the weaker, is cut in two at the dip: two far

@@ -2222,14 +2222,17 @@ def _shaded_patches(ctx: Context, found: list, ratio: np.ndarray, p) -> list:
     at most 0.35 of it brighter by twice the threshold (lit glass). Its largest 8-connected bright part,
     ``window_min_area_px`` and two rows at least, is the window; without one it goes. A balcony slab's
     shadow on a far facade is one such patch, and the 1-px lit panes in it are its only glass
-    (docs/proposals.md "Twenty-second pass: the 1.5x rule"). ``found``: [wall id, level, tol, Light];
-    ``ratio``: HxW log luminance minus the wall reference's."""
+    (docs/proposals.md "Twenty-second pass: the 1.5x rule"). A window on or touching a patch dropped (or one
+    dropped so), ``window_shaded_patch_overlap`` of it darker than the wall by the threshold and none of it
+    brighter by twice it, goes with it: the rest of that shadow ("... -- the merged pair ...; the shade under a
+    dropped patch"). ``found``: [wall id, level, tol, Light]; ``ratio``: HxW log luminance minus the wall
+    reference's."""
     g = float(p.window_shaded_patch_ratio)
     if g <= 0 or len(found) < 4 or ctx.depth is None:
         return found
     t = -np.log(p.window_dark_ratio)
     nb, nbw = _neighbour_ratios(ctx, found)
-    out = []
+    out, gone = [], np.zeros(ratio.shape, bool)
     for i, f in enumerate(found):
         li = f[3]
         h, w = li.mask.shape
@@ -2253,6 +2256,30 @@ def _shaded_patches(ctx: Context, found: list, ratio: np.ndarray, p) -> list:
             py, px, pm, _ = parts[0]
             li.y0, li.x0, li.mask = li.y0 + py, li.x0 + px, pm
             out.append(f)
+        else:
+            gone[li.y0:li.y0 + h, li.x0:li.x0 + w] |= li.mask
+    share = float(p.window_shaded_patch_overlap)
+    if share > 0 and gone.any():
+        # the rest of a dropped patch's shade: a window on it or touching it (or one dropped so), at least
+        # half of it darker than the wall by the threshold and none of it lit -- the steps above cut the
+        # shadow into pieces
+        changed = True
+        while changed:
+            changed, keep = False, []
+            near = cv2.dilate(gone.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+            for f in out:
+                li = f[3]
+                h, w = li.mask.shape
+                box = (slice(li.y0, li.y0 + h), slice(li.x0, li.x0 + w))
+                r = ratio[box]
+                n = int(li.mask.sum())
+                if (li.kind or "window") == "window" and near[box][li.mask].any() \
+                        and ((r < -t) & li.mask).sum() >= share * n and not ((r > 2 * t) & li.mask).any():
+                    gone[box] |= li.mask
+                    changed = True
+                else:
+                    keep.append(f)
+            out = keep
     return out
 
 
