@@ -1519,14 +1519,11 @@ def _wins(props):
 
 
 def test_the_fast_lookups_give_numpys_values():
-    """windows._unique_rows / _in_labels (speed helpers, seventeenth pass) return numpy's
-    np.unique(axis=0) / np.isin values exactly (the medians are core's: tests/test_proposals.py)."""
-    from npsim_core.proposals.windows import _in_labels, _unique_rows
+    """windows._in_labels (a speed helper, seventeenth pass) returns numpy's np.isin values exactly (the
+    medians are core's: tests/test_proposals.py)."""
+    from npsim_core.proposals.windows import _in_labels
 
     rng = np.random.default_rng(0)
-    f = rng.integers(0, 4, (200, 3)).astype(np.float32)
-    u, inv = _unique_rows(f, return_inverse=True)
-    assert np.array_equal(u[inv.ravel()], f) and len(u) == len(np.unique(f, axis=0))
     lab = rng.integers(0, 34, (20, 30)).astype(np.uint8)
     assert np.array_equal(_in_labels(lab, (11, 23)), np.isin(lab, (11, 23)))
 
@@ -1615,14 +1612,14 @@ def test_the_pieces_judged_at_once_are_judged_as_each_alone():
     time"): ``_dead_pieces`` judges pieces of any blobs -- cut, eroded and grown back, overlapping -- in one
     table as ``_never_windows`` judges each piece labelled alone (none without depth); a piece
     ``_may_ledge`` (the windows' ledge test at once) rules out is left whole by ``_ledge_split``; ``_row_groups``
-    groups a blob's colours as ``_unique_rows`` (bitwise, -0.0 apart from 0.0); ``_building_inside`` is
+    groups a blob's colours as numpy's unique over the rows' bytes (bitwise, -0.0 apart from 0.0); ``_building_inside`` is
     the building labels eroded as ``_set_back`` eroded its band's box (the frame's edges replicated)."""
     import cv2
 
     from npsim_core.proposals.core import Context, components
     from npsim_core.proposals.windows import (_blob_columns, _building_inside, _dead_pieces, _ledge_split,
                                               _may_ledge, _never_windows, _occupancy_split, _pieces_columns,
-                                              _row_groups, _unique_rows)
+                                              _row_groups)
 
     rng = np.random.default_rng(3)
     Hh, Ww = 120, 200
@@ -1673,7 +1670,8 @@ def test_the_pieces_judged_at_once_are_judged_as_each_alone():
         a = rng.integers(-3, 3, (n, 3)).astype(np.float32) / 2
         a[: n // 3, 1] = -0.0
         u, inv, cnt = _row_groups(a)
-        ref, ref_cnt = _unique_rows(a, return_counts=True)
+        ref, ref_cnt = np.unique(a.view("V12").ravel(), return_counts=True)  # rows bitwise, as numpy's
+        ref = ref.view(np.float32).reshape(-1, 3)
         assert np.array_equal(u[inv].view(np.uint32), a.view(np.uint32))
         assert np.array_equal(np.sort(u.view(np.uint32), axis=0), np.sort(ref.view(np.uint32), axis=0))
         assert len(u) == len(ref) and np.array_equal(np.sort(cnt), np.sort(ref_cnt))

@@ -18,14 +18,6 @@ WINDOW_BUILDING, WINDOWS_GROUP = 1, 13
 _Z8 = np.zeros(1, np.int8)  # a run's border for np.diff (np.concatenate: np.r_ costs ~10 us a call)
 
 
-def _unique_rows(a: np.ndarray, **kw):
-    """Distinct rows of a 2-D float32 array (``np.unique(a, axis=0, **kw)``, rows compared bytewise: a
-    -0.0 and a 0.0 stay apart), several times faster than numpy's row-wise unique."""
-    a = np.ascontiguousarray(a)
-    u, *rest = np.unique(a.view(f"V{a.shape[1] * a.itemsize}").ravel(), **kw)
-    return (u.view(a.dtype).reshape(-1, a.shape[1]), *rest)
-
-
 def _in_front(ctx: Context) -> np.ndarray:
     """HxW bool, read-only: pixels labelled neither building nor sky (something in front of a wall),
     once per context (two passes read it; the labels do not change during a proposal)."""
@@ -917,7 +909,7 @@ def _alike_counts(bu: np.ndarray, ru: np.ndarray, cnt: np.ndarray, t: float, d: 
 
 
 def _row_groups(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The distinct rows of an (n, 3) float32 array (compared bitwise, as :func:`_unique_rows`), each row's
+    """The distinct rows of an (n, 3) float32 array (compared bitwise: a -0.0 and a 0.0 stay apart), each row's
     index among them and their counts, by one sort of integer keys (numpy's unique over 12-byte rows
     compares them one by one). Their order is the keys' (not ``np.unique``'s): for a test per row."""
     u = np.ascontiguousarray(a).view(np.uint32)
