@@ -2004,3 +2004,39 @@ def test_the_rest_of_a_dropped_shaded_patchs_shadow_goes_with_it():
 
     assert run() == [12, 13]
     assert run(dataclasses.replace(PARAMS, window_shaded_patch_overlap=0.0)) == [10, 11, 12, 13]
+
+
+def test_a_window_wider_than_the_panes_around_it_loses_its_edge_columns_that_read_as_wall():
+    """``_wide_wall_columns_off``: a 7-px window at 30 m among 4-px panes at its depth, its columns at 1.5 /
+    2.1 / 2.3 / 1.6 / 1.2 / 1.1 / 1.1 window thresholds (2048x1024 hard seed 0's slanted pane and the darker
+    wall stripe beside it), loses its two last columns (under 1.3 thresholds and half its strongest
+    column's), the fainter end first; as wide as its neighbours (a pane whose glass reads as faint as the
+    wall: 2048 default seed 1's 6-px pane, 0.7 / 0.7 / 0.7 / 5.5 ...) it is left; so is a wide pane whose faint
+    columns are under a fifth of it (its frame), and so with
+    ``window_wall_columns_width_ratio`` 0."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _wide_wall_columns_off
+
+    def run(prof, mate_w=4, params=PARAMS):
+        h, w = 60, 80
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 30.0, np.float32), K, None, params)
+        dev = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, 36, mate_w) for k, x in enumerate((2, 10, 18, 50, 58, 66))]
+        for f in found:
+            dev[5:41, f[3].x0:f[3].x0 + mate_w] = 3.0
+        found.append(_found_at(9, 1.0, 5, 30, 36, len(prof)))
+        dev[5:41, 30:30 + len(prof)] = prof
+        _wide_wall_columns_off(ctx, found, dev, params)
+        li = found[-1][3]
+        return li.x0, li.mask.shape[1]
+
+    stripe = (1.5, 2.1, 2.3, 1.6, 1.2, 1.1, 1.1)
+    assert run(stripe) == (30, 5)
+    assert run(stripe[::-1]) == (32, 5)
+    assert run(stripe, mate_w=6) == (30, 7)  # no wider than the panes around it
+    assert run((0.7, 0.7, 0.7, 5.5, 5.5, 4.6), mate_w=6) == (30, 6)
+    assert run((1.2,) + (3.0,) * 14, mate_w=6) == (30, 15)  # a frame column of a wide pane: 1 of 15
+    assert run(stripe, params=dataclasses.replace(PARAMS, window_wall_columns_width_ratio=0.0)) == (30, 7)

@@ -388,6 +388,20 @@ class ProposalParams:
     window_split_oversized_ratio: float = 2.0
     #: The dip of windows._split_two_panes, a share of the weaker peak's departure (0: off).
     window_split_dip_ratio: float = 0.4
+    #: A window of kind ``window`` at least this many times as wide as the panes around it (their median
+    #: width, px: the six nearest windows at its depth, any wall) loses its edge columns that read as wall
+    #: -- mean departure under ``window_wall_columns_dev`` window thresholds and half its strongest
+    #: column's, the fainter end first, two columns left at least: a pane's hull that took in a wall stripe
+    #: or its sill's steps (0: off; windows._wide_wall_columns_off).
+    window_wall_columns_width_ratio: float = 1.3
+    #: ... the departure (window thresholds) under which such an edge column reads as wall.
+    window_wall_columns_dev: float = 1.3
+    #: ... and only when those columns are at least this share of its width: a wide pane's frame is a
+    #: column or two of it, and its glass needs them (0: any).
+    window_wall_columns_min_share: float = 0.2
+    #: ... and only on a window at least this many rows tall (px): a shorter window's columns are too few
+    #: pixels to tell a wall stripe from glass, and its blur columns are for windows._oversized_narrow_off.
+    window_wall_columns_min_rows: int = 20
     #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).

@@ -2204,6 +2204,47 @@ def _split_two_panes(ctx: Context, found: list, dev: np.ndarray, p) -> list:
     return out
 
 
+def _wide_wall_columns_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
+    """Take off the edge columns that read as wall of a window wider than the panes around it, in place:
+    a window of kind ``window`` at least 3 px wide, ``window_wall_columns_min_rows`` tall and
+    ``window_wall_columns_width_ratio`` x its
+    neighbours' median width (:func:`_neighbour_ratios`) loses its edge columns whose mean departure
+    from the wall (``dev``, HxW, in window thresholds) is under ``window_wall_columns_dev`` and half its
+    strongest column's, the fainter end first, two columns left at least -- when those are at least
+    ``window_wall_columns_min_share`` of its width (a wide pane's frame is a column or two of it, and the
+    pane holds it). A pane's hull that took in a darker wall stripe beside it or the diagonal steps of its
+    sill (2048x1024: hard seed 0's slanted pane, lights seed 0's 3-px pane) is wider than the panes around
+    it; a pane whose glass reads as faint as the wall is not, and is left (docs/proposals.md
+    "Twenty-second pass: the 1.5x rule at 2048x1024")."""
+    g = float(p.window_wall_columns_width_ratio)
+    t = float(p.window_wall_columns_dev)
+    if g <= 0 or t <= 0 or len(found) < 4:
+        return
+    _, nbw = _neighbour_ratios(ctx, found)
+    for i, f in enumerate(found):
+        li = f[3]
+        h, w = li.mask.shape
+        if not (w >= 3 and h >= p.window_wall_columns_min_rows and nbw[i] > 0 and w >= g * nbw[i]):
+            continue
+        cnt = li.mask.sum(0)
+        d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
+        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+        lim = min(t, 0.5 * float(prof.max()))
+        a, b = 0, w - 1
+        while b - a + 1 > 2:  # the fainter end first
+            if prof[a] < lim and (prof[a] <= prof[b] or prof[b] >= lim):
+                a += 1
+            elif prof[b] < lim:
+                b -= 1
+            else:
+                break
+        if a == 0 and b == w - 1 or w - (b - a + 1) < float(p.window_wall_columns_min_share) * w:
+            continue
+        m = li.mask[:, a:b + 1]
+        ys = np.flatnonzero(m.any(1))
+        li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+
+
 def _shaded_patches(ctx: Context, found: list, ratio: np.ndarray, p) -> list:
     """The windows less the patches of shaded wall among far panes, each replaced by the lit pane in it
     where it holds one: a window of kind ``window`` over ``window_shaded_patch_ratio`` x its neighbours'
@@ -3528,6 +3569,7 @@ def propose(ctx: Context) -> list[Group]:
                               p.window_blur_own_ratio)
     found = _split_two_panes(ctx, found, dev_all, p)  # two far panes a column apart, merged by their blur
     _oversized_narrow_off(ctx, found, dev_all, p)  # a far pane and its blur, larger than the panes around it
+    _wide_wall_columns_off(ctx, found, dev_all, p)  # a pane's hull over a wall stripe or its sill's steps
     found = _shaded_patches(ctx, found, ratio, p)  # a far patch of shade: the lit pane in it, else nothing
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     for f in found:  # the kind only: a glass floor band receding down the street
