@@ -2012,8 +2012,8 @@ def test_a_window_wider_than_the_panes_around_it_loses_its_edge_columns_that_rea
     wall stripe beside it), loses its two last columns (under 1.3 thresholds and half its strongest
     column's), the fainter end first; as wide as its neighbours (a pane whose glass reads as faint as the
     wall: 2048 default seed 1's 6-px pane, 0.7 / 0.7 / 0.7 / 5.5 ...) it is left; so is a wide pane whose faint
-    columns are under a fifth of it (its frame), and so with
-    ``window_wall_columns_width_ratio`` 0."""
+    columns are under a fifth of it (its frame), a window over 3x their width (a band: 2048 lights seed 1's
+    office band), and any with ``window_wall_columns_width_ratio`` 0."""
     import dataclasses
 
     from npsim_core.proposals.core import Context
@@ -2040,3 +2040,6 @@ def test_a_window_wider_than_the_panes_around_it_loses_its_edge_columns_that_rea
     assert run((0.7, 0.7, 0.7, 5.5, 5.5, 4.6), mate_w=6) == (30, 6)
     assert run((1.2,) + (3.0,) * 14, mate_w=6) == (30, 15)  # a frame column of a wide pane: 1 of 15
     assert run(stripe, params=dataclasses.replace(PARAMS, window_wall_columns_width_ratio=0.0)) == (30, 7)
+    band = (1.1,) * 4 + (3.0,) * 8 + (1.1,) * 4  # 16 px among 4-px panes: a band, left whole
+    assert run(band) == (30, 16)
+    assert run(band, params=dataclasses.replace(PARAMS, window_wall_columns_max_width_ratio=0.0)) == (34, 8)

@@ -402,6 +402,10 @@ class ProposalParams:
     #: ... and only on a window at least this many rows tall (px): a shorter window's columns are too few
     #: pixels to tell a wall stripe from glass, and its blur columns are for windows._oversized_narrow_off.
     window_wall_columns_min_rows: int = 20
+    #: ... and only on a window under this many times its neighbours' median width (0: no bound): a window
+    #: far wider than the panes around it is a band or a shop front, not a pane's hull -- trimmed to its
+    #: face it fills that face (2048x1024 lights seed 1's 44x71 office band: its face over the 40 % cap).
+    window_wall_columns_max_width_ratio: float = 3.0
     #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).

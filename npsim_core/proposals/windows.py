@@ -2214,10 +2214,12 @@ def _wide_wall_columns_off(ctx: Context, found: list, dev: np.ndarray, p) -> Non
     ``window_wall_columns_min_share`` of its width (a wide pane's frame is a column or two of it, and the
     pane holds it). A pane's hull that took in a darker wall stripe beside it or the diagonal steps of its
     sill (2048x1024: hard seed 0's slanted pane, lights seed 0's 3-px pane) is wider than the panes around
-    it; a pane whose glass reads as faint as the wall is not, and is left (docs/proposals.md
+    it; a pane whose glass reads as faint as the wall is not, and is left; nor is a window over
+    ``window_wall_columns_max_width_ratio`` x their width, a band or a shop front (docs/proposals.md
     "Twenty-second pass: the 1.5x rule at 2048x1024")."""
     g = float(p.window_wall_columns_width_ratio)
     t = float(p.window_wall_columns_dev)
+    cap = float(p.window_wall_columns_max_width_ratio)
     if g <= 0 or t <= 0 or len(found) < 4:
         return
     _, nbw = _neighbour_ratios(ctx, found)
@@ -2225,6 +2227,8 @@ def _wide_wall_columns_off(ctx: Context, found: list, dev: np.ndarray, p) -> Non
         li = f[3]
         h, w = li.mask.shape
         if not (w >= 3 and h >= p.window_wall_columns_min_rows and nbw[i] > 0 and w >= g * nbw[i]):
+            continue
+        if 0 < cap * nbw[i] < w:  # a band or a shop front: not a pane's hull
             continue
         cnt = li.mask.sum(0)
         d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
