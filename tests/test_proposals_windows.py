@@ -2043,3 +2043,38 @@ def test_a_window_wider_than_the_panes_around_it_loses_its_edge_columns_that_rea
     band = (1.1,) * 4 + (3.0,) * 8 + (1.1,) * 4  # 16 px among 4-px panes: a band, left whole
     assert run(band) == (30, 16)
     assert run(band, params=dataclasses.replace(PARAMS, window_wall_columns_max_width_ratio=0.0)) == (34, 8)
+
+
+def test_a_window_taller_than_the_panes_around_it_loses_the_sill_rows_that_run_on_past_it():
+    """``_sill_rows_off``: a 5x39 window at 30 m among 5x33 panes at its depth (1.18x their size and
+    height), its two bottom rows at 2.6 window thresholds across the whole facade row (2048x1024 lights seed
+    0's pane with its sill), loses those two rows; not where the rows depart only in it (the pane's own
+    glass), nor on one side only, nor when it is as tall as the panes around it or over 1.5x as tall
+    (``window_sill_rows_max_ratio``), nor with ``window_sill_rows_ratio`` 0."""
+    import dataclasses
+
+    from npsim_core.proposals.core import Context
+    from npsim_core.proposals.windows import _sill_rows_off
+
+    def run(mate_h=33, sill="both", params=PARAMS):
+        h, w = 60, 80
+        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                      np.full((h, w), 30.0, np.float32), K, None, params)
+        dev = np.zeros((h, w))
+        found = [_found_at(k + 1, 1.0, 5, x, mate_h, 5) for k, x in enumerate((2, 10, 18, 50, 58, 66))]
+        for f in found:
+            dev[5:5 + mate_h, f[3].x0:f[3].x0 + 5] = 3.0
+        found.append(_found_at(9, 1.0, 5, 30, 39, 5))
+        dev[5:44, 30:35] = 3.0
+        cols = {"both": slice(0, w), "in": slice(30, 35), "left": slice(0, 35)}[sill]
+        dev[42:44, cols] = 2.6
+        _sill_rows_off(ctx, found, dev, params)
+        li = found[-1][3]
+        return li.y0, li.mask.shape[0]
+
+    assert run() == (5, 37)
+    assert run(sill="in") == (5, 39)
+    assert run(sill="left") == (5, 39)
+    assert run(mate_h=39) == (5, 39)
+    assert run(mate_h=24) == (5, 39)  # 1.6x as tall as its neighbours: another kind of pane
+    assert run(params=dataclasses.replace(PARAMS, window_sill_rows_ratio=0.0)) == (5, 39)

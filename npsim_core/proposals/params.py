@@ -406,6 +406,23 @@ class ProposalParams:
     #: far wider than the panes around it is a band or a shop front, not a pane's hull -- trimmed to its
     #: face it fills that face (2048x1024 lights seed 1's 44x71 office band: its face over the 40 % cap).
     window_wall_columns_max_width_ratio: float = 3.0
+    #: A window of kind window 3 px wide and ``window_sill_rows_min_rows`` tall or more, over this many times its
+    #: neighbours' size and over this many times their median height (windows._neighbour_ratios; 0: off),
+    #: loses its end rows that depart from the wall beside it, in the two columns either side off every
+    #: window, as much as in it (``window_sill_rows_side_ratio`` of it), at most a quarter of its rows:
+    #: a sill or lintel band running on past the pane (windows._sill_rows_off; 2048x1024 lights seed 0's
+    #: 5x39 pane with two sill rows).
+    window_sill_rows_ratio: float = 1.15
+    #: ... the share (0-1) of a row's mean departure in the window that each side's must reach.
+    window_sill_rows_side_ratio: float = 0.8
+    #: ... and only on windows this many rows tall or more (px): 512x256's far panes and their blur (20-37
+    #: rows, 1-13 px wide) are left as they were.
+    window_sill_rows_min_rows: int = 30
+    #: ... and only under this many times the neighbours' median height (0: no bound): the rows trimmed are
+    #: a quarter at most, so a pane with its sill is at most 1.33x as tall as panes like it; a window far
+    #: taller is another kind of pane, or several (held out 2048 lights seed 5's 10x87 pane, 2.6x: 0.94 ->
+    #: 0.72 trimmed).
+    window_sill_rows_max_ratio: float = 1.5
     #: A window 1 px wide beside another window of its wall (half its rows at least beside it) whose mean
     #: departure from the wall is under this share of that window's strongest column's is dropped: the
     #: other's glass blurred into the wall, not a pane (windows._blur_columns_off; 0: off).

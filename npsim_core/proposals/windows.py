@@ -2075,21 +2075,21 @@ def _median_rule(ctx: Context, wins: list, fm: np.ndarray, t: tuple[float, float
     return out
 
 
-def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3, heights: bool = False) -> tuple:
     """Each window's size over its neighbours': its pixels x z^2 (its median depth z) over the median of
     that of its ``k`` nearest windows (centre distance in the image) of kind ``window`` at its depth
     (within ``window_pitch_cut_depth_tol``) on any wall, ``min_n`` of them at least -- what a window is
     against the panes around it where its own wall has too few windows to say (:func:`_median_rule`
     needs ``window_median_min_count``; a far facade's walls are pieces of a few windows each).
     ``found``: [wall id, level, tol, Light]; NaN for other kinds, without depth or neighbours. And the
-    median width (px) of those neighbours."""
+    median width (px) of those neighbours; with ``heights``, their median height (px) too."""
     n = len(found)
-    out, mw = np.full(n, np.nan), np.full(n, np.nan)
+    out, mw, mh = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     if ctx.depth is None or n <= min_n:
-        return out, mw
+        return (out, mw, mh) if heights else (out, mw)
     tol = float(ctx.params.window_pitch_cut_depth_tol)
     z = np.full(n, np.nan)
-    cy, cx, a, wd = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    cy, cx, a, wd, ht = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     win = np.zeros(n, bool)
     for i, f in enumerate(found):
         li = f[3]
@@ -2099,7 +2099,7 @@ def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3) -> 
             z[i] = zi
             cy[i], cx[i] = li.y0 + li.mask.shape[0] / 2.0, li.x0 + li.mask.shape[1] / 2.0
             a[i] = float(li.mask.sum()) * zi * zi
-            wd[i] = li.mask.shape[1]
+            wd[i], ht[i] = li.mask.shape[1], li.mask.shape[0]
     for i in np.flatnonzero(win):
         j = np.flatnonzero(win & (np.abs(z - z[i]) <= tol * z[i]))
         j = j[j != i]
@@ -2108,7 +2108,8 @@ def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3) -> 
         j = j[np.argsort(np.hypot(cy[j] - cy[i], cx[j] - cx[i]), kind="stable")[:k]]
         out[i] = a[i] / float(median(a[j]))
         mw[i] = float(median(wd[j]))
-    return out, mw
+        mh[i] = float(median(ht[j]))
+    return (out, mw, mh) if heights else (out, mw)
 
 
 def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
@@ -2160,6 +2161,67 @@ def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None
         m = li.mask[:, a:b + 1]
         ys = np.flatnonzero(m.any(1))
         li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+
+
+def _sill_rows_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
+    """Take off the end rows of a window that are a band running on past it, in place: a window of kind
+    ``window`` 3 px wide and ``window_sill_rows_min_rows`` tall or more, over ``window_sill_rows_ratio`` x its
+    neighbours' size and over that many times their median height but under ``window_sill_rows_max_ratio``
+    x it (:func:`_neighbour_ratios`; a quarter of the rows goes at most: far taller is another pane), loses its
+    end rows, the bottom first, whose mean departure from the wall (``dev``, HxW, in window thresholds) in
+    the two columns either side of it, off every window, is on each side at least
+    ``window_sill_rows_side_ratio`` of the row's mean departure in the window -- a quarter of its rows at
+    most. A pane's sill or lintel rows that depart across the whole facade row (2048x1024 lights seed 0's
+    5x39 pane: two sill rows) make it taller than the panes around it; ungated, the rows under and over a
+    good pane often read like a band beside it (docs/proposals.md "Twenty-first pass: the 1.5x rule")."""
+    g, r = float(p.window_sill_rows_ratio), float(p.window_sill_rows_side_ratio)
+    cap = float(p.window_sill_rows_max_ratio)
+    if g <= 0 or r <= 0 or len(found) < 4:
+        return
+    nb, _, nbh = _neighbour_ratios(ctx, found, heights=True)
+    cand = [i for i, f in enumerate(found) if (f[3].kind or "window") == "window" and nb[i] > g
+            and f[3].mask.shape[1] >= 3 and f[3].mask.shape[0] >= p.window_sill_rows_min_rows
+            and f[3].mask.shape[0] > g * nbh[i] and not 0 < cap * nbh[i] < f[3].mask.shape[0]]
+    if not cand:
+        return
+    H, W = dev.shape
+    taken = np.zeros(dev.shape, bool)  # every window's pixels
+    for f in found:
+        li = f[3]
+        taken[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]] |= li.mask
+    trims = []
+    for i in cand:
+        li = found[i][3]
+        h, w = li.mask.shape
+
+        def band(ry: int) -> bool:
+            y, m = li.y0 + ry, li.mask[ry]
+            if not m.any():
+                return True
+            lim = r * float(dev[y, li.x0:li.x0 + w][m].mean())
+            for cs in ((li.x0 - 2, li.x0 - 1), (li.x0 + w, li.x0 + w + 1)):
+                cs = [c for c in cs if 0 <= c < W and not taken[y, c]]
+                if not cs or float(dev[y, cs].mean()) < lim:
+                    return False
+            return True
+
+        a, b, most = 0, h - 1, int(0.25 * h)
+        while b > a and a + (h - 1 - b) < most:
+            if band(b):
+                b -= 1
+            elif band(a):
+                a += 1
+            else:
+                break
+        if a > 0 or b < h - 1:
+            trims.append((i, a, b))
+    for i, a, b in trims:  # all judged on the windows as they came
+        li = found[i][3]
+        m = li.mask[a:b + 1]
+        xs, ys = np.flatnonzero(m.any(0)), np.flatnonzero(m.any(1))
+        if xs.size:
+            li.y0, li.x0 = li.y0 + a + int(ys[0]), li.x0 + int(xs[0])
+            li.mask = m[ys[0]:ys[-1] + 1, xs[0]:xs[-1] + 1]
 
 
 def _split_two_panes(ctx: Context, found: list, dev: np.ndarray, p) -> list:
@@ -3574,6 +3636,7 @@ def propose(ctx: Context) -> list[Group]:
     found = _split_two_panes(ctx, found, dev_all, p)  # two far panes a column apart, merged by their blur
     _oversized_narrow_off(ctx, found, dev_all, p)  # a far pane and its blur, larger than the panes around it
     _wide_wall_columns_off(ctx, found, dev_all, p)  # a pane's hull over a wall stripe or its sill's steps
+    _sill_rows_off(ctx, found, dev_all, p)  # a sill or lintel band running on past a pane taller than its mates
     found = _shaded_patches(ctx, found, ratio, p)  # a far patch of shade: the lit pane in it, else nothing
     _shop_fronts(ctx, found, bld, B, boxes)  # the kind only: ground-floor glazing larger than the windows above
     for f in found:  # the kind only: a glass floor band receding down the street
