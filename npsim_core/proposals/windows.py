@@ -2112,6 +2112,51 @@ def _neighbour_ratios(ctx: Context, found: list, k: int = 6, min_n: int = 3, hei
     return (out, mw, mh) if heights else (out, mw)
 
 
+def _window_ids(shape: tuple, found: list) -> np.ndarray:
+    """HxW int32: each window's pixels hold its index in ``found`` + 1 (later windows over earlier ones), 0
+    elsewhere."""
+    ids = np.zeros(shape, np.int32)
+    for i, f in enumerate(found):
+        li = f[3]
+        ids[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = i + 1
+    return ids
+
+
+def _column_departure(li, dev: np.ndarray) -> np.ndarray:
+    """A window's mean departure from the wall per column of its mask (``dev``, HxW, in window
+    thresholds; 0 where a column holds none of it)."""
+    cnt = li.mask.sum(0)
+    d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]]
+    return np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+
+
+def _faint_ends_off(li, i: int, ids: np.ndarray, dev: np.ndarray, r: float, keep: int) -> None:
+    """Take off window ``i``'s edge columns under ``r`` x its strongest column's departure, in place: the
+    fainter end first, ``keep`` columns left at least. Not where a window beside the columns kept (``ids``,
+    :func:`_window_ids`) is as strong there: the pane's glass goes on into it (split between two
+    windows), so this window's width is not its pane's."""
+    w = li.mask.shape[1]
+    prof = _column_departure(li, dev)
+    lim = r * float(prof.max())
+    a, b = 0, w - 1
+    while b - a + 1 > keep:
+        k = a if prof[a] <= prof[b] else b
+        if prof[k] >= lim:
+            break
+        a, b = (a + 1, b) if k == a else (a, b - 1)
+    if a == 0 and b == w - 1:
+        return
+    rs = slice(li.y0, li.y0 + li.mask.shape[0])
+    sides = ([li.x0 - 1] if a == 0 and li.x0 > 0 else []) + \
+        ([li.x0 + w] if b == w - 1 and li.x0 + w < dev.shape[1] else [])
+    if any(((o := (ids[rs, c] > 0) & (ids[rs, c] != i + 1)).any() and float(dev[rs, c][o].mean()) >= lim)
+           for c in sides):
+        return
+    m = li.mask[:, a:b + 1]
+    ys = np.flatnonzero(m.any(1))
+    li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+
+
 def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
     """Take off the faint edge columns of a narrow window larger than the panes around it, in place: a
     window of kind ``window`` 2 to ``window_row_pane_max_px`` wide over ``window_narrow_oversized_ratio``
@@ -2132,35 +2177,9 @@ def _oversized_narrow_off(ctx: Context, found: list, dev: np.ndarray, p) -> None
     cand = [i for i, f in enumerate(found) if nb[i] > g and 2 <= f[3].mask.shape[1] <= p.window_row_pane_max_px]
     if not cand:
         return
-    ids = np.zeros(dev.shape, np.int32)  # each window's pixels: its index + 1
-    for i, f in enumerate(found):
-        li = f[3]
-        ids[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = i + 1
-    for i in cand:
-        li = found[i][3]
-        w = li.mask.shape[1]
-        cnt = li.mask.sum(0)
-        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + w]
-        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
-        lim = r * float(prof.max())
-        a, b = 0, w - 1
-        keep = max(int(np.floor(nbw[i])), 1)  # not below the panes around it: a near pane is 2-3 px
-        while b - a + 1 > keep:  # the fainter end first
-            k = a if prof[a] <= prof[b] else b
-            if prof[k] >= lim:
-                break
-            a, b = (a + 1, b) if k == a else (a, b - 1)
-        if a == 0 and b == w - 1:
-            continue
-        rs = slice(li.y0, li.y0 + li.mask.shape[0])
-        sides = ([li.x0 - 1] if a == 0 and li.x0 > 0 else []) + \
-            ([li.x0 + w] if b == w - 1 and li.x0 + w < dev.shape[1] else [])
-        if any(((o := (ids[rs, c] > 0) & (ids[rs, c] != i + 1)).any() and float(dev[rs, c][o].mean()) >= lim)
-               for c in sides):
-            continue
-        m = li.mask[:, a:b + 1]
-        ys = np.flatnonzero(m.any(1))
-        li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+    ids = _window_ids(dev.shape, found)
+    for i in cand:  # not below the panes around it: a near pane is 2-3 px
+        _faint_ends_off(found[i][3], i, ids, dev, r, max(int(np.floor(nbw[i])), 1))
 
 
 def _sill_rows_off(ctx: Context, found: list, dev: np.ndarray, p) -> None:
@@ -2292,9 +2311,7 @@ def _wide_wall_columns_off(ctx: Context, found: list, dev: np.ndarray, p) -> Non
             continue
         if 0 < cap * nbw[i] < w:  # a band or a shop front: not a pane's hull
             continue
-        cnt = li.mask.sum(0)
-        d = dev[li.y0:li.y0 + h, li.x0:li.x0 + w]
-        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
+        prof = _column_departure(li, dev)
         lim = min(t, 0.5 * float(prof.max()))
         a, b = 0, w - 1
         while b - a + 1 > 2:  # the fainter end first
@@ -2683,10 +2700,7 @@ def _unblur_narrow(found: list, dev: np.ndarray, p) -> None:
     bid = np.array([f[0] for f in found])
     lev = np.array([f[1] for f in found], float)
     cy, cx = box[:, 0] + box[:, 2] / 2.0, box[:, 1] + box[:, 3] / 2.0
-    ids = np.zeros(dev.shape, np.int32)  # each window's pixels: its index + 1
-    for i, f in enumerate(found):
-        li = f[3]
-        ids[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + li.mask.shape[1]][li.mask] = i + 1
+    ids = _window_ids(dev.shape, found)
     for i, f in enumerate(found):
         li = f[3]
         w = li.mask.shape[1]
@@ -2701,29 +2715,7 @@ def _unblur_narrow(found: list, dev: np.ndarray, p) -> None:
         mw = float(median(box[j, 3]))
         if w <= mw + 1.0:  # a pane 1.5 px wide shows as 1 or 2 px
             continue
-        cnt = li.mask.sum(0)
-        d = dev[li.y0:li.y0 + li.mask.shape[0], li.x0:li.x0 + w]
-        prof = np.where(cnt > 0, (d * li.mask).sum(0) / np.maximum(cnt, 1), 0.0)
-        lim = r * float(prof.max())
-        a, b = 0, w - 1
-        while b - a + 1 > max(int(np.ceil(mw)), 1):  # the fainter end first, to the mates' width
-            k = a if prof[a] <= prof[b] else b
-            if prof[k] >= lim:
-                break
-            a, b = (a + 1, b) if k == a else (a, b - 1)
-        if a == 0 and b == w - 1:
-            continue
-        # a window beside the columns kept, its column there as strong: the pane's glass goes on into it
-        # (split between two windows), so this window's width is not its pane's -- left as it is
-        rs = slice(li.y0, li.y0 + li.mask.shape[0])
-        sides = ([li.x0 - 1] if a == 0 and li.x0 > 0 else []) + \
-            ([li.x0 + w] if b == w - 1 and li.x0 + w < dev.shape[1] else [])
-        if any(((o := (ids[rs, c] > 0) & (ids[rs, c] != i + 1)).any() and float(dev[rs, c][o].mean()) >= lim)
-               for c in sides):
-            continue
-        m = li.mask[:, a:b + 1]
-        ys = np.flatnonzero(m.any(1))
-        li.y0, li.x0, li.mask = li.y0 + int(ys[0]), li.x0 + a, m[ys[0]:ys[-1] + 1]
+        _faint_ends_off(li, i, ids, dev, r, max(int(np.ceil(mw)), 1))  # to the mates' width
 
 
 def _blur_columns_off(found: list, dev: np.ndarray, ratio: float, dev_own: np.ndarray | None = None,
