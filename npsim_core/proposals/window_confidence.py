@@ -164,6 +164,28 @@ def grid_mates(boxes: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.nda
     return row, col, adj
 
 
+def _side_pairs(feat: np.ndarray, y0: int, x0: int, h: int, w: int, mask: np.ndarray | None, p) -> list:
+    """A window's four sides as (inside, outside) pairs of feature rows: along the mask's own edge
+    (:func:`_mask_edge_pairs`) when ``mask`` fills at least ``window_edge_mask_min_fill`` of its h x w box,
+    else the box's outermost rows and columns and the ones just outside (a side outside the image is left
+    out)."""
+    if mask is not None and mask.shape == (h, w) and mask.any() \
+            and mask.sum() >= p.window_edge_mask_min_fill * h * w:
+        return _mask_edge_pairs(feat, y0, x0, mask)
+    H, W = feat.shape[:2]
+    y1, x1 = y0 + h, x0 + w
+    pairs = []
+    if y0 >= 1:
+        pairs.append((feat[y0, x0:x1], feat[y0 - 1, x0:x1]))
+    if y1 < H:
+        pairs.append((feat[y1 - 1, x0:x1], feat[y1, x0:x1]))
+    if x0 >= 1:
+        pairs.append((feat[y0:y1, x0], feat[y0:y1, x0 - 1]))
+    if x1 < W:
+        pairs.append((feat[y0:y1, x1 - 1], feat[y0:y1, x1]))
+    return pairs
+
+
 def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p, mask: np.ndarray | None = None) -> float:
     """How well the weakest side of a window's box stands out (docs/proposals.md "Eleventh pass: the
     slider"): per side of the box ``y0, x0, h, w`` (px) inside the image, the medians of the proposer's
@@ -176,20 +198,7 @@ def edge_contrast(feat: np.ndarray, y0: int, x0: int, h: int, w: int, p, mask: n
     least ``window_edge_mask_min_fill`` of its box, each side is read along the mask's own edge
     (:func:`_mask_edge_pairs`): a receding pane is a parallelogram, and its box's outer rows are mostly
     wall on both sides of them; a ragged blob's edge is where the thresholds cut it, which says nothing."""
-    H, W = feat.shape[:2]
-    y1, x1 = y0 + h, x0 + w
-    pairs = []
-    if y0 >= 1:
-        pairs.append((feat[y0, x0:x1], feat[y0 - 1, x0:x1]))
-    if y1 < H:
-        pairs.append((feat[y1 - 1, x0:x1], feat[y1, x0:x1]))
-    if x0 >= 1:
-        pairs.append((feat[y0:y1, x0], feat[y0:y1, x0 - 1]))
-    if x1 < W:
-        pairs.append((feat[y0:y1, x1 - 1], feat[y0:y1, x1]))
-    if mask is not None and mask.shape == (h, w) and mask.any() \
-            and mask.sum() >= p.window_edge_mask_min_fill * h * w:
-        pairs = _mask_edge_pairs(feat, y0, x0, mask)
+    pairs = _side_pairs(feat, y0, x0, h, w, mask, p)
     t = -np.log(p.window_dark_ratio)
     out = []
     for a, b in pairs:
@@ -205,25 +214,9 @@ def edge_contrasts(feat: np.ndarray, lights: list, p) -> list[float]:
     """:func:`edge_contrast` of each window (a Light: its box and mask), the same floats: every side's two
     medians of all the windows by one sort per feature (per window they took a dozen small sorts). A
     feature image holding a NaN is left to :func:`edge_contrast` per window."""
-    H, W = feat.shape[:2]
     ins, outs, owner = [], [], []
     for k, li in enumerate(lights):
-        mask = li.mask
-        h, w = mask.shape
-        y0, x0 = li.y0, li.x0
-        y1, x1 = y0 + h, x0 + w
-        if mask.any() and mask.sum() >= p.window_edge_mask_min_fill * h * w:
-            pairs = _mask_edge_pairs(feat, y0, x0, mask)
-        else:
-            pairs = []
-            if y0 >= 1:
-                pairs.append((feat[y0, x0:x1], feat[y0 - 1, x0:x1]))
-            if y1 < H:
-                pairs.append((feat[y1 - 1, x0:x1], feat[y1, x0:x1]))
-            if x0 >= 1:
-                pairs.append((feat[y0:y1, x0], feat[y0:y1, x0 - 1]))
-            if x1 < W:
-                pairs.append((feat[y0:y1, x1 - 1], feat[y0:y1, x1]))
+        pairs = _side_pairs(feat, li.y0, li.x0, *li.mask.shape, li.mask, p)
         for a, b in pairs:
             if a.size and b.size:
                 ins.append(a)
