@@ -1728,6 +1728,20 @@ def _found_at(wall, level, y0, x0, h, w):
     return [wall, level, 0.5, Light(1, y0, x0, np.ones((h, w), bool), 0.5, kind="window")]
 
 
+def _panes_around(h, w, z, xs, mate_h, mate_w, value, params):
+    """A wall h x w px at depth z (m) with a pane mate_h x mate_w px at each x of ``xs``, 5 px down: its
+    Context, a departure map holding ``value`` on the panes (0 elsewhere), and their ``found`` rows (walls
+    1, 2, ...), for the gated trims' neighbours (``_neighbour_ratios``)."""
+    from npsim_core.proposals.core import Context
+    ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
+                  np.full((h, w), z, np.float32), K, None, params)
+    found = [_found_at(k + 1, 1.0, 5, x, mate_h, mate_w) for k, x in enumerate(xs)]
+    dev = np.zeros((h, w))
+    for f in found:
+        dev[5:5 + mate_h, f[3].x0:f[3].x0 + mate_w] = value
+    return ctx, dev, found
+
+
 def test_a_narrow_window_wider_than_its_mates_loses_its_faint_columns_unless_a_window_beside_is_as_strong():
     """``_unblur_narrow``: a 3-px window among 1-px floor-mates, its columns at 1.0 / 0.5 / 0.4 of the
     window thresholds (a far 1-px pane and its blur), is trimmed to its strongest column; not where a
@@ -1880,17 +1894,11 @@ def test_a_narrow_window_larger_than_the_panes_around_it_loses_its_faint_columns
     not larger than its neighbours, nor with ``window_narrow_oversized_ratio`` 0."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _oversized_narrow_off
 
     def run(mate_w, mate_h=6, params=PARAMS):
         h, w = 30, 60
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 100.0, np.float32), K, None, params)
-        dev = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, mate_h, mate_w) for k, x in enumerate((2, 8, 14, 36, 42, 48))]
-        for f in found:
-            dev[5:5 + mate_h, f[3].x0:f[3].x0 + mate_w] = 1.0
+        ctx, dev, found = _panes_around(h, w, 100.0, (2, 8, 14, 36, 42, 48), mate_h, mate_w, 1.0, params)
         found.append(_found_at(9, 1.0, 5, 24, 6, 3))
         dev[5:11, 24:27] = (1.0, 0.4, 0.3)
         _oversized_narrow_off(ctx, found, dev, params)
@@ -1911,19 +1919,13 @@ def test_a_patch_of_shaded_wall_among_far_panes_gives_its_lit_pane_or_goes():
     it stays as it is."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _shaded_patches
 
     t = -np.log(PARAMS.window_dark_ratio)
 
     def run(dark, lit=True, params=PARAMS):
         h, w = 40, 60
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 100.0, np.float32), K, None, params)
-        ratio = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, 6, 1) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
-        for f in found:
-            ratio[5:11, f[3].x0] = -4 * t
+        ctx, ratio, found = _panes_around(h, w, 100.0, (2, 6, 10, 40, 46, 52), 6, 1, -4 * t, params)
         found.append(_found_at(9, 1.0, 5, 24, 12, 6))
         ratio[5:17, 24:30] = dark * t
         if lit:
@@ -1945,17 +1947,11 @@ def test_two_far_panes_a_column_apart_merged_into_one_window_are_split():
     ``window_split_oversized_ratio`` 0, it stays one window."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _split_two_panes
 
     def run(dip=1.2, mate_h=6, h_win=14, params=PARAMS, mate_w=1):
         h, w = 40, 60
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 100.0, np.float32), K, None, params)
-        dev = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, mate_h, mate_w) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
-        for f in found:
-            dev[5:5 + mate_h, f[3].x0:f[3].x0 + mate_w] = 5.0
+        ctx, dev, found = _panes_around(h, w, 100.0, (2, 6, 10, 40, 46, 52), mate_h, mate_w, 5.0, params)
         found.append(_found_at(9, 1.0, 5, 24, h_win, 5))
         dev[5:5 + h_win, 24:29] = (5.5, dip, 5.0, 5.0, 1.0)
         out = _split_two_panes(ctx, found, dev, params)
@@ -1977,19 +1973,13 @@ def test_the_rest_of_a_dropped_shaded_patchs_shadow_goes_with_it():
     a lit pixel, and with ``window_shaded_patch_overlap`` 0 all of them stay."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _shaded_patches
 
     t = -np.log(PARAMS.window_dark_ratio)
 
     def run(params=PARAMS):
         h, w = 40, 60
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 100.0, np.float32), K, None, params)
-        ratio = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, 6, 1) for k, x in enumerate((2, 6, 10, 40, 46, 52))]
-        for f in found:
-            ratio[5:11, f[3].x0] = -4 * t
+        ctx, ratio, found = _panes_around(h, w, 100.0, (2, 6, 10, 40, 46, 52), 6, 1, -4 * t, params)
         found.append(_found_at(9, 1.0, 5, 24, 9, 6))    # the patch: rows 5-13
         found.append(_found_at(10, 1.0, 10, 24, 5, 6))  # over its lower rows: rows 10-14
         found.append(_found_at(11, 1.0, 15, 25, 5, 2))  # under that one: rows 15-19
@@ -2016,17 +2006,11 @@ def test_a_window_wider_than_the_panes_around_it_loses_its_edge_columns_that_rea
     office band), and any with ``window_wall_columns_width_ratio`` 0."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _wide_wall_columns_off
 
     def run(prof, mate_w=4, params=PARAMS):
         h, w = 60, 80
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 30.0, np.float32), K, None, params)
-        dev = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, 36, mate_w) for k, x in enumerate((2, 10, 18, 50, 58, 66))]
-        for f in found:
-            dev[5:41, f[3].x0:f[3].x0 + mate_w] = 3.0
+        ctx, dev, found = _panes_around(h, w, 30.0, (2, 10, 18, 50, 58, 66), 36, mate_w, 3.0, params)
         found.append(_found_at(9, 1.0, 5, 30, 36, len(prof)))
         dev[5:41, 30:30 + len(prof)] = prof
         _wide_wall_columns_off(ctx, found, dev, params)
@@ -2053,17 +2037,11 @@ def test_a_window_taller_than_the_panes_around_it_loses_the_sill_rows_that_run_o
     (``window_sill_rows_max_ratio``), nor with ``window_sill_rows_ratio`` 0."""
     import dataclasses
 
-    from npsim_core.proposals.core import Context
     from npsim_core.proposals.windows import _sill_rows_off
 
     def run(mate_h=33, sill="both", params=PARAMS):
         h, w = 60, 80
-        ctx = Context(np.zeros((h, w, 3), np.uint8), np.full((h, w), 11, np.uint8),
-                      np.full((h, w), 30.0, np.float32), K, None, params)
-        dev = np.zeros((h, w))
-        found = [_found_at(k + 1, 1.0, 5, x, mate_h, 5) for k, x in enumerate((2, 10, 18, 50, 58, 66))]
-        for f in found:
-            dev[5:5 + mate_h, f[3].x0:f[3].x0 + 5] = 3.0
+        ctx, dev, found = _panes_around(h, w, 30.0, (2, 10, 18, 50, 58, 66), mate_h, 5, 3.0, params)
         found.append(_found_at(9, 1.0, 5, 30, 39, 5))
         dev[5:44, 30:35] = 3.0
         cols = {"both": slice(0, w), "in": slice(30, 35), "left": slice(0, 35)}[sill]
